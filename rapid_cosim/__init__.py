@@ -1,0 +1,9 @@
+"""rapid-cosim: calibrate Modelica models of power-plant governors against staged tests.
+
+The package follows the way data flows, each module knowing only those before it::
+
+    modelica/iGrGen -> build -> simulator -> data/experiment -> fitness -> evaluate
+                    -> estimators -> archive -> diagnose -> report -> cli
+"""
+
+__version__ = "0.1.0"

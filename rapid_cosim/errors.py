@@ -1,0 +1,69 @@
+"""Typed errors, so that callers (the CLI, the parallel evaluator) can tell a user's
+mistake from a failed simulation without parsing messages."""
+
+from __future__ import annotations
+
+
+class RapidCosimError(Exception):
+    """Base of every error the toolkit raises on purpose."""
+
+
+class ModelicaError(RapidCosimError):
+    """A problem in Modelica source, located by file and line where it is known."""
+
+    def __init__(self, message: str, file: str | None = None, line: int | None = None):
+        self.file, self.line, self.detail = file, line, message
+        where = f"{file}:{line}: " if file and line else (f"{file}: " if file else "")
+        super().__init__(where + message)
+
+
+class ModelicaSyntaxError(ModelicaError):
+    """The parser rejected the source."""
+
+
+class UnsupportedConstruct(ModelicaError):
+    """Valid Modelica that the embedded compiler cannot translate."""
+
+
+class BuildError(RapidCosimError):
+    """A backend failed to produce an FMU (compiler output is in the message)."""
+
+
+class ParameterError(RapidCosimError):
+    """An unknown parameter name, or a value outside its declared range."""
+
+
+class SimulationError(RapidCosimError):
+    """The solver failed for one parameter set; the caller decides what it costs."""
+
+
+class SimulationTimeout(SimulationError):
+    """A simulation exceeded its wall-time budget."""
+
+
+class ConfigError(RapidCosimError):
+    """A bad experiment configuration, located by file and key."""
+
+    def __init__(self, message: str, file: str | None = None, key: str | None = None):
+        self.file, self.key, self.detail = file, key, message
+        where = f"{file}" if file else ""
+        if key:
+            where += f" [{key}]"
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+class DataError(RapidCosimError):
+    """Bad measurement data, located by file and (1-based, header = row 1) row."""
+
+    def __init__(self, message: str, file: str | None = None, row: int | None = None):
+        self.file, self.row, self.detail = file, row, message
+        where = f"{file}" + (f", row {row}" if row is not None else "") if file else ""
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+class ArchiveError(RapidCosimError):
+    """An archive that is unreadable, inconsistent with a replay, or held by another run."""
+
+
+class ArchiveLocked(ArchiveError):
+    """Another live process holds the archive for writing."""
