@@ -1,0 +1,4 @@
+within iGrGen.Interfaces;
+connector RealOutput "Real output signal"
+  output Real signal;
+end RealOutput;

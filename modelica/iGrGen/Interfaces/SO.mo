@@ -1,0 +1,4 @@
+within iGrGen.Interfaces;
+partial block SO "Single output"
+  RealOutput y;
+end SO;

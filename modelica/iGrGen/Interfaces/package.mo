@@ -1,0 +1,3 @@
+within iGrGen;
+package Interfaces "Signal connectors and partial blocks"
+end Interfaces;

@@ -1,0 +1,3 @@
+within iGrGen;
+package Sources "Signals injected in staged tests"
+end Sources;
