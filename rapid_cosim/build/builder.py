@@ -1,0 +1,197 @@
+"""Which FMUs to build, with which backend, and whether they need building at all.
+
+Each FMU gets a manifest beside it (``<model>.manifest.json``): the hash of the Modelica
+sources, the backend and an identity of its tool chain. An FMU is rebuilt only when one
+of those changes, so ``make fmus`` is cheap to call before every experiment.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.metadata
+import json
+import os
+import subprocess
+import time
+from dataclasses import asdict, dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+from .. import __version__
+from ..errors import BuildError
+from .modelica_source import PackageSource, class_index, load_package
+from .openmodelica import find_omc
+
+BACKENDS = ("auto", "openmodelica", "embedded")
+DEFAULT_PACKAGE = Path(os.environ.get("RAPID_COSIM_PACKAGE", "modelica/iGrGen"))
+DEFAULT_FMU_DIR = Path(os.environ.get("RAPID_COSIM_FMUS", "fmus"))
+
+
+@dataclass(frozen=True)
+class Manifest:
+    model: str
+    fmu: str
+    backend: str
+    backend_id: str
+    source_hash: str
+    fmu_sha256: str
+    fmi_version: str
+    fmi_type: str
+    tools: dict
+    built: str
+    build_seconds: float
+
+
+@dataclass(frozen=True)
+class BuildOutcome:
+    model: str
+    fmu: Path
+    rebuilt: bool
+    manifest: Manifest
+
+
+def resolve_backend(backend: str) -> str:
+    if backend not in BACKENDS:
+        raise BuildError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+    if backend == "auto":
+        return "openmodelica" if find_omc() else "embedded"
+    return backend
+
+
+def fmu_path(model: str, fmu_dir: str | Path = DEFAULT_FMU_DIR) -> Path:
+    return Path(fmu_dir) / f"{model}.fmu"
+
+
+def manifest_path(fmu: Path) -> Path:
+    return fmu.with_name(fmu.name[: -len(".fmu")] + ".manifest.json")
+
+
+def test_benches(source: PackageSource) -> list[str]:
+    """The models of ``<package>.TestBenches``: what ``make fmus`` builds by default."""
+    prefix = f"{source.name}.TestBenches."
+    return [n for n, e in class_index(source).items() if e.kind == "model" and n.startswith(prefix)]
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _version(dist: str) -> str:
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return "absent"
+
+
+def _compiler_version() -> str:
+    cc = os.environ.get("CC", "cc")
+    try:
+        out = subprocess.run([cc, "--version"], capture_output=True, text=True).stdout
+        return out.splitlines()[0] if out else cc
+    except FileNotFoundError:
+        return f"{cc} (not found)"
+
+
+def _embedded_identity() -> tuple[str, dict]:
+    """The embedded compiler's own sources are part of its identity: editing the
+    translator must rebuild the FMUs it made."""
+    here = Path(__file__).parent
+    h = hashlib.sha256()
+    for f in sorted([here / "modelica_source.py", *(here / "embedded").glob("*.py"), *(here / "embedded").glob("*.c")]):
+        h.update(f.read_bytes())
+    tools = {"rapid-cosim": __version__, "pymoca": _version("pymoca"), "casadi": _version("casadi"),
+             "fmpy": _version("fmpy"), "compiler": _compiler_version()}
+    h.update(json.dumps(tools, sort_keys=True).encode())
+    return h.hexdigest(), tools
+
+
+def _openmodelica_identity() -> tuple[str, dict]:
+    omc = find_omc() or "omc"
+    try:
+        version = subprocess.run([omc, "--version"], capture_output=True, text=True).stdout.strip()
+    except FileNotFoundError:
+        version = "absent"
+    tools = {"rapid-cosim": __version__, "omc": version, "OMPython": _version("OMPython")}
+    return hashlib.sha256(json.dumps(tools, sort_keys=True).encode()).hexdigest(), tools
+
+
+def read_manifest(fmu: Path) -> Manifest | None:
+    path = manifest_path(fmu)
+    if not path.exists():
+        return None
+    try:
+        return Manifest(**json.loads(path.read_text()))
+    except (TypeError, ValueError):
+        return None
+
+
+def build_models(models: list[str] | None = None, *, package: str | Path = DEFAULT_PACKAGE,
+                 fmu_dir: str | Path = DEFAULT_FMU_DIR, backend: str = "auto", force: bool = False,
+                 log=print) -> list[BuildOutcome]:
+    """Build (or confirm up to date) the FMUs of ``models``; default: every test bench."""
+    source = load_package(package)
+    chosen = resolve_backend(backend)
+    models = models or test_benches(source)
+    known = class_index(source)
+    unknown = [m for m in models if m not in known]
+    if unknown:
+        raise BuildError(f"unknown model(s) {', '.join(unknown)}; test benches: {', '.join(test_benches(source))}")
+    source_hash = source.sha256()
+    backend_id, tools = _embedded_identity() if chosen == "embedded" else _openmodelica_identity()
+    outcomes, omc_builder, tree = [], None, None
+    try:
+        for model in models:
+            fmu = fmu_path(model, fmu_dir)
+            old = read_manifest(fmu)
+            if not force and _fresh(old, fmu, source_hash, chosen, backend_id):
+                outcomes.append(BuildOutcome(model, fmu, False, old))
+                log(f"  {model}: up to date ({chosen})")
+                continue
+            t0 = time.perf_counter()
+            if chosen == "embedded":
+                from .embedded.fmu_writer import write_fmu
+                from .embedded.frontend import parse, translate
+
+                tree = tree if tree is not None else parse(source)
+                generation_tool = f"rapid-cosim {__version__} embedded (pymoca {tools['pymoca']}, casadi {tools['casadi']})"
+                write_fmu(translate(source, model, tree), fmu, generation_tool=generation_tool, source_hash=source_hash)
+            else:
+                from .openmodelica import OpenModelicaBuilder
+
+                omc_builder = omc_builder or OpenModelicaBuilder(Path(package) / "package.mo")
+                omc_builder.build(model, fmu)
+            seconds = time.perf_counter() - t0
+            manifest = Manifest(
+                model=model, fmu=fmu.name, backend=chosen, backend_id=backend_id, source_hash=source_hash,
+                fmu_sha256=_sha256(fmu), fmi_version="2.0", fmi_type="ModelExchange", tools=tools,
+                built=datetime.now(timezone.utc).isoformat(timespec="seconds"), build_seconds=round(seconds, 3))
+            manifest_path(fmu).write_text(json.dumps(asdict(manifest), indent=2) + "\n")
+            outcomes.append(BuildOutcome(model, fmu, True, manifest))
+            log(f"  {model}: built ({chosen}, {seconds:.2f} s)")
+    finally:
+        if omc_builder is not None:
+            omc_builder.close()
+    return outcomes
+
+
+def _fresh(old: Manifest | None, fmu: Path, source_hash: str, backend: str, backend_id: str) -> bool:
+    if old is None or not fmu.exists():
+        return False
+    same = (old.source_hash, old.backend, old.backend_id) == (source_hash, backend, backend_id)
+    return same and old.fmu_sha256 == _sha256(fmu)
+
+
+def ensure_fmu(model: str, *, package: str | Path = DEFAULT_PACKAGE, fmu_dir: str | Path = DEFAULT_FMU_DIR,
+               backend: str = "auto") -> Path:
+    """Path of an up-to-date FMU for ``model`` (a class name or a path to an .fmu)."""
+    if model.endswith(".fmu"):
+        path = Path(model)
+        if not path.exists():
+            raise BuildError(f"FMU {path} does not exist")
+        return path
+    if not Path(package).exists():
+        fmu = fmu_path(model, fmu_dir)
+        if fmu.exists():
+            return fmu
+        raise BuildError(f"no FMU {fmu} and no Modelica package at {package} to build it from")
+    return build_models([model], package=package, fmu_dir=fmu_dir, backend=backend, log=lambda *_: None)[0].fmu

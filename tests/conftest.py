@@ -1,0 +1,26 @@
+"""Shared fixtures: the repository's paths and its test-bench FMUs (built once, then
+only when the Modelica sources change)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).parent))  # the reference models are a test helper
+
+
+@pytest.fixture(scope="session")
+def repo() -> Path:
+    return REPO
+
+
+@pytest.fixture(scope="session")
+def fmus(repo) -> dict[str, Path]:
+    """Short bench name -> FMU path, e.g. fmus['StagedTest']."""
+    from rapid_cosim.build import build_models
+
+    outcomes = build_models(package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus", log=lambda *_: None)
+    return {o.model.rsplit(".", 1)[-1]: o.fmu for o in outcomes}
