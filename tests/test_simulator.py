@@ -1,0 +1,78 @@
+"""The simulator: parameter checks, instance reuse, typed failures."""
+
+import numpy as np
+import pytest
+
+from rapid_cosim.build import build_models
+from rapid_cosim.errors import ParameterError, SimulationError, SimulationTimeout
+from rapid_cosim.simulator import Simulator, get_simulator
+
+BLOWUP = """package Bad
+  model Blowup "x' = a x^2 reaches infinity at t = 1/a"
+    parameter Real a = 1;
+    Real x(start = 1, fixed = true);
+  equation
+    der(x) = a * x ^ 2;
+  end Blowup;
+end Bad;
+"""
+
+
+@pytest.fixture(scope="module")
+def staged(fmus):
+    return Simulator(fmus["StagedTest"])
+
+
+def test_unknown_parameter_name_suggests_close_ones(staged):
+    with pytest.raises(ParameterError, match=r"no parameter 'gov\.Rr'.*gov\.R"):
+        staged.simulate({"gov.Rr": 0.05}, stop_time=1, output_interval=0.1)
+
+
+def test_value_outside_declared_range_names_the_range(staged):
+    with pytest.raises(ParameterError, match=r"gov\.Ts = 200 is outside its declared range \[0\.001, 100\]"):
+        staged.simulate({"gov.Ts": 200.0}, stop_time=1, output_interval=0.1)
+
+
+def test_calculated_parameter_cannot_be_set(fmus):
+    sim = Simulator(fmus["StagedTestDeadband"])
+    with pytest.raises(ParameterError, match="calculated"):
+        sim.simulate({"db.d": 0.001}, stop_time=1, output_interval=0.1)
+
+
+def test_reuse_gives_identical_runs_and_p_ref_reinitialises(staged):
+    a = staged.simulate({"gov.p_ref": 0.7, "gov.Ts": 2.0}, stop_time=30, output_interval=0.05)
+    staged.simulate({"gov.p_ref": 0.3, "gov.Ts": 9.0}, stop_time=30, output_interval=0.05)
+    b = staged.simulate({"gov.p_ref": 0.7, "gov.Ts": 2.0}, stop_time=30, output_interval=0.05)
+    assert np.array_equal(a["pm"], b["pm"])
+    assert a["pm"][0] == pytest.approx(0.7, abs=1e-12)  # steady start follows p_ref set at run time
+
+
+def test_trajectory_covers_a_stop_time_off_the_grid(staged):
+    traj = staged.simulate({}, stop_time=10.03, output_interval=0.05)
+    assert traj.time[-1] >= 10.03 and np.allclose(np.diff(traj.time), 0.05)
+
+
+@pytest.fixture(scope="module")
+def blowup(tmp_path_factory):
+    root = tmp_path_factory.mktemp("bad")
+    (root / "Bad.mo").write_text(BLOWUP)
+    out = build_models(["Bad.Blowup"], package=root / "Bad.mo", fmu_dir=root / "fmus", backend="embedded",
+                       log=lambda *_: None)
+    return Simulator(out[0].fmu)
+
+
+def test_solver_failure_is_a_typed_error_and_the_simulator_recovers(blowup):
+    with pytest.raises(SimulationError, match="Blowup failed"):
+        blowup.simulate({"a": 1.0}, stop_time=2.0, output_interval=0.1, outputs=["x"])
+    ok = blowup.simulate({"a": 0.1}, stop_time=2.0, output_interval=0.1, outputs=["x"])
+    assert ok["x"][-1] == pytest.approx(1 / (1 - 0.1 * 2.0), rel=1e-4)
+
+
+def test_timeout_is_a_typed_error(fmus):
+    sim = Simulator(fmus["StagedTest"], timeout=1e-9)
+    with pytest.raises(SimulationTimeout, match="time-out"):
+        sim.simulate({}, stop_time=60, output_interval=0.05)
+
+
+def test_process_cache_returns_one_simulator_per_fmu(fmus):
+    assert get_simulator(fmus["StagedTest"]) is get_simulator(fmus["StagedTest"])
