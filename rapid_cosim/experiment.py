@@ -1,0 +1,641 @@
+"""Config file -> problem: what is estimated, within which bounds, against which data.
+
+One TOML file per experiment, ``experiments/<name>/config.toml``; relative data paths are
+taken from the config file's folder. :func:`load_experiment` reads one file into an
+:class:`Experiment` (with its measurements loaded); :func:`build_problem` joins one or
+more experiments into a :class:`Problem` whose search space the estimators explore.
+
+Schema (keys not shown here are rejected, with a suggestion when one is close)::
+
+    [experiment]
+    name = "test1"                          # default: the config file's folder name
+    model = "iGrGen.TestBenches.StagedTest" # required: the test bench (an FMU in fmus/)
+    description = "MCR 60 %, df = -200 mHz" # optional
+
+    [data]
+    file = "test1.csv"                      # required; .csv, .mat, or .h5 (run.h5:/group)
+    time = "time"                           # time column, default "time"
+    outputs = { pm = "pm" }                 # required: model output -> data column
+
+    [fixed]                                 # FMU parameter values held fixed (numbers)
+    "gov.p_ref" = 0.6
+    "src.df" = -0.2
+    "src.t_step" = 10.0
+
+    [estimate]                              # parameters to estimate, with bounds
+    "gov.R"  = { min = 0.02, max = 0.12, label = "R" }
+    "gov.Ts" = { min = 0.1, max = 20.0, label = "Ts", scale = "linear", start = 5.0 }
+    "meas.offset" = { min = -0.01, max = 0.01, per_experiment = true }
+
+    [fitness]
+    window = [0.0, 90.0]     # seconds; default the whole record. It may overhang the
+                             # record by at most one sample interval.
+    weights = { pm = 1.0 }   # per output, >= 0; default 1.0 each
+    offset = true            # profile out a constant measurement offset per output
+                             # (default false)
+    noise = "pre-step"       # noise sigma (pu) for a Gaussian likelihood: "pre-step"
+                             # (estimated from the samples before pre_step_end), a number
+                             # for every output, or a table { pm = 0.0013 }. Default: none.
+    pre_step_end = 10.0      # end of the quiet pre-step window; required with "pre-step"
+
+    [simulation]
+    start_time = 0.0         # default 0.0; must not be after the first sample used
+    stop_time = 90.0         # default: the last measured time inside the window
+    output_interval = 0.02   # fine grid, then sampled onto the measured times;
+                             # default: half the median measured sample interval
+    timeout = 10.0           # wall-clock seconds per simulation, default 30
+
+Estimate entries: ``min`` and ``max`` (required numbers, ``min < max``), ``label``
+(default: the name), ``scale`` (only ``"linear"``: the search space is linear),
+``start`` (an initial guess inside the bounds; default the midpoint) and
+``per_experiment`` (default false). Parameter names are FMU variable names; quote dotted
+names (``"gov.R"``). Unquoted dotted keys (``gov.R = ...``) are read as the same name.
+
+The measured time is taken to be the model's time: the step at ``t_step`` in the data
+is at ``t_step`` in the simulation.
+
+Joint fits: a parameter estimated in several experiments is one search dimension and
+must be declared identically everywhere (same bounds, label, scale, start); a
+``per_experiment`` parameter becomes one dimension per experiment, named
+``"<param>@<experiment>"``.
+
+Every mistake is a :class:`ConfigError` naming the file and the key (``estimate."gov.R".min``);
+unreadable measurements stay :class:`DataError` naming the data file and row.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from rapid_cosim.data import (MeasuredData, MissingColumn, close_matches, describe_missing,
+                              load_measurements, noise_level, split_hdf5_path)
+from rapid_cosim.errors import ConfigError, DataError
+from rapid_cosim.estimators.base import SearchSpace
+
+CONFIG_NAME = "config.toml"
+DEFAULT_TIMEOUT = 30.0
+SCALES = ("linear",)
+NOISE_PRE_STEP = "pre-step"
+
+_SECTIONS: dict[str, frozenset[str] | None] = {
+    "experiment": frozenset({"name", "model", "description"}),
+    "data": frozenset({"file", "time", "outputs"}),
+    "fixed": None,  # parameter names
+    "estimate": None,
+    "fitness": frozenset({"window", "weights", "offset", "noise", "pre_step_end"}),
+    "simulation": frozenset({"start_time", "stop_time", "output_interval", "timeout"}),
+}
+_REQUIRED_SECTIONS = ("experiment", "data")
+_SPEC_KEYS = frozenset({"min", "max", "label", "scale", "start", "per_experiment"})
+_NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
+_BARE_KEY_RE = re.compile(r"^[A-Za-z0-9_\-]+$")
+
+
+@dataclass(frozen=True)
+class ParameterInfo:
+    """A parameter as the FMU's model description declares it (None: not declared)."""
+
+    name: str
+    min: float | None = None
+    max: float | None = None
+    start: float | None = None
+
+
+@dataclass(frozen=True)
+class EstimateSpec:
+    """One ``[estimate]`` entry."""
+
+    name: str
+    min: float
+    max: float
+    label: str
+    per_experiment: bool = False
+    scale: str = "linear"
+    start: float | None = None
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    start_time: float
+    stop_time: float
+    output_interval: float
+    timeout: float
+
+
+@dataclass(frozen=True, eq=False)
+class Experiment:
+    """One staged test: its config (verbatim and parsed) and its measurements.
+
+    ``noise`` is the noise setting as configured (None, ``"pre-step"``, a number or a
+    table); ``noise_sigma`` is its value per output, resolved at load time (None when no
+    noise is configured).
+    """
+
+    name: str
+    config_path: Path
+    config_text: str
+    model: str
+    description: str
+    data: MeasuredData
+    outputs: dict[str, str]
+    fixed: dict[str, float]
+    estimate: tuple[EstimateSpec, ...]
+    weights: dict[str, float]
+    window: tuple[float, float]
+    offset: bool
+    noise: str | float | dict[str, float] | None
+    noise_sigma: dict[str, float] | None
+    pre_step_end: float | None
+    simulation: SimulationSettings
+
+    def windowed_data(self) -> MeasuredData:
+        """The measurements inside the fitness window."""
+        return self.data.window(*self.window)
+
+
+# --------------------------------------------------------------------------- loading
+
+def load_experiment(path: str | Path) -> Experiment:
+    """Read ``config.toml`` (or a folder holding one) and the data it names."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / CONFIG_NAME
+    file = str(path)
+    if not path.is_file():
+        raise ConfigError(f"config file not found: {path.resolve()}", file)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"not UTF-8 text: {e}", file) from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(_toml_message(e, text), file) from None
+    cfg = _Reader(file)
+
+    cfg.check_keys(raw, frozenset(_SECTIONS), "")
+    for section in _REQUIRED_SECTIONS:
+        if section not in raw:
+            raise ConfigError(f"missing section [{section}]", file, section)
+    sections = {s: cfg.table(raw.get(s, {}), s) for s in _SECTIONS}
+    for s, known in _SECTIONS.items():
+        if known is not None:
+            cfg.check_keys(sections[s], known, s)
+
+    exp = sections["experiment"]
+    name = cfg.string(exp, "experiment", "name", default=path.resolve().parent.name)
+    if not _NAME_RE.match(name):
+        raise ConfigError(f"name {name!r} must be letters, digits, '_', '-' or '.' "
+                          f"(it names search dimensions <param>@<name> and archive groups)",
+                          file, "experiment.name")
+    model = cfg.string(exp, "experiment", "model")
+    description = cfg.string(exp, "experiment", "description", default="", allow_empty=True)
+
+    d = sections["data"]
+    data_file = cfg.string(d, "data", "file")
+    time_column = cfg.string(d, "data", "time", default="time")
+    outputs = cfg.table(cfg.require(d, "data", "outputs"), "data.outputs")
+    if not outputs:
+        raise ConfigError("needs at least one model output -> data column", file, "data.outputs")
+    outputs = {out: cfg.string(outputs, "data.outputs", out) for out in outputs}
+
+    fixed = _read_fixed(sections["fixed"], cfg)
+    estimate = _read_estimate(sections["estimate"], cfg)
+    both = sorted(set(fixed) & {s.name for s in estimate})
+    if both:
+        raise ConfigError(f"{', '.join(both)} is both fixed and estimated; keep one",
+                          file, config_key("estimate", both[0]))
+
+    data = _load_data(path, data_file, time_column, outputs, file)
+
+    f = sections["fitness"]
+    window = _read_window(f, data, cfg)
+    weights = _read_weights(f, outputs, cfg)
+    try:
+        inside = data.window(*window)
+    except DataError as e:
+        raise ConfigError(e.detail, file, "fitness.window") from None
+    for out, col in outputs.items():
+        if weights[out] > 0 and inside.n_valid(col) == 0:
+            raise ConfigError(f"no valid samples of column '{col}' (output {out}) in the "
+                              f"window {list(window)} s", file, "fitness.window")
+    offset = cfg.boolean(f, "fitness", "offset", default=False)
+    pre_step_end = None
+    if "pre_step_end" in f:
+        pre_step_end = cfg.number(f["pre_step_end"], "fitness.pre_step_end")
+        if not data.time[0] < pre_step_end <= data.time[-1]:
+            raise ConfigError(f"{pre_step_end:g} s is outside the record, which spans "
+                              f"{data.time[0]:g} s to {data.time[-1]:g} s",
+                              file, "fitness.pre_step_end")
+    noise, noise_sigma = _read_noise(f, outputs, data, pre_step_end, cfg)
+    simulation = _read_simulation(sections["simulation"], inside, cfg)
+
+    return Experiment(
+        name=name, config_path=path, config_text=text, model=model, description=description,
+        data=data, outputs=outputs, fixed=fixed, estimate=estimate, weights=weights,
+        window=window, offset=offset, noise=noise, noise_sigma=noise_sigma,
+        pre_step_end=pre_step_end, simulation=simulation,
+    )
+
+
+def _load_data(config: Path, data_file: str, time_column: str, outputs: dict[str, str],
+               file: str) -> MeasuredData:
+    fpath, group = split_hdf5_path(data_file)
+    if not fpath.is_absolute():
+        fpath = config.parent / fpath
+    if not fpath.is_file():
+        raise ConfigError(f"data file not found: {fpath.resolve()}", file, "data.file")
+    target = str(fpath) + (f":{group}" if group != "/" else "")
+    try:
+        data = load_measurements(target, time_column=time_column)
+    except MissingColumn as e:  # only the time column can be missing here
+        raise ConfigError(f"{target}: {e.detail}", file, "data.time") from None
+    for out, col in outputs.items():
+        if col not in data.columns:
+            raise ConfigError(f"{target}: {describe_missing(col, list(data.names))}",
+                              file, config_key("data.outputs", out))
+    return data
+
+
+def _read_fixed(table: dict, cfg: "_Reader") -> dict[str, float]:
+    fixed: dict[str, float] = {}
+    for name, value in _flatten(table, lambda v: not isinstance(v, dict)):
+        key = config_key("fixed", name)
+        cfg.parameter_name(name, key)
+        if name in fixed:
+            raise ConfigError(f"'{name}' is given twice (quoted and as dotted keys)", cfg.file, key)
+        fixed[name] = cfg.number(value, key)
+    return fixed
+
+
+def _read_estimate(table: dict, cfg: "_Reader") -> tuple[EstimateSpec, ...]:
+    def is_spec(v):
+        return (not isinstance(v, dict) or not v or bool(_SPEC_KEYS & v.keys())
+                or any(not isinstance(x, dict) for x in v.values()))
+
+    specs: dict[str, EstimateSpec] = {}
+    for name, value in _flatten(table, is_spec):
+        key = config_key("estimate", name)
+        cfg.parameter_name(name, key)
+        if name in specs:
+            raise ConfigError(f"'{name}' is given twice (quoted and as dotted keys)", cfg.file, key)
+        if not isinstance(value, dict):
+            raise ConfigError(f"expected a table such as {{ min = 0.02, max = 0.12 }}, "
+                              f"got {value!r}", cfg.file, key)
+        cfg.check_keys(value, _SPEC_KEYS, key)
+        lo = cfg.number(cfg.require(value, key, "min"), f"{key}.min")
+        hi = cfg.number(cfg.require(value, key, "max"), f"{key}.max")
+        if not lo < hi:
+            raise ConfigError(f"min ({lo:g}) must be less than max ({hi:g})", cfg.file, key)
+        scale = cfg.string(value, key, "scale", default="linear")
+        if scale not in SCALES:
+            raise ConfigError(f"scale {scale!r} is not supported; the search space is linear "
+                              f"(use \"linear\")", cfg.file, f"{key}.scale")
+        start = None
+        if "start" in value:
+            start = cfg.number(value["start"], f"{key}.start")
+            if not lo <= start <= hi:
+                raise ConfigError(f"start {start:g} is outside [{lo:g}, {hi:g}]",
+                                  cfg.file, f"{key}.start")
+        specs[name] = EstimateSpec(
+            name=name, min=lo, max=hi, label=cfg.string(value, key, "label", default=name),
+            per_experiment=cfg.boolean(value, key, "per_experiment", default=False),
+            scale=scale, start=start)
+    return tuple(specs.values())
+
+
+def _read_window(f: dict, data: MeasuredData, cfg: "_Reader") -> tuple[float, float]:
+    t_first, t_last = float(data.time[0]), float(data.time[-1])
+    if "window" not in f:
+        return t_first, t_last
+    w = f["window"]
+    if not isinstance(w, list) or len(w) != 2:
+        raise ConfigError(f"expected [start, end] in seconds, got {w!r}", cfg.file, "fitness.window")
+    t0 = cfg.number(w[0], "fitness.window")
+    t1 = cfg.number(w[1], "fitness.window")
+    if not t0 < t1:
+        raise ConfigError(f"start ({t0:g} s) must be before end ({t1:g} s)", cfg.file, "fitness.window")
+    dt = float(np.median(np.diff(data.time))) if len(data) > 1 else 0.0
+    if t0 < t_first - dt or t1 > t_last + dt:
+        raise ConfigError(f"window [{t0:g}, {t1:g}] s reaches outside the data, which spans "
+                          f"{t_first:g} s to {t_last:g} s", cfg.file, "fitness.window")
+    return t0, t1
+
+
+def _read_weights(f: dict, outputs: dict[str, str], cfg: "_Reader") -> dict[str, float]:
+    weights = {out: 1.0 for out in outputs}
+    if "weights" in f:
+        table = cfg.table(f["weights"], "fitness.weights")
+        for out, w in table.items():
+            key = config_key("fitness.weights", out)
+            if out not in outputs:
+                raise ConfigError(f"'{out}' is not an output{_suggest(out, list(outputs))}; "
+                                  f"outputs: {', '.join(outputs)}", cfg.file, key)
+            w = cfg.number(w, key)
+            if w < 0:
+                raise ConfigError(f"weight {w:g} is negative", cfg.file, key)
+            weights[out] = w
+        if not any(w > 0 for w in weights.values()):
+            raise ConfigError("at least one weight must be positive", cfg.file, "fitness.weights")
+    return weights
+
+
+def _read_noise(f: dict, outputs: dict[str, str], data: MeasuredData, pre_step_end: float | None,
+                cfg: "_Reader") -> tuple[Any, dict[str, float] | None]:
+    if "noise" not in f:
+        return None, None
+    noise = f["noise"]
+    if isinstance(noise, str):
+        if noise != NOISE_PRE_STEP:
+            raise ConfigError(f"expected \"{NOISE_PRE_STEP}\", a number or a table per output, "
+                              f"got {noise!r}{_suggest(noise, [NOISE_PRE_STEP])}",
+                              cfg.file, "fitness.noise")
+        if pre_step_end is None:
+            raise ConfigError(f"noise = \"{NOISE_PRE_STEP}\" needs pre_step_end (the end of the "
+                              f"quiet samples before the step)", cfg.file, "fitness.pre_step_end")
+        sigma = {}
+        for out, col in outputs.items():
+            try:
+                sigma[out] = noise_level(data, col, pre_step_end).sigma
+            except DataError as e:
+                raise ConfigError(e.detail, cfg.file, "fitness.pre_step_end") from None
+            if not sigma[out] > 0:
+                raise ConfigError(f"column '{col}' is constant before {pre_step_end:g} s, so its "
+                                  f"noise level is zero; give noise as a number",
+                                  cfg.file, "fitness.noise")
+        return noise, sigma
+    if isinstance(noise, dict):
+        sigma = {}
+        for out, v in noise.items():
+            key = config_key("fitness.noise", out)
+            if out not in outputs:
+                raise ConfigError(f"'{out}' is not an output{_suggest(out, list(outputs))}",
+                                  cfg.file, key)
+            sigma[out] = _positive(cfg.number(v, key), cfg, key)
+        missing = [o for o in outputs if o not in sigma]
+        if missing:
+            raise ConfigError(f"no noise level for output(s) {', '.join(missing)}",
+                              cfg.file, "fitness.noise")
+        return dict(noise), sigma
+    value = _positive(cfg.number(noise, "fitness.noise"), cfg, "fitness.noise")
+    return value, {out: value for out in outputs}
+
+
+def _read_simulation(s: dict, inside: MeasuredData, cfg: "_Reader") -> SimulationSettings:
+    first, last = float(inside.time[0]), float(inside.time[-1])
+    start = cfg.number(s.get("start_time", 0.0), "simulation.start_time")
+    if start > first:
+        raise ConfigError(f"start_time {start:g} s is after the first sample used "
+                          f"({first:g} s)", cfg.file, "simulation.start_time")
+    stop = cfg.number(s.get("stop_time", last), "simulation.stop_time")
+    if stop < last:
+        raise ConfigError(f"stop_time {stop:g} s ends before the last sample used ({last:g} s); "
+                          f"shorten fitness.window or simulate longer", cfg.file, "simulation.stop_time")
+    if "output_interval" in s:
+        interval = _positive(cfg.number(s["output_interval"], "simulation.output_interval"),
+                             cfg, "simulation.output_interval")
+    else:
+        dt = float(np.median(np.diff(inside.time))) if len(inside) > 1 else (stop - start) / 100
+        interval = float(f"{dt / 2:.3g}")
+    if interval > stop - start:
+        raise ConfigError(f"output_interval {interval:g} s is longer than the simulation "
+                          f"({start:g} s to {stop:g} s)", cfg.file, "simulation.output_interval")
+    timeout = _positive(cfg.number(s.get("timeout", DEFAULT_TIMEOUT), "simulation.timeout"),
+                        cfg, "simulation.timeout")
+    return SimulationSettings(start, stop, interval, timeout)
+
+
+# --------------------------------------------------------------------------- problem
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """One or more experiments fitted together.
+
+    ``space.names`` are FMU parameter names for shared parameters and
+    ``"<param>@<experiment>"`` for per-experiment ones; ``labels`` follow the same order.
+    ``assignments[i]`` pairs each estimated FMU parameter of experiment ``i`` with its
+    index in a search vector.
+    """
+
+    experiments: tuple[Experiment, ...]
+    space: SearchSpace
+    labels: tuple[str, ...]
+    x0: np.ndarray
+    assignments: tuple[tuple[tuple[str, int], ...], ...]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.space.names
+
+    def experiment_index(self, name: str) -> int:
+        for i, e in enumerate(self.experiments):
+            if e.name == name:
+                return i
+        raise KeyError(f"no experiment {name!r}; experiments: "
+                       f"{', '.join(e.name for e in self.experiments)}")
+
+    def parameters_for(self, x, i: int | str) -> dict[str, float]:
+        """FMU parameter values (fixed and estimated) of experiment ``i`` at search point ``x``."""
+        if isinstance(i, str):
+            i = self.experiment_index(i)
+        x = np.asarray(x, dtype=float)
+        if x.shape != (self.space.dim,):
+            raise ValueError(f"x has shape {x.shape}; the search space has {self.space.dim} "
+                             f"dimensions ({', '.join(self.names)})")
+        values = dict(self.experiments[i].fixed)
+        values.update({param: float(x[j]) for param, j in self.assignments[i]})
+        return values
+
+
+def check_parameters(experiment: Experiment, parameter_info: Mapping[str, ParameterInfo]) -> None:
+    """Every name in ``[fixed]``/``[estimate]`` must exist in the model, and values and
+    bounds must lie within the declared min/max. ``build_problem`` calls this; call it
+    per experiment when experiments use different models."""
+    file = str(experiment.config_path)
+    known = list(parameter_info)
+    checks = [(n, config_key("fixed", n), [v]) for n, v in experiment.fixed.items()]
+    checks += [(s.name, config_key("estimate", s.name), [s.min, s.max]) for s in experiment.estimate]
+    for name, key, values in checks:
+        info = parameter_info.get(name)
+        if info is None:
+            close = close_matches(name, known, n=5)
+            tail = name.rsplit(".", 1)[-1].lower()
+            close += [k for k in known if k.rsplit(".", 1)[-1].lower() == tail and k not in close]
+            hint = (f"; close matches: {', '.join(close)}" if close
+                    else f"; no close match among the {len(known)} parameters of the model")
+            raise ConfigError(f"model {experiment.model} has no parameter '{name}'{hint}", file, key)
+        lo = -math.inf if info.min is None else info.min
+        hi = math.inf if info.max is None else info.max
+        for v in values:
+            if not lo <= v <= hi:
+                raise ConfigError(f"{v:g} is outside the range the model declares for '{name}': "
+                                  f"[{lo:g}, {hi:g}]", file, key)
+
+
+def build_problem(experiments: Sequence[Experiment],
+                  parameter_info: Mapping[str, ParameterInfo] | None = None) -> Problem:
+    """Join experiments into one search problem (see the module docstring for the rules)."""
+    experiments = tuple(experiments)
+    if not experiments:
+        raise ValueError("build_problem needs at least one experiment")
+    seen: dict[str, Experiment] = {}
+    for e in experiments:
+        if e.name in seen:
+            raise ConfigError(f"experiment name '{e.name}' is also used by "
+                              f"{seen[e.name].config_path}; names must be unique in a joint fit",
+                              str(e.config_path), "experiment.name")
+        seen[e.name] = e
+    if parameter_info is not None:
+        for e in experiments:
+            check_parameters(e, parameter_info)
+
+    shared: dict[str, tuple[EstimateSpec, Experiment]] = {}
+    for e in experiments:
+        for s in e.estimate:
+            if s.name not in shared:
+                shared[s.name] = (s, e)
+                continue
+            first, where = shared[s.name]
+            if first.per_experiment and s.per_experiment:
+                continue
+            diff = [f for f in ("per_experiment", "min", "max", "label", "scale", "start")
+                    if getattr(first, f) != getattr(s, f)]
+            if diff:
+                shown = ", ".join(f"{f} = {getattr(s, f)!r} here but {getattr(first, f)!r} in "
+                                  f"{where.config_path}" for f in diff)
+                raise ConfigError(f"'{s.name}' is estimated by both {where.name} and {e.name} and "
+                                  f"must be declared identically: {shown}",
+                                  str(e.config_path), config_key("estimate", s.name))
+    for name, (spec, where) in shared.items():
+        if spec.per_experiment:
+            continue
+        for e in experiments:
+            if all(s.name != name for s in e.estimate):
+                how = "fixed" if name in e.fixed else "not estimated"
+                raise ConfigError(f"'{name}' is estimated in {where.name} ({where.config_path}) "
+                                  f"but {how} in {e.name}; a shared parameter is estimated in "
+                                  f"every experiment of a joint fit (or set per_experiment = true)",
+                                  str(e.config_path), config_key("estimate", name))
+
+    names: list[str] = []
+    labels: list[str] = []
+    lower: list[float] = []
+    upper: list[float] = []
+    x0: list[float] = []
+    index: dict[str, int] = {}
+    assignments = []
+    for e in experiments:
+        pairs = []
+        for s in e.estimate:
+            dim = f"{s.name}@{e.name}" if s.per_experiment else s.name
+            if dim not in index:
+                index[dim] = len(names)
+                names.append(dim)
+                labels.append(f"{s.label}@{e.name}" if s.per_experiment else s.label)
+                lower.append(s.min)
+                upper.append(s.max)
+                x0.append(s.start if s.start is not None else 0.5 * (s.min + s.max))
+            pairs.append((s.name, index[dim]))
+        assignments.append(tuple(pairs))
+    if not names:
+        raise ConfigError("nothing to estimate: no [estimate] entries in any experiment",
+                          str(experiments[0].config_path), "estimate")
+    return Problem(experiments, SearchSpace(tuple(names), np.array(lower), np.array(upper)),
+                   tuple(labels), np.array(x0), tuple(assignments))
+
+
+# --------------------------------------------------------------------------- helpers
+
+class _Reader:
+    """Typed access to parsed TOML that raises ConfigError naming file and key."""
+
+    def __init__(self, file: str):
+        self.file = file
+
+    def check_keys(self, table: dict, known: frozenset[str], where: str) -> None:
+        for k in table:
+            if k not in known:
+                what = f"top-level key '{k}'" if not where else f"key '{k}'"
+                raise ConfigError(f"unknown {what}{_suggest(k, sorted(known))}; allowed: "
+                                  f"{', '.join(sorted(known))}", self.file, config_key(where, k))
+
+    def table(self, value, key: str) -> dict:
+        if not isinstance(value, dict):
+            raise ConfigError(f"expected a table, got {value!r}", self.file, key)
+        return value
+
+    def require(self, table: dict, where: str, k: str):
+        if k not in table:
+            raise ConfigError(f"missing required key '{k}'", self.file, config_key(where, k))
+        return table[k]
+
+    def string(self, table: dict, where: str, k: str, default: str | None = None,
+               allow_empty: bool = False) -> str:
+        value = self.require(table, where, k) if default is None else table.get(k, default)
+        if not isinstance(value, str) or not (value.strip() or allow_empty):
+            raise ConfigError(f"expected a non-empty string, got {value!r}", self.file, config_key(where, k))
+        return value
+
+    def boolean(self, table: dict, where: str, k: str, default: bool) -> bool:
+        value = table.get(k, default)
+        if not isinstance(value, bool):
+            raise ConfigError(f"expected true or false, got {value!r}", self.file, config_key(where, k))
+        return value
+
+    def number(self, value, key: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"expected a number, got {value!r}", self.file, key)
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"expected a finite number, got {value}", self.file, key)
+        return value
+
+    def parameter_name(self, name: str, key: str) -> None:
+        if "@" in name or not name.strip():
+            raise ConfigError(f"'{name}' is not a parameter name ('@' is reserved for "
+                              f"per-experiment dimensions)", self.file, key)
+
+
+def _positive(value: float, cfg: _Reader, key: str) -> float:
+    if not value > 0:
+        raise ConfigError(f"must be positive, got {value:g}", cfg.file, key)
+    return value
+
+
+def _flatten(table: dict, is_leaf, prefix: str = ""):
+    """Yield (dotted name, value): unquoted dotted keys parse as nested tables."""
+    for k, v in table.items():
+        name = f"{prefix}.{k}" if prefix else k
+        if is_leaf(v):
+            yield name, v
+        else:
+            yield from _flatten(v, is_leaf, name)
+
+
+def config_key(where: str, k: str) -> str:
+    """`where.k` in TOML dotted-key form, quoting `k` when it is not a bare key."""
+    part = k if _BARE_KEY_RE.match(k) else f'"{k}"'
+    return f"{where}.{part}" if where else part
+
+
+def _suggest(word: str, candidates: Sequence[str]) -> str:
+    close = close_matches(word, list(candidates))
+    return f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ""
+
+
+def _toml_message(e: tomllib.TOMLDecodeError, text: str) -> str:
+    message = f"invalid TOML: {e}"
+    m = re.search(r"at line (\d+)", str(e))
+    if m:
+        lines = text.splitlines()
+        n = int(m.group(1))
+        if 1 <= n <= len(lines):
+            message += f"\n    {n} | {lines[n - 1]}"
+    return message

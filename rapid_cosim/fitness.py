@@ -1,0 +1,214 @@
+"""Problem + trajectories -> RSSD / ARSSD / likelihood.
+
+The fitness follows Algorithm 1 (line 14) of the paper: for one output,
+
+    RSSD = (1/M) * sum_i (y_i - yhat_i)**2
+
+over the M valid measured samples inside the fitness window, with the simulation
+``yhat`` sampled onto the measured time base. It is a mean squared difference in the
+output's units (pu**2), not normalised by the signal, which is what the paper's
+fitness values (about 1e-4 for pm near 0.6 pu) are. With several outputs an experiment's
+RSSD is the weighted mean of the outputs' RSSDs; ARSSD is the plain mean over
+experiments.
+
+Measurement offset: with ``offset=True`` a constant offset ``c`` per output
+(``y = yhat + c + noise``; a positive ``c`` means the transducer reads high) is
+profiled out in closed form, ``c = mean(y - yhat)``, and the RSSD is that of
+``y - yhat - c``.
+
+This module receives arrays only; it knows nothing of simulators or FMUs. A simulated
+value that is not finite where it is scored is a :class:`SimulationError`, as is a
+simulation that does not cover the measured samples (it stopped early): the evaluator
+counts both as failed runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rapid_cosim.data import sample_onto
+from rapid_cosim.errors import ConfigError, SimulationError
+from rapid_cosim.experiment import Experiment, config_key
+
+
+@dataclass(frozen=True, eq=False)
+class Fit:
+    """Residuals of one set of outputs (columns of ``residual``).
+
+    ``rssd`` is the weighted mean of ``per_output``; ``offset`` holds the profiled
+    offsets (zeros when not profiled); ``residual`` is ``y - yhat - offset`` shaped like
+    the input, NaN where a sample is not valid.
+    """
+
+    rssd: float
+    per_output: np.ndarray
+    offset: np.ndarray
+    residual: np.ndarray
+    n_valid: np.ndarray
+
+
+def fit_outputs(measured, simulated, valid, weights=None, offset: bool = False) -> Fit:
+    """RSSD with its parts. Arrays are (M,) for one output or (M, K) for K outputs;
+    ``valid`` marks the samples that count (mask and window already applied);
+    ``weights`` has one entry per output (default equal). Outputs of weight zero may
+    have no valid samples; any other output needs at least one."""
+    y = np.asarray(measured, dtype=np.float64)
+    yhat = np.asarray(simulated, dtype=np.float64)
+    ok = np.asarray(valid, dtype=bool)
+    if y.ndim not in (1, 2) or yhat.shape != y.shape or ok.shape != y.shape:
+        raise ValueError(f"measured {y.shape}, simulated {yhat.shape} and valid {ok.shape} "
+                         f"must have the same (M,) or (M, K) shape")
+    one = y.ndim == 1
+    if one:
+        y, yhat, ok = y[:, None], yhat[:, None], ok[:, None]
+    k = y.shape[1]
+    w = np.ones(k) if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
+    if w.shape != (k,) or np.any(~np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
+        raise ValueError(f"weights must be {k} finite non-negative numbers, not all zero; got {w}")
+    if np.any(ok & ~np.isfinite(y)):
+        raise ValueError("measured values marked valid must be finite")
+    if np.any(ok & ~np.isfinite(yhat)):
+        raise SimulationError("the simulated output is not finite at scored samples")
+
+    n_valid = ok.sum(axis=0)
+    per_output = np.full(k, np.nan)
+    c = np.zeros(k)
+    residual = np.full(y.shape, np.nan)
+    for j in range(k):
+        if n_valid[j] == 0:
+            if w[j] > 0:
+                raise ValueError(f"output {j} has weight {w[j]:g} but no valid samples")
+            continue
+        r = y[ok[:, j], j] - yhat[ok[:, j], j]
+        if offset:
+            c[j] = r.mean()
+            r = r - c[j]
+        per_output[j] = np.mean(r ** 2)
+        residual[ok[:, j], j] = r
+    used = w > 0
+    total = float(np.sum(w[used] * per_output[used]) / np.sum(w[used]))
+    return Fit(total, per_output, c, residual[:, 0] if one else residual, n_valid)
+
+
+def rssd(measured, simulated, valid, weights=None, offset: bool = False) -> float:
+    """Algorithm 1, line 14: mean squared difference over valid samples (weighted mean
+    over outputs; measurement offset profiled out with ``offset``). :func:`fit_outputs`
+    returns the offsets and residuals as well."""
+    return fit_outputs(measured, simulated, valid, weights, offset).rssd
+
+
+def arssd(values):
+    """The paper's ARSSD: mean of the experiments' RSSDs along the last axis.
+
+    A float for a 1-D input (one value per experiment); an (n,) array for an (n, E)
+    batch. An infinite (failed) RSSD makes the average infinite.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    if v.ndim == 0 or v.shape[-1] == 0:
+        raise ValueError("arssd needs at least one experiment's RSSD")
+    mean = v.mean(axis=-1)
+    return float(mean) if v.ndim == 1 else mean
+
+
+@dataclass(frozen=True, eq=False)
+class ExperimentFit:
+    """How one simulation matches one experiment, on the measured time base.
+
+    ``time`` holds the measured times inside the fitness window; ``residuals`` are
+    ``y - yhat - offset`` on it (NaN where masked); ``n_samples`` is the number of
+    valid samples scored, summed over outputs of positive weight (the ``M`` of the
+    likelihood).
+    """
+
+    experiment: str
+    rssd: float
+    rssd_per_output: dict[str, float]
+    offsets: dict[str, float]
+    residuals: dict[str, np.ndarray]
+    time: np.ndarray
+    n_valid: dict[str, int]
+    n_samples: int
+
+
+def experiment_fitness(exp: Experiment, t_sim, y_sim: dict[str, np.ndarray]) -> ExperimentFit:
+    """Score a simulation of ``exp``: ``y_sim`` maps model outputs to trajectories on
+    ``t_sim`` (a fine grid); they are sampled onto the measured times inside the
+    window, and the masked samples, weights and offset setting of ``exp`` applied."""
+    data = exp.windowed_data()
+    t_sim = np.asarray(t_sim, dtype=np.float64)
+    t_meas = data.time
+    if t_sim.ndim != 1 or t_sim.size < 2:
+        raise SimulationError(f"{exp.name}: the simulation returned {t_sim.size} time point(s)")
+    tol = 1e-9 * max(1.0, abs(t_sim[0]), abs(t_sim[-1]))
+    if t_sim[0] > t_meas[0] + tol or t_sim[-1] < t_meas[-1] - tol:
+        raise SimulationError(f"{exp.name}: the simulation spans {t_sim[0]:g} s to {t_sim[-1]:g} s "
+                              f"but the samples to score span {t_meas[0]:g} s to {t_meas[-1]:g} s "
+                              f"(did it stop early?)")
+    outputs = list(exp.outputs)
+    for out in outputs:
+        if out not in y_sim:
+            raise ConfigError(f"the simulation of {exp.model} has no output '{out}'; it returned: "
+                              f"{', '.join(y_sim) or '(nothing)'}",
+                              str(exp.config_path), config_key("data.outputs", out))
+    measured = np.column_stack([data.columns[exp.outputs[o]] for o in outputs])
+    valid = np.column_stack([data.valid[exp.outputs[o]] for o in outputs])
+    simulated = np.column_stack([sample_onto(t_sim, np.asarray(y_sim[o], dtype=np.float64), t_meas)
+                                 for o in outputs])
+    weights = np.array([exp.weights[o] for o in outputs])
+    fit = fit_outputs(measured, simulated, valid, weights, exp.offset)
+    n_valid = {o: int(n) for o, n in zip(outputs, fit.n_valid)}
+    return ExperimentFit(
+        experiment=exp.name,
+        rssd=fit.rssd,
+        rssd_per_output={o: float(v) for o, v in zip(outputs, fit.per_output)},
+        offsets={o: float(c) for o, c in zip(outputs, fit.offset)},
+        residuals={o: fit.residual[:, j] for j, o in enumerate(outputs)},
+        time=t_meas,
+        n_valid=n_valid,
+        n_samples=sum(n for o, n in n_valid.items() if exp.weights[o] > 0),
+    )
+
+
+def gaussian_log_likelihood(rssd, n_samples, sigma) -> np.ndarray:
+    """Log-likelihood of each parameter set from its per-experiment RSSDs.
+
+    Noise model: the measured samples are ``y = yhat(theta) + e`` with ``e`` independent
+    Gaussian, zero mean, standard deviation ``sigma_e`` in experiment ``e``. Then
+
+        log L(theta) = sum_e -0.5 * M_e * RSSD_e(theta) / sigma_e**2  + const
+
+    with ``M_e`` the number of scored samples; the dropped constant is
+    ``-sum_e M_e * log(sigma_e * sqrt(2 pi))``, which does not depend on theta because
+    sigma is fixed. With a profiled offset (``offset = true``) the RSSD is that of the
+    best offset; for a flat prior on the offset this equals the likelihood with the
+    offset marginalised out, up to the theta-independent factor
+    ``sqrt(2 pi sigma**2 / M)`` per output.
+
+    The formula is exact for one output per experiment (the staged tests). With several
+    outputs of different noise it is exact when their weights are ``M_k / sigma_k**2``
+    and ``M_e / sigma_e**2`` is the sum of those weights.
+
+    Samples are taken as independent: if the pre-step noise is correlated
+    (``NoiseEstimate.phi`` well above 0) the likelihood is too sharp and posteriors too
+    narrow. A non-finite RSSD (a failed simulation) gives ``-inf``.
+
+    ``rssd``: (n, E); ``n_samples``, ``sigma``: (E,). Returns (n,).
+    """
+    r = np.asarray(rssd, dtype=np.float64)
+    m = np.asarray(n_samples, dtype=np.float64)
+    s = np.asarray(sigma, dtype=np.float64)
+    if r.ndim != 2:
+        raise ValueError(f"rssd must be (n, E), got shape {r.shape}")
+    e = r.shape[1]
+    if m.shape != (e,) or s.shape != (e,):
+        raise ValueError(f"n_samples {m.shape} and sigma {s.shape} need one entry per "
+                         f"experiment ({e})")
+    if np.any(~np.isfinite(s)) or np.any(s <= 0) or np.any(m < 0):
+        raise ValueError("sigma must be positive and finite and n_samples non-negative")
+    with np.errstate(invalid="ignore"):
+        terms = -0.5 * m * r / s ** 2
+    ll = terms.sum(axis=1)
+    ll[~np.all(np.isfinite(r), axis=1)] = -np.inf
+    return ll
