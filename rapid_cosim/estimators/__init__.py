@@ -1,0 +1,24 @@
+"""Estimators: particle filter, SMC, PSO, Nelder-Mead and gradient descent, each a plain
+function ``method(objective, space, *, options, rng, callback, x0)`` returning one
+:class:`EstimationResult`, and :func:`run_chain` to run them in sequence from a method
+string such as ``"pf:10+nm"``."""
+
+from .base import (EstimationResult, Evaluations, Iteration, IterationCallback, Objective,
+                   Posterior, SearchSpace)
+from .chain import REGISTRY, Stage, parse_method, run_chain
+from .gradient import GDOptions, gradient_descent
+from .nelder_mead import NMOptions, nelder_mead
+from .pf import PFOptions, particle_filter
+from .pso import PSOOptions, pso
+from .smc import SMCOptions, smc
+
+__all__ = [
+    "EstimationResult", "Evaluations", "Iteration", "IterationCallback", "Objective",
+    "Posterior", "SearchSpace",
+    "REGISTRY", "Stage", "parse_method", "run_chain",
+    "GDOptions", "gradient_descent",
+    "NMOptions", "nelder_mead",
+    "PFOptions", "particle_filter",
+    "PSOOptions", "pso",
+    "SMCOptions", "smc",
+]
