@@ -10,11 +10,13 @@ of global state in the package.
 from __future__ import annotations
 
 import difflib
+import hashlib
 import math
+import os
 import shutil
 import tempfile
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -193,18 +195,53 @@ def _describe(params: Mapping[str, float]) -> str:
     return ", ".join(f"{k}={v:.6g}" for k, v in params.items()) or "default parameters"
 
 
-_CACHE: dict[tuple[str, int, int], Simulator] = {}
+@dataclass(frozen=True)
+class FmuRef:
+    """An FMU that can travel to other processes or machines: its bytes and their hash.
+
+    Workers of a dask cluster need not share a file system with the caller; and an
+    evaluation is pinned to the FMU's content, the same content an archive keeps.
+    """
+
+    name: str
+    sha256: str
+    content: bytes = field(repr=False)
+
+    @classmethod
+    def from_path(cls, path: str | Path, name: str | None = None) -> "FmuRef":
+        data = Path(path).read_bytes()
+        return cls(name or Path(path).stem, hashlib.sha256(data).hexdigest(), data)
 
 
-def get_simulator(fmu: str | Path, *, timeout: float | None = None) -> Simulator:
-    """The process's simulator for ``fmu`` (re-loaded only if the file changed)."""
-    path = Path(fmu).resolve()
-    stat = path.stat()
-    key = (str(path), stat.st_mtime_ns, stat.st_size)
+# The package's only global state: per process, the simulators of the FMUs it has loaded.
+_CACHE: dict[tuple, Simulator] = {}
+_REF_FILES: dict[str, Path] = {}
+
+
+def _materialise(ref: FmuRef) -> Path:
+    path = _REF_FILES.get(ref.sha256)
+    if path is None or not path.exists():
+        folder = Path(tempfile.gettempdir()) / f"rapid_cosim_fmus_{os.getpid()}"
+        folder.mkdir(exist_ok=True)
+        path = folder / f"{ref.sha256[:16]}.fmu"
+        path.write_bytes(ref.content)
+        _REF_FILES[ref.sha256] = path
+    return path
+
+
+def get_simulator(fmu: str | Path | FmuRef, *, timeout: float | None = None) -> Simulator:
+    """The process's simulator for ``fmu``: loaded once, again only if the file changed."""
+    if isinstance(fmu, FmuRef):
+        key: tuple = ("sha256", fmu.sha256)
+        path = None
+    else:
+        path = Path(fmu).resolve()
+        stat = path.stat()
+        key = (str(path), stat.st_mtime_ns, stat.st_size)
     sim = _CACHE.get(key)
     if sim is None:
-        for old in [k for k in _CACHE if k[0] == key[0]]:
+        for old in [k for k in _CACHE if k[0] == key[0] and k[0] != "sha256"]:
             _CACHE.pop(old).close()
-        sim = _CACHE[key] = Simulator(path, timeout=timeout)
+        sim = _CACHE[key] = Simulator(path if path is not None else _materialise(fmu), timeout=timeout)
     sim.timeout = timeout
     return sim

@@ -1,0 +1,87 @@
+"""Parallel evaluation: equal results for any n_jobs and backend, penalties on failure."""
+
+import numpy as np
+import pytest
+
+from rapid_cosim.build import build_models
+from rapid_cosim.evaluate import PENALTY, ProblemObjective, evaluate_in_detail
+from rapid_cosim.experiment import build_problem, load_experiment
+from rapid_cosim.simulator import FmuRef
+from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+
+TRUTH = {"gov.R": 0.055, "gov.Ts": 3.0}
+FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}
+ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12}, "gov.Ts": {"min": 0.1, "max": 20.0}}
+
+
+@pytest.fixture(scope="module")
+def problem(fmus, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("exp") / "synthetic"
+    t, y = synthesize(fmus["StagedTest"], {**FIXED, **TRUTH}, duration=30.0,
+                      noise=NoiseModel(white_sigma=0.001), rng=np.random.default_rng(3))
+    exp = load_experiment(write_experiment(folder, model="iGrGen.TestBenches.StagedTest", time=t, values=y,
+                                           fixed=FIXED, estimate=ESTIMATE))
+    refs = {exp.model: FmuRef.from_path(fmus["StagedTest"])}
+    return build_problem([exp]), refs
+
+
+def _cloud(problem, n=12, seed=0):
+    return problem.space.from_unit(np.random.default_rng(seed).uniform(size=(n, problem.space.dim)))
+
+
+def test_n_jobs_one_and_two_give_equal_results(problem):
+    prob, refs = problem
+    X = _cloud(prob)
+    one = ProblemObjective(prob, refs, n_jobs=1)(X)
+    two = ProblemObjective(prob, refs, n_jobs=2)(X)
+    assert np.array_equal(one.fitness, two.fitness)
+    assert np.array_equal(one.rssd, two.rssd)
+    assert not one.failed.any()
+
+
+def test_dask_backend_gives_equal_results(problem):
+    distributed = pytest.importorskip("distributed")
+    prob, refs = problem
+    X = _cloud(prob, n=6, seed=1)
+    local = ProblemObjective(prob, refs, n_jobs=1)(X)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster):
+        remote = ProblemObjective(prob, refs, n_jobs=2, backend="dask")(X)
+    assert np.array_equal(local.fitness, remote.fitness)
+
+
+def test_truth_scores_near_the_noise_variance(problem):
+    prob, refs = problem
+    ev = ProblemObjective(prob, refs)(np.array([[TRUTH["gov.R"], TRUTH["gov.Ts"]]]))
+    assert ev.fitness[0] == pytest.approx(0.001 ** 2, rel=0.2)
+    detail = evaluate_in_detail(prob, refs, np.array([TRUTH["gov.R"], TRUTH["gov.Ts"]]))
+    assert detail[0].fit.rssd == ev.fitness[0]
+
+
+BLOWUP = """package Bad
+  model Blowup "x' = a x^2 reaches infinity at t = 1/a"
+    parameter Real a(min = 0, max = 10) = 0.1;
+    Real x(start = 1, fixed = true);
+    output Real pm = x;
+  equation
+    der(x) = a * x ^ 2;
+  end Blowup;
+end Bad;
+"""
+
+
+def test_failed_simulations_get_the_penalty_and_the_run_goes_on(tmp_path):
+    (tmp_path / "Bad.mo").write_text(BLOWUP)
+    fmu = build_models(["Bad.Blowup"], package=tmp_path / "Bad.mo", fmu_dir=tmp_path / "fmus",
+                       backend="embedded", log=lambda *_: None)[0].fmu
+    t = np.linspace(0, 2, 21)
+    exp = load_experiment(write_experiment(tmp_path / "bad", model="Bad.Blowup", time=t, values=1 / (1 - 0.1 * t),
+                                           fixed={}, estimate={"a": {"min": 0.01, "max": 2.0}},
+                                           simulation={"output_interval": 0.05, "timeout": 5.0}))
+    prob = build_problem([exp])
+    obj = ProblemObjective(prob, {"Bad.Blowup": FmuRef.from_path(fmu)})
+    ev = obj(np.array([[0.1], [1.5], [0.2], [0.9]]))  # blows up before t = 2 for a > 0.5
+    assert ev.failed.tolist() == [False, True, False, True]
+    assert ev.fitness[1] == PENALTY and np.isinf(ev.rssd[1]).all()
+    assert ev.fitness[0] < 1e-6
+    assert obj.failures.count == 2 and "Blowup" in obj.failures.messages[0]
