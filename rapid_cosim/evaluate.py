@@ -60,11 +60,17 @@ def _parameters(payload: Payload, x: np.ndarray, i: int) -> dict[str, float]:
     return values
 
 
-def simulate_experiment(exp: Experiment, fmu: FmuRef | str, params: Mapping[str, float]) -> Trajectory:
+def simulate_experiment(exp: Experiment, fmu: FmuRef | str, params: Mapping[str, float], *,
+                        fine: bool = False) -> Trajectory:
+    """Outputs at the measured samples inside the fitness window (what the fitness
+    scores, with nothing interpolated), or on the config's fine grid for plots."""
     s = exp.simulation
     sim = get_simulator(fmu, timeout=s.timeout)
-    return sim.simulate(params, start_time=s.start_time, stop_time=s.stop_time,
-                        output_interval=s.output_interval, outputs=list(exp.outputs))
+    if fine:
+        return sim.simulate(params, start_time=s.start_time, stop_time=s.stop_time,
+                            output_interval=s.output_interval, outputs=list(exp.outputs))
+    return sim.simulate(params, start_time=s.start_time, output_times=exp.windowed_data().time,
+                        outputs=list(exp.outputs))
 
 
 def _score_chunk(payload: Payload, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:

@@ -15,6 +15,7 @@ import math
 import os
 import shutil
 import tempfile
+import time as time_module
 import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +23,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 from fmpy import extract, instantiate_fmu, read_model_description, simulate_fmu
+from fmpy.fmi2 import fmi2Real, fmi2ValueReference
 
 from .errors import ParameterError, SimulationError, SimulationTimeout
 
@@ -58,7 +60,10 @@ class Simulator:
         self._finalizer = weakref.finalize(self, shutil.rmtree, self._dir, True)
         self._instance = instantiate_fmu(self._dir, self.model_description, fmi_type="ModelExchange")
         self._fresh = True
+        self._solver = None  # CVode memory, created on the first run and re-initialised after
+        self._solver_span: tuple[float, float] | None = None
         variables = self.model_description.modelVariables
+        self._vr = {v.name: v.valueReference for v in variables}
         self.parameters: dict[str, ParameterInfo] = {
             v.name: ParameterInfo(
                 name=v.name,
@@ -104,27 +109,33 @@ class Simulator:
             checked[name] = value
         return checked
 
-    def simulate(self, parameters: Mapping[str, float] | None = None, *, stop_time: float,
-                 output_interval: float, outputs: Sequence[str] | None = None, start_time: float = 0.0,
+    def simulate(self, parameters: Mapping[str, float] | None = None, *, stop_time: float | None = None,
+                 output_interval: float | None = None, output_times: np.ndarray | None = None,
+                 outputs: Sequence[str] | None = None, start_time: float = 0.0,
                  input_time: np.ndarray | None = None, inputs: Mapping[str, np.ndarray] | None = None,
                  check: bool = True) -> Trajectory:
-        """Run once from ``start_time``; outputs on the grid start + k * output_interval.
+        """Run once from ``start_time``, recording ``outputs`` either on the grid
+        start + k * output_interval, continued to the first grid point at or after
+        ``stop_time``, or at the given increasing ``output_times`` (for instance, the
+        measured samples, so no interpolation stands between model and data).
 
-        The run goes on to the first grid point at or after ``stop_time`` (fmpy records
-        only on the grid), so the trajectory always covers ``stop_time``. ``inputs`` are
-        sampled at ``input_time`` and interpolated linearly; to make a step, repeat its
-        time with the values before and after (fmpy's convention).
+        Values at a time event are those after it. ``inputs`` are sampled at
+        ``input_time`` and interpolated linearly; to make a step, repeat its time with the
+        values before and after (fmpy's convention).
         """
-        if not output_interval > 0:
-            raise ParameterError(f"output_interval must be positive, got {output_interval}")
-        n_points = math.ceil((stop_time - start_time) / output_interval - 1e-9)
-        stop_time = start_time + max(n_points, 1) * output_interval
         params = self.check_parameters(parameters or {}) if check else dict(parameters or {})
         names = list(outputs) if outputs is not None else self.outputs
         unknown = [n for n in names if n not in self.variables]
         if unknown:
             raise ParameterError(f"{self.name} has no variable(s) {', '.join(unknown)}")
+        times = self._output_times(start_time, stop_time, output_interval, output_times)
         signals = self._input_table(input_time, inputs)
+        if signals is None:
+            return self._run(params, names, start_time, times)
+        if output_times is not None:
+            raise ParameterError("models with inputs record on a regular grid: give output_interval, not output_times")
+        stop_time = float(times[-1])
+        output_interval = float(times[1] - times[0]) if times.size > 1 else stop_time - start_time
         if not self._fresh:
             self._instance.reset()
         self._fresh = False
@@ -147,6 +158,94 @@ class Simulator:
                 f"with {_describe(params)}")
         return Trajectory(time, {n: np.asarray(result[n], dtype=float) for n in names})
 
+    @staticmethod
+    def _output_times(start_time, stop_time, output_interval, output_times) -> np.ndarray:
+        if output_times is not None:
+            times = np.asarray(output_times, dtype=float)
+            if times.ndim != 1 or times.size == 0 or np.any(np.diff(times) <= 0) or times[0] < start_time:
+                raise ParameterError("output_times must be increasing and start at or after start_time")
+            return times
+        if stop_time is None or output_interval is None or not output_interval > 0:
+            raise ParameterError("give stop_time and a positive output_interval, or output_times")
+        n_points = max(math.ceil((stop_time - start_time) / output_interval - 1e-9), 1)
+        return start_time + output_interval * np.arange(n_points + 1)
+
+    def _run(self, params: dict[str, float], names: list[str], start_time: float, times: np.ndarray) -> Trajectory:
+        """The model-exchange loop for models without inputs, on fmpy's FMU2Model and
+        CVode binding: only what calibration needs (parameters, time events, outputs at
+        given times), without fmpy's generic per-point recorder and input handling."""
+        try:
+            values = self._integrate(params, names, start_time, times)
+        except SimulationTimeout:
+            self._recover()
+            raise
+        except Exception as e:  # fmpy raises bare Exceptions for FMI errors and CVode failures
+            self._recover()
+            raise SimulationError(f"{self.name} failed with {_describe(params)}: {e}") from e
+        return Trajectory(times, {n: values[:, j] for j, n in enumerate(names)})
+
+    def _integrate(self, params, names, start_time, times) -> np.ndarray:
+        from fmpy.sundials import CVodeSolver
+
+        fmu = self._instance
+        if not self._fresh:
+            fmu.reset()
+        self._fresh = False
+        fmu.setupExperiment(startTime=start_time)
+        if params:
+            fmu.setReal([self._vr[n] for n in params], list(params.values()))
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        has_event, t_event = self._update_discrete(fmu)
+        fmu.enterContinuousTimeMode()
+        nx = self.model_description.numberOfContinuousStates
+        stop_time = float(times[-1])
+        if self._solver is None or self._solver_span != (start_time, stop_time):
+            self._solver = CVodeSolver(
+                nx=nx, nz=self.model_description.numberOfEventIndicators, get_x=fmu.getContinuousStates,
+                set_x=fmu.setContinuousStates, get_dx=fmu.getDerivatives, get_z=fmu.getEventIndicators,
+                get_nominals=fmu.getNominalsOfContinuousStates, set_time=fmu.setTime, input=_NoInput(),
+                startTime=start_time, maxStep=(stop_time - start_time) / 50.0,
+                relativeTolerance=self.relative_tolerance)
+            self._solver_span = (start_time, stop_time)
+        else:
+            self._solver.reset(start_time)
+        solver = self._solver
+        vrs = (fmi2ValueReference * len(names))(*[self._vr[n] for n in names])
+        buf = (fmi2Real * len(names))()
+        out = np.empty((times.size, len(names)))
+        deadline = None if self.timeout is None else time_module.perf_counter() + self.timeout
+        t = start_time
+        for k, tk in enumerate(times):
+            while has_event and t_event <= tk + 1e-12 * max(1.0, abs(tk)):
+                if t_event > t:
+                    t = solver.step(t, t_event)[2]
+                    fmu.setTime(t)
+                fmu.enterEventMode()
+                has_event, t_event = self._update_discrete(fmu)
+                fmu.enterContinuousTimeMode()
+                solver.reset(t)
+            if tk > t:
+                t = solver.step(t, tk)[2]
+                fmu.setTime(t)
+            fmu.fmi2GetReal(fmu.component, vrs, len(names), buf)
+            out[k] = buf
+            if deadline is not None and k % 32 == 0 and time_module.perf_counter() > deadline:
+                raise SimulationTimeout(
+                    f"{self.name} stopped at t={t:g} of {times[-1]:g} s after the {self.timeout} s time-out "
+                    f"with {_describe(params)}")
+        fmu.terminate()
+        return out
+
+    @staticmethod
+    def _update_discrete(fmu) -> tuple[bool, float]:
+        needed, defined, t_next = True, False, 0.0
+        while needed:
+            needed, terminate, _, _, defined, t_next = fmu.newDiscreteStates()
+            if terminate:
+                raise SimulationError("the model asked to terminate")
+        return bool(defined), float(t_next)
+
     def _input_table(self, input_time, inputs):
         if not inputs:
             if self.inputs:
@@ -166,6 +265,7 @@ class Simulator:
 
     def _recover(self) -> None:
         """After a failure the instance may be in any state; a reset brings it back."""
+        self._solver = None  # its callbacks may point at a replaced instance
         try:
             self._instance.reset()
         except Exception:
@@ -178,6 +278,13 @@ class Simulator:
             self._instance.freeInstance()
         finally:
             self._finalizer()
+
+
+class _NoInput:
+    """fmpy's CVode binding applies inputs in its root function; these models have none."""
+
+    def apply(self, time, continuous=True, discrete=True, after_event=False):
+        pass
 
 
 def _float(value) -> float | None:

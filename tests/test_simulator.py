@@ -76,3 +76,24 @@ def test_timeout_is_a_typed_error(fmus):
 
 def test_process_cache_returns_one_simulator_per_fmu(fmus):
     assert get_simulator(fmus["StagedTest"]) is get_simulator(fmus["StagedTest"])
+
+
+def test_output_times_match_the_grid_and_fmpys_own_loop(staged, fmus):
+    import fmpy
+
+    params = {"gov.Ts": 2.0, "src.t_return": 30.0}
+    grid = staged.simulate(params, stop_time=40, output_interval=0.05)
+    picked = grid.time[[3, 200, 201, 650, 799]] + np.array([0.0, 0.0, 0.013, 0.0, 0.0])
+    at = staged.simulate(params, output_times=picked)
+    assert np.array_equal(at.time, picked)
+    same = [0, 1, 3, 4]
+    # other output points make CVode take other steps: equal to solver tolerance, not bits
+    assert np.max(np.abs(at["pm"][same] - grid["pm"][[3, 200, 650, 799]])) < 1e-6
+    reference = fmpy.simulate_fmu(str(fmus["StagedTest"]), stop_time=40, output_interval=0.05, start_values=params,
+                                  record_events=False, output=["pm"], relative_tolerance=1e-6)
+    assert np.max(np.abs(reference["pm"] - grid["pm"])) < 1e-9
+
+
+def test_values_at_an_event_are_those_after_it(staged):
+    traj = staged.simulate({"src.t_step": 10.0}, output_times=np.array([9.99, 10.0]), outputs=["gov.pin"])
+    assert traj["gov.pin"][0] == pytest.approx(0.6) and traj["gov.pin"][1] == pytest.approx(0.68)
