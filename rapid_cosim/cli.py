@@ -76,6 +76,94 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def _result_table(result, labels=None) -> str:
+    labels = labels or {}
+    lines = [f"method {result.method}: best fitness {result.fun:.6g} after {result.nfev} simulations, "
+             f"{result.nit} iterations, {result.wall_time:.1f} s ({result.n_failed} failed)",
+             f"stop: {result.stop_reason}", "", f"  {'parameter':24s} {'estimate':>12s}"]
+    post = result.posterior
+    if post is not None:
+        lines[-1] += f"  {'posterior mean':>14s}  {int(round(100 * post.level))} % credible interval"
+    for k, name in enumerate(result.names):
+        row = f"  {labels.get(name, name):24s} {result.x[k]:12.6g}"
+        if post is not None:
+            row += f"  {post.mean[k]:14.6g}  [{post.interval[k, 0]:.6g}, {post.interval[k, 1]:.6g}]"
+        lines.append(row)
+    return "\n".join(lines)
+
+
+def _run_options(args, estimator_options):
+    from .archive.runs import RunOptions
+
+    return RunOptions(method=args.method, seed=args.seed, n_jobs=args.n_jobs, backend=args.joblib_backend,
+                      estimator_options=estimator_options)
+
+
+def cmd_estimate(args) -> int:
+    from datetime import datetime
+
+    from .archive.runs import inputs_from_configs, parse_option_overrides, start_run
+
+    inputs = inputs_from_configs(args.configs, package=args.package, fmu_dir=args.fmus, backend=args.backend)
+    options = _run_options(args, parse_option_overrides(args.option))
+    archive = args.archive or str(Path(args.results) / f"run-{datetime.now():%Y%m%d-%H%M%S}.h5")
+    names = ", ".join(e.name for e in inputs.experiments)
+    print(f"estimating {', '.join(inputs.problem.labels)} on {names} with {options.method} "
+          f"(seed {options.seed}, n_jobs {options.n_jobs}); archive: {archive}")
+    result = start_run(inputs, options, archive, progress=not args.quiet)
+    print(_result_table(result, dict(zip(inputs.problem.names, inputs.problem.labels))))
+    print(f"\narchive: {archive}")
+    return 0
+
+
+def cmd_resume(args) -> int:
+    from .archive.runs import resume_run
+
+    result = resume_run(args.archive, n_jobs=args.n_jobs, progress=not args.quiet)
+    print(_result_table(result))
+    return 0
+
+
+def cmd_rerun(args) -> int:
+    from .archive.runs import rerun
+
+    report = rerun(args.archive, n_jobs=args.n_jobs, progress=not args.quiet)
+    print(_result_table(report.result))
+    if report.identical:
+        print(f"\nidentical: all {report.iterations_compared} iterations and the result match the archive bit for bit "
+              f"({report.simulations} simulations re-run)")
+        return 0
+    print(f"\nDIFFERENT from the archive: {report.first_difference}")
+    return 1
+
+
+def cmd_show(args) -> int:
+    import json
+
+    from .archive.runs import summary_json
+
+    summary = summary_json(args.archive)
+    if args.json:
+        Path(args.json).write_text(json.dumps(summary, indent=2) + "\n")
+    print(f"{summary['path']}: {summary['method']} (seed {summary['seed']}) on {', '.join(summary['experiments'])}, "
+          f"{summary['status']}")
+    print(f"  {summary['n_iterations']} iterations, {summary['nfev']} simulations ({summary['n_failed']} failed)"
+          + (f", {summary['wall_time']:.1f} s" if summary.get("wall_time") else ""))
+    print(f"  best fitness {summary['best_fitness']:.6g}")
+    for name, value in summary["best"].items():
+        line = f"  {name:24s} {value:.6g}"
+        post = summary.get("posterior")
+        if post:
+            lo, hi = post["interval"][name]
+            line += f"   mean {post['mean'][name]:.6g}, {int(round(100 * post['level']))} % interval [{lo:.6g}, {hi:.6g}]"
+        print(line)
+    if summary.get("stop_reason"):
+        print(f"  stop: {summary['stop_reason']}")
+    if args.json:
+        print(f"written: {args.json}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="rapid-cosim", description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--version", action="version", version=f"rapid-cosim {__version__}")
@@ -103,6 +191,42 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="CSV file (default: standard output)")
     model_options(p)
     p.set_defaults(func=cmd_simulate)
+
+    def run_options(p):
+        p.add_argument("--n-jobs", type=int, default=1, help="worker processes (-1: all cores; default %(default)s)")
+        p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    p = sub.add_parser("estimate", help="calibrate parameters against one or more experiments (joint fit)")
+    p.add_argument("configs", nargs="+", help="experiment config files (config.toml) or their folders")
+    p.add_argument("--method", default="pf:10+nm", help="estimator chain, e.g. pf:10+nm, pso:10+nm, smc, gd "
+                   "(default %(default)s)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--option", action="append", metavar="METHOD.NAME=VALUE",
+                   help="estimator option, e.g. pf.n_particles=100 (repeatable)")
+    p.add_argument("--joblib-backend", default="loky", choices=["loky", "multiprocessing", "threading", "dask"],
+                   help="joblib backend; 'dask' needs a running dask.distributed Client (default %(default)s)")
+    p.add_argument("--archive", help="HDF5 archive to write (default results/run-<time>.h5)")
+    p.add_argument("--results", default="results")
+    run_options(p)
+    model_options(p)
+    p.set_defaults(func=cmd_estimate)
+
+    p = sub.add_parser("resume", help="continue an interrupted run from its archive")
+    p.add_argument("archive")
+    p.add_argument("--n-jobs", type=int, default=None, help="worker processes (default: as archived)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_resume)
+
+    p = sub.add_parser("rerun", help="re-run an archived run from the archive alone and compare bit for bit")
+    p.add_argument("archive")
+    p.add_argument("--n-jobs", type=int, default=None, help="worker processes (default: as archived)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_rerun)
+
+    p = sub.add_parser("show", help="summarise an archived run")
+    p.add_argument("archive")
+    p.add_argument("--json", metavar="FILE", help="also write the summary as JSON (best parameters under 'best')")
+    p.set_defaults(func=cmd_show)
 
     p = sub.add_parser("demo", help="build the FMUs and plot every test bench's step response")
     p.add_argument("--results", default="results", help="output directory (default %(default)s)")

@@ -174,6 +174,15 @@ def load_experiment(path: str | Path) -> Experiment:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as e:
         raise ConfigError(f"not UTF-8 text: {e}", file) from None
+    return parse_experiment(text, path)
+
+
+def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = None) -> Experiment:
+    """An experiment from its config text; ``path`` locates relative data files and names
+    the config in errors. With ``data`` given (a run re-built from its archive), no file
+    is read."""
+    path = Path(path)
+    file = str(path)
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -213,7 +222,12 @@ def load_experiment(path: str | Path) -> Experiment:
         raise ConfigError(f"{', '.join(both)} is both fixed and estimated; keep one",
                           file, config_key("estimate", both[0]))
 
-    data = _load_data(path, data_file, time_column, outputs, file)
+    if data is None:
+        data = _load_data(path, data_file, time_column, outputs, file)
+    else:
+        for out, col in outputs.items():
+            if col not in data.columns:
+                raise ConfigError(describe_missing(col, list(data.names)), file, config_key("data.outputs", out))
 
     f = sections["fitness"]
     window = _read_window(f, data, cfg)

@@ -1,0 +1,143 @@
+"""Archived runs: re-run bit for bit, resume after kill -9, summaries, locking."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from rapid_cosim.archive import RunArchive
+from rapid_cosim.archive.runs import RunOptions, inputs_from_configs, rerun, resume_run, start_run
+from rapid_cosim.cli import main
+from rapid_cosim.errors import ArchiveLocked
+from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+
+FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}
+ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"}, "gov.Ts": {"min": 0.1, "max": 20.0, "label": "Ts"}}
+
+
+@pytest.fixture(scope="module")
+def config(fmus, tmp_path_factory):
+    t, y = synthesize(fmus["StagedTest"], {**FIXED, "gov.R": 0.06, "gov.Ts": 4.0}, duration=25.0,
+                      noise=NoiseModel(white_sigma=0.0008, offset=0.001), rng=np.random.default_rng(7))
+    return write_experiment(tmp_path_factory.mktemp("runs") / "synth", model="iGrGen.TestBenches.StagedTest",
+                            time=t, values=y, fixed=FIXED, estimate=ESTIMATE)
+
+
+def _histories_equal(a, b):
+    assert len(a) == len(b)
+    for p, q in zip(a, b):
+        assert (p.stage, p.index, p.n_sims, p.rng_state) == (q.stage, q.index, q.n_sims, q.rng_state)
+        assert np.array_equal(p.x, q.x) and np.array_equal(p.fitness, q.fitness)
+        assert np.array_equal(p.weights, q.weights) and np.array_equal(p.best_x, q.best_x)
+
+
+def test_rerun_from_the_archive_alone_is_bit_identical(config, tmp_path):
+    archive = tmp_path / "run.h5"
+    result = start_run(inputs_from_configs([config]), RunOptions(method="pso:3+nm", seed=5), archive, progress=False)
+    os.rename(config, config.with_suffix(".moved"))  # the config and data files are not needed any more
+    try:
+        report = rerun(archive, progress=False)
+    finally:
+        os.rename(config.with_suffix(".moved"), config)
+    assert report.identical, report.first_difference
+    assert report.iterations_compared == result.nit
+    assert np.array_equal(report.result.x, result.x) and report.result.fun == result.fun
+    assert report.simulations > 0
+
+
+def test_rerun_detects_a_different_archive(config, tmp_path):
+    archive = tmp_path / "run.h5"
+    start_run(inputs_from_configs([config]), RunOptions(method="pso:2", seed=5), archive, progress=False)
+    import h5py
+
+    with h5py.File(archive, "r+") as f:  # tamper with one stored fitness
+        f["evaluations/fitness"][3] += 1e-9
+    report = rerun(archive, progress=False)
+    assert not report.identical and "fitness" in report.first_difference
+
+
+WRITER = """
+import sys
+from rapid_cosim.archive.runs import RunOptions, inputs_from_configs, start_run
+start_run(inputs_from_configs([sys.argv[1]]), RunOptions(method="pf:12+nm", seed=11,
+          estimator_options={"pf": {"n_particles": 20}}), sys.argv[2], progress=False)
+"""
+
+
+def test_resume_after_kill_9_gives_the_uninterrupted_result(config, tmp_path, repo):
+    full = tmp_path / "full.h5"
+    expected = start_run(inputs_from_configs([config]), RunOptions(method="pf:12+nm", seed=11,
+                         estimator_options={"pf": {"n_particles": 20}}), full, progress=False)
+    killed = tmp_path / "killed.h5"
+    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(config), str(killed)], cwd=repo)
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline:
+            time.sleep(0.05)
+            if killed.exists():
+                try:
+                    with RunArchive(killed) as view:
+                        if view.n_iterations >= 4:
+                            break
+                except Exception:
+                    pass
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait()
+    with RunArchive(killed) as view:
+        assert view.status == "running" and 4 <= view.n_iterations < expected.nit
+    with pytest.warns(UserWarning, match="complete iterations"):
+        resumed = resume_run(killed, progress=False)
+    assert np.array_equal(resumed.x, expected.x) and resumed.fun == expected.fun
+    assert (resumed.nfev, resumed.nit, resumed.stop_reason) == (expected.nfev, expected.nit, expected.stop_reason)
+    with RunArchive(killed) as a, RunArchive(full) as b:
+        assert a.status == "finished"
+        _histories_equal(a.iterations(), b.iterations())
+
+
+def test_an_archive_held_by_a_live_run_is_refused(config, tmp_path):
+    archive = tmp_path / "held.h5"
+    lock = tmp_path / "held.h5.lock"
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        import socket
+
+        # the lock file as a live run in another process leaves it
+        lock.write_text(json.dumps({"pid": holder.pid, "host": socket.gethostname(),
+                                    "start": _process_start_time(holder.pid)}))
+        with pytest.raises(ArchiveLocked, match=str(holder.pid)):
+            start_run(inputs_from_configs([config]), RunOptions(method="nm"), archive, progress=False)
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def _process_start_time(pid):
+    from rapid_cosim.archive.store import _process_start
+
+    return _process_start(pid)
+
+
+def test_cli_estimate_show_json(config, tmp_path, capsys):
+    archive = tmp_path / "cli.h5"
+    assert main(["estimate", str(config), "--method", "pso:2+nm", "--seed", "3", "--archive", str(archive),
+                 "--option", "pso.n_particles=8", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "R " in out and "Ts" in out and "best fitness" in out
+    assert main(["show", str(archive), "--json", str(tmp_path / "s.json")]) == 0
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert set(summary["best"]) == {"gov.R", "gov.Ts"} and summary["status"] == "finished"
+    assert summary["best"]["gov.R"] == pytest.approx(0.06, rel=0.05)
+
+
+def test_cli_reports_bad_method_and_option_without_writing(config, tmp_path, capsys):
+    assert main(["estimate", str(config), "--method", "pf:x+nm", "--archive", str(tmp_path / "a.h5")]) == 2
+    assert main(["estimate", str(config), "--option", "pf.particles=5", "--archive", str(tmp_path / "a.h5")]) == 2
+    err = capsys.readouterr().err
+    assert "pf:x+nm" in err and "n_particles" in err
+    assert not (tmp_path / "a.h5").exists()
