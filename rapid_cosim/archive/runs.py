@@ -393,3 +393,41 @@ def summary_json(archive: str | Path) -> dict:
         out["experiments"] = sorted(view.configs)
         out["options"] = {k: v for k, v in view.options.items() if k != "experiments"}
     return json.loads(json.dumps(out))
+
+
+def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
+               progress: bool = True) -> tuple[EstimationResult, str]:
+    """Make-like: reuse a finished archive of the same run, resume an interrupted one,
+    start one otherwise. Returns the result and what was done ('archived', 'resumed',
+    'new'). An archive of a *different* run (method, seed, options, configs or data
+    changed) is never overwritten: that would lose a record; the error says what differs.
+    """
+    archive = Path(archive)
+    if not archive.exists():
+        return start_run(inputs, options, archive, progress=progress), "new"
+    with RunArchive(archive) as view:
+        stored = RunOptions.from_json(view.options)
+        differences = []
+        if (stored.method, stored.seed, stored.estimator_options, stored.penalty) != \
+                (options.method, options.seed, options.estimator_options, options.penalty):
+            differences.append("method, seed or estimator options")
+        if view.configs != {e.name: e.config_text for e in inputs.experiments}:
+            differences.append("experiment config")
+        from .store import data_sha256
+
+        if view.hashes["data"] != {e.name: data_sha256(_archived_data(e)) for e in inputs.experiments}:
+            differences.append("measured data")
+        if differences:
+            raise ArchiveError(f"{archive} holds a run with another {', '.join(differences)}; "
+                               "remove it (or choose another archive) to run again")
+        stale_fmu = view.hashes["fmus"] != {m: ref.sha256 for m, ref in inputs.fmus.items()}
+        finished = view.status == "finished"
+        result = view.result() if finished else None
+    if stale_fmu:
+        import warnings
+
+        warnings.warn(f"{archive} was made with another build of the FMU; 'rapid-cosim rerun {archive}' "
+                      "checks that the archived result still holds", stacklevel=2)
+    if finished:
+        return result, "archived"
+    return resume_run(archive, n_jobs=options.n_jobs, backend=options.backend, progress=progress), "resumed"
