@@ -46,7 +46,8 @@ Schema (keys not shown here are rejected, with a suggestion when one is close)::
     timeout = 10.0           # wall-clock seconds per simulation, default 30
 
 Estimate entries: ``min`` and ``max`` (required numbers, ``min < max``), ``label``
-(default: the name), ``scale`` (only ``"linear"``: the search space is linear),
+(default: the name), ``scale`` (``"linear"``, or ``"log"`` for a positive range spanning
+decades: the estimators then move the parameter by its logarithm),
 ``start`` (an initial guess inside the bounds; default the midpoint) and
 ``per_experiment`` (default false). Parameter names are FMU variable names; quote dotted
 names (``"gov.R"``). Unquoted dotted keys (``gov.R = ...``) are read as the same name.
@@ -81,7 +82,7 @@ from rapid_cosim.estimators.base import SearchSpace
 
 CONFIG_NAME = "config.toml"
 DEFAULT_TIMEOUT = 30.0
-SCALES = ("linear",)
+SCALES = ("linear", "log")
 NOISE_PRE_STEP = "pre-step"
 
 _SECTIONS: dict[str, frozenset[str] | None] = {
@@ -310,8 +311,10 @@ def _read_estimate(table: dict, cfg: "_Reader") -> tuple[EstimateSpec, ...]:
             raise ConfigError(f"min ({lo:g}) must be less than max ({hi:g})", cfg.file, key)
         scale = cfg.string(value, key, "scale", default="linear")
         if scale not in SCALES:
-            raise ConfigError(f"scale {scale!r} is not supported; the search space is linear "
-                              f"(use \"linear\")", cfg.file, f"{key}.scale")
+            raise ConfigError(f"scale {scale!r} is not supported; use one of {', '.join(SCALES)}",
+                              cfg.file, f"{key}.scale")
+        if scale == "log" and not lo > 0:
+            raise ConfigError(f"scale \"log\" needs min > 0, got {lo:g}", cfg.file, f"{key}.min")
         start = None
         if "start" in value:
             start = cfg.number(value["start"], f"{key}.start")
@@ -542,6 +545,7 @@ def build_problem(experiments: Sequence[Experiment],
     labels: list[str] = []
     lower: list[float] = []
     upper: list[float] = []
+    log: list[bool] = []
     x0: list[float] = []
     index: dict[str, int] = {}
     assignments = []
@@ -555,13 +559,15 @@ def build_problem(experiments: Sequence[Experiment],
                 labels.append(f"{s.label}@{e.name}" if s.per_experiment else s.label)
                 lower.append(s.min)
                 upper.append(s.max)
-                x0.append(s.start if s.start is not None else 0.5 * (s.min + s.max))
+                log.append(s.scale == "log")
+                midpoint = np.sqrt(s.min * s.max) if s.scale == "log" else 0.5 * (s.min + s.max)
+                x0.append(s.start if s.start is not None else midpoint)
             pairs.append((s.name, index[dim]))
         assignments.append(tuple(pairs))
     if not names:
         raise ConfigError("nothing to estimate: no [estimate] entries in any experiment",
                           str(experiments[0].config_path), "estimate")
-    return Problem(experiments, SearchSpace(tuple(names), np.array(lower), np.array(upper)),
+    return Problem(experiments, SearchSpace(tuple(names), np.array(lower), np.array(upper), tuple(log)),
                    tuple(labels), np.array(x0), tuple(assignments))
 
 

@@ -9,6 +9,7 @@ of global state in the package.
 
 from __future__ import annotations
 
+import ctypes
 import difflib
 import hashlib
 import math
@@ -26,6 +27,7 @@ from fmpy import extract, instantiate_fmu, read_model_description, simulate_fmu
 from fmpy.fmi2 import fmi2Real, fmi2ValueReference
 
 from .errors import ParameterError, SimulationError, SimulationTimeout
+from .integrator import Integrator
 
 
 @dataclass(frozen=True)
@@ -171,9 +173,10 @@ class Simulator:
         return start_time + output_interval * np.arange(n_points + 1)
 
     def _run(self, params: dict[str, float], names: list[str], start_time: float, times: np.ndarray) -> Trajectory:
-        """The model-exchange loop for models without inputs, on fmpy's FMU2Model and
-        CVode binding: only what calibration needs (parameters, time events, outputs at
-        given times), without fmpy's generic per-point recorder and input handling."""
+        """The model-exchange loop for models without inputs, on fmpy's FMU2Model and its
+        SUNDIALS binding (see :mod:`rapid_cosim.integrator`): only what calibration needs
+        (parameters, time events, outputs at given times), without fmpy's generic
+        per-point recorder and input handling."""
         try:
             values = self._integrate(params, names, start_time, times)
         except SimulationTimeout:
@@ -185,8 +188,6 @@ class Simulator:
         return Trajectory(times, {n: values[:, j] for j, n in enumerate(names)})
 
     def _integrate(self, params, names, start_time, times) -> np.ndarray:
-        from fmpy.sundials import CVodeSolver
-
         fmu = self._instance
         if not self._fresh:
             fmu.reset()
@@ -198,44 +199,44 @@ class Simulator:
         fmu.exitInitializationMode()
         has_event, t_event = self._update_discrete(fmu)
         fmu.enterContinuousTimeMode()
-        nx = self.model_description.numberOfContinuousStates
         stop_time = float(times[-1])
         if self._solver is None or self._solver_span != (start_time, stop_time):
-            self._solver = CVodeSolver(
-                nx=nx, nz=self.model_description.numberOfEventIndicators, get_x=fmu.getContinuousStates,
-                set_x=fmu.setContinuousStates, get_dx=fmu.getDerivatives, get_z=fmu.getEventIndicators,
-                get_nominals=fmu.getNominalsOfContinuousStates, set_time=fmu.setTime, input=_NoInput(),
-                startTime=start_time, maxStep=(stop_time - start_time) / 50.0,
-                relativeTolerance=self.relative_tolerance)
+            if self._solver is not None:
+                self._solver.close()
+            self._solver = Integrator(fmu, self.model_description.numberOfContinuousStates,
+                                      start_time=start_time, max_step=(stop_time - start_time) / 50.0,
+                                      relative_tolerance=self.relative_tolerance)
             self._solver_span = (start_time, stop_time)
         else:
             self._solver.reset(start_time)
         solver = self._solver
-        vrs = (fmi2ValueReference * len(names))(*[self._vr[n] for n in names])
-        buf = (fmi2Real * len(names))()
-        out = np.empty((times.size, len(names)))
+        component, m = fmu.component, len(names)
+        vrs = (fmi2ValueReference * m)(*[self._vr[n] for n in names])
+        out = (fmi2Real * (times.size * m))()  # filled in place, row by row
+        row_bytes, base = m * ctypes.sizeof(fmi2Real), ctypes.addressof(out)
+        # fmi2GetReal taking the destination as a plain address, to write into ``out`` rows
+        get_real = _GET_REAL(ctypes.cast(fmu.dll.fmi2GetReal, ctypes.c_void_p).value)
+        reach = (times + 1e-12 * np.maximum(1.0, np.abs(times))).tolist()  # an event this close is "at" t
         deadline = None if self.timeout is None else time_module.perf_counter() + self.timeout
         t = start_time
-        for k, tk in enumerate(times):
-            while has_event and t_event <= tk + 1e-12 * max(1.0, abs(tk)):
+        for k, tk in enumerate(times.tolist()):
+            while has_event and t_event <= reach[k]:
                 if t_event > t:
-                    t = solver.step(t, t_event)[2]
-                    fmu.setTime(t)
+                    t = solver.advance(t_event)
                 fmu.enterEventMode()
                 has_event, t_event = self._update_discrete(fmu)
                 fmu.enterContinuousTimeMode()
                 solver.reset(t)
             if tk > t:
-                t = solver.step(t, tk)[2]
-                fmu.setTime(t)
-            fmu.fmi2GetReal(fmu.component, vrs, len(names), buf)
-            out[k] = buf
+                t = solver.advance(tk)
+            if get_real(component, vrs, m, base + k * row_bytes) >= 2:
+                raise SimulationError(f"{self.name}: evaluating the outputs failed at t={t:g}")
             if deadline is not None and k % 32 == 0 and time_module.perf_counter() > deadline:
                 raise SimulationTimeout(
                     f"{self.name} stopped at t={t:g} of {times[-1]:g} s after the {self.timeout} s time-out "
                     f"with {_describe(params)}")
         fmu.terminate()
-        return out
+        return np.frombuffer(out, dtype=float).reshape(times.size, m).copy()
 
     @staticmethod
     def _update_discrete(fmu) -> tuple[bool, float]:
@@ -265,6 +266,8 @@ class Simulator:
 
     def _recover(self) -> None:
         """After a failure the instance may be in any state; a reset brings it back."""
+        if self._solver is not None:
+            self._solver.close()
         self._solver = None  # its callbacks may point at a replaced instance
         try:
             self._instance.reset()
@@ -280,11 +283,8 @@ class Simulator:
             self._finalizer()
 
 
-class _NoInput:
-    """fmpy's CVode binding applies inputs in its root function; these models have none."""
-
-    def apply(self, time, continuous=True, discrete=True, after_event=False):
-        pass
+_GET_REAL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(fmi2ValueReference), ctypes.c_size_t,
+                             ctypes.c_void_p)
 
 
 def _float(value) -> float | None:

@@ -168,9 +168,25 @@ def test_bounds_must_be_numbers(tmp_path, bounds, key):
     assert error(tmp_path, edit("min = 0.02, max = 0.12", bounds)).key == key
 
 
-def test_log_scale_is_refused_clearly(tmp_path):
-    e = error(tmp_path, edit('scale = "linear"', 'scale = "log"'))
-    assert e.key == 'estimate."gov.Ts".scale' and "linear" in str(e)
+def test_log_scale_moves_by_the_logarithm(tmp_path):
+    exp = load_experiment(make(tmp_path, edit('scale = "linear"', 'scale = "log"')))
+    space = build_problem([exp]).space
+    k = space.names.index("gov.Ts")
+    lo, hi = space.lower[k], space.upper[k]
+    x = np.array(space.from_unit(np.full(space.dim, 0.5)))
+    assert x[k] == pytest.approx(np.sqrt(lo * hi))  # the unit midpoint is the geometric mean
+    assert space.to_unit(x)[k] == pytest.approx(0.5)
+
+
+def test_log_scale_needs_a_positive_minimum(tmp_path):
+    text = edit('scale = "linear"', 'scale = "log"')
+    e = error(tmp_path, text.replace('"gov.Ts" = { min = 0.1', '"gov.Ts" = { min = 0.0'))
+    assert e.key == 'estimate."gov.Ts".min' and "min > 0" in str(e)
+
+
+def test_unknown_scale_is_refused_clearly(tmp_path):
+    e = error(tmp_path, edit('scale = "linear"', 'scale = "sqrt"'))
+    assert e.key == 'estimate."gov.Ts".scale' and "linear, log" in str(e)
 
 
 def test_missing_data_file_shows_absolute_path(tmp_path):

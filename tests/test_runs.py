@@ -64,21 +64,21 @@ def test_rerun_detects_a_different_archive(config, tmp_path):
 WRITER = """
 import sys
 from rapid_cosim.archive.runs import RunOptions, inputs_from_configs, start_run
-start_run(inputs_from_configs([sys.argv[1]]), RunOptions(method="pf:12+nm", seed=11,
-          estimator_options={"pf": {"n_particles": 20}}), sys.argv[2], progress=False)
+start_run(inputs_from_configs([sys.argv[1]]), RunOptions(method="pf:30+nm", seed=11,
+          estimator_options={"pf": {"n_particles": 30}}), sys.argv[2], progress=False)
 """
 
 
 def test_resume_after_kill_9_gives_the_uninterrupted_result(config, tmp_path, repo):
     full = tmp_path / "full.h5"
-    expected = start_run(inputs_from_configs([config]), RunOptions(method="pf:12+nm", seed=11,
-                         estimator_options={"pf": {"n_particles": 20}}), full, progress=False)
+    expected = start_run(inputs_from_configs([config]), RunOptions(method="pf:30+nm", seed=11,
+                         estimator_options={"pf": {"n_particles": 30}}), full, progress=False)
     killed = tmp_path / "killed.h5"
     proc = subprocess.Popen([sys.executable, "-c", WRITER, str(config), str(killed)], cwd=repo)
     try:
         deadline = time.time() + 120
         while time.time() < deadline:
-            time.sleep(0.05)
+            time.sleep(0.01)
             if killed.exists():
                 try:
                     with RunArchive(killed) as view:
@@ -91,7 +91,7 @@ def test_resume_after_kill_9_gives_the_uninterrupted_result(config, tmp_path, re
         proc.wait()
     with RunArchive(killed) as view:
         assert view.status == "running" and 4 <= view.n_iterations < expected.nit
-    with pytest.warns(UserWarning, match="complete iterations"):
+    with pytest.warns(UserWarning, match="stale lock"):  # and, depending on the moment of the kill, a recovery
         resumed = resume_run(killed, progress=False)
     assert np.array_equal(resumed.x, expected.x) and resumed.fun == expected.fun
     assert (resumed.nfev, resumed.nit, resumed.stop_reason) == (expected.nfev, expected.nit, expected.stop_reason)

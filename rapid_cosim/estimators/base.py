@@ -27,11 +27,15 @@ class SearchSpace:
 
     Methods work in unit coordinates (each parameter scaled to [0, 1] by its bounds), so
     that a droop of 0.05 and a time constant of 10 s are moved on the same footing.
+    Parameters flagged in ``log`` are scaled by their logarithm: a rate that matters
+    anywhere between 0.001 and 0.2 pu/s gets as much of a uniform prior, a swarm or a
+    simplex step per decade as per unit of the others.
     """
 
     names: tuple[str, ...]
     lower: np.ndarray
     upper: np.ndarray
+    log: tuple[bool, ...] | None = None
 
     def __post_init__(self):
         lower = np.asarray(self.lower, dtype=float)
@@ -41,8 +45,19 @@ class SearchSpace:
         if not np.all(upper > lower):
             bad = [n for n, lo, hi in zip(self.names, lower, upper) if not hi > lo]
             raise ValueError(f"upper bound must exceed lower bound for {bad}")
+        log = tuple(bool(v) for v in self.log) if self.log is not None else (False,) * len(self.names)
+        if len(log) != len(self.names):
+            raise ValueError("log needs one flag per name")
+        bad = [n for n, lo, flag in zip(self.names, lower, log) if flag and not lo > 0]
+        if bad:
+            raise ValueError(f"a log scale needs a positive lower bound: {bad}")
         object.__setattr__(self, "lower", lower)
         object.__setattr__(self, "upper", upper)
+        object.__setattr__(self, "log", log)
+        mask = np.array(log, dtype=bool)
+        object.__setattr__(self, "_mask", mask)
+        object.__setattr__(self, "_lo", np.where(mask, np.log(np.where(mask, lower, 1.0)), lower))
+        object.__setattr__(self, "_hi", np.where(mask, np.log(np.where(mask, upper, 1.0)), upper))
 
     @property
     def dim(self) -> int:
@@ -53,10 +68,16 @@ class SearchSpace:
         return self.upper - self.lower
 
     def to_unit(self, x: np.ndarray) -> np.ndarray:
-        return (np.asarray(x, dtype=float) - self.lower) / self.width
+        x = np.asarray(x, dtype=float)
+        if self._mask.any():
+            x = np.where(self._mask, np.log(np.where(self._mask, np.maximum(x, self.lower), 1.0)), x)
+        return (x - self._lo) / (self._hi - self._lo)
 
     def from_unit(self, u: np.ndarray) -> np.ndarray:
-        return self.lower + np.asarray(u, dtype=float) * self.width
+        v = self._lo + np.asarray(u, dtype=float) * (self._hi - self._lo)
+        if self._mask.any():
+            v = np.where(self._mask, np.exp(v), v)
+        return v
 
     def clip(self, x: np.ndarray) -> np.ndarray:
         return np.clip(x, self.lower, self.upper)
