@@ -7,12 +7,20 @@ RC      := $(BIN)/rapid-cosim
 STAMP   := $(VENV)/.installed
 SEED    ?= 1
 N_JOBS  ?= 2
+RESULTS ?= results
+ARCHIVE ?=
+
+STAGED_TESTS := $(addprefix test,1 2 3 4 5 6 7 8 9 10)
+TABLE1_TESTS := $(addprefix experiments/test,1 2 3 4 5 6 7 8)
+RUN_OPTS     := --results $(RESULTS) --seed $(SEED) --n-jobs $(N_JOBS)
+T0           := $(shell date +%s)
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-fast bench clean
+.PHONY: help install fmus demo test bench clean table1 figures rerun joint $(STAGED_TESTS)
 
 help:  ## list the targets
-	@grep -E '^[a-zA-Z0-9_%-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
+	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
+		| awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -25,11 +33,32 @@ install: $(STAMP)  ## create .venv and install rapid-cosim with pinned dependenc
 fmus: $(STAMP)  ## compile the iGrGen test benches into fmus/ (only what changed)
 	$(RC) build
 
-demo: fmus  ## set up and run the main job on the bundled data
-	$(RC) demo
+demo: fmus  ## set up, then calibrate staged test 1 with PSO10+NM and PF10+NM; prints its figure and table
+	$(RC) demo $(RUN_OPTS)
 
 test: fmus  ## run the test suite
 	$(PY) -m pytest -q
+
+$(STAGED_TESTS): test%: fmus  ## PSO10+NM and PF10+NM on one staged test, archived in results/testN/, with its figure
+	$(RC) staged-test experiments/test$* $(RUN_OPTS)
+
+table1: fmus  ## Table 1 (tests 1-8, both chains) as Markdown + CSV; runs what is not archived yet
+	$(RC) staged-test $(TABLE1_TESTS) $(RUN_OPTS) --quiet
+	$(RC) table1 --results $(RESULTS) --tests 1-8
+	@echo "make table1: $$(( $$(date +%s) - $(T0) )) s wall time (set-up included)"
+
+figures: fmus  ## fit figures (Figs. 3-8), convergence and particle clouds of every archived staged test
+	@ls $(RESULTS)/test*/pf10+nm.h5 >/dev/null 2>&1 || $(MAKE) --no-print-directory table1
+	$(RC) figures --results $(RESULTS)
+
+rerun: fmus  ## re-run ARCHIVE=results/test1/pf10+nm.h5 from the archive alone; fails unless identical
+	@test -n "$(ARCHIVE)" || { echo "usage: make rerun ARCHIVE=results/test1/pf10+nm.h5"; exit 2; }
+	$(RC) rerun $(ARCHIVE) --n-jobs $(N_JOBS)
+
+joint: fmus  ## joint Bayesian fit of R and Ts over tests 1-8, and how consistent the per-test estimates are
+	$(RC) staged-test $(TABLE1_TESTS) $(RUN_OPTS) --quiet
+	$(RC) joint --tests 1-8 $(RUN_OPTS)
+	@echo "make joint: $$(( $$(date +%s) - $(T0) )) s wall time"
 
 bench: fmus  ## print the performance figures
 	$(PY) benchmarks/run.py

@@ -55,7 +55,7 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-def cmd_demo(args) -> int:
+def cmd_benches(args) -> int:
     from .build import build_models
     from .report.figures import plot_step_responses
     from .simulator import Simulator
@@ -73,6 +73,137 @@ def cmd_demo(args) -> int:
     fig = plot_step_responses(responses, Path(args.results) / "step_responses.png",
                               title="Step responses of the iGrGen test benches (R = 0.05, Ts = 3 s)")
     print(f"figure: {fig}")
+    return 0
+
+
+def _staged_tests(args, experiments) -> list[str]:
+    """Run both chains on each staged test; print a short table; write each fit figure."""
+    import time
+
+    from .report import table1
+    from .report.fits import plot_test_fit
+    from .staged import run_staged_test
+
+    tests = []
+    for config in experiments:
+        t0 = time.perf_counter()
+        runs = run_staged_test(config, results=args.results, seed=args.seed, n_jobs=args.n_jobs,
+                               progress=not args.quiet, fmu_dir=args.fmus, package=args.package, backend=args.backend)
+        test = runs[0].test
+        rows = [table1.read_row(r.test, r.method.label, r.archive) for r in runs]
+        fig = plot_test_fit({r.method.label: r.archive for r in runs}, Path(args.results) / test / f"{test}.png")
+        done = ", ".join(f"{r.method.key} {r.action}" for r in runs)
+        print(f"\n{test}: {done} ({time.perf_counter() - t0:.1f} s)\n" + table1.text(rows).rstrip())
+        print(f"archives: {', '.join(str(r.archive) for r in runs)}\nfigure:   {fig}")
+        tests.append(test)
+    return tests
+
+
+def cmd_staged_test(args) -> int:
+    _staged_tests(args, args.experiments)
+    return 0
+
+
+def _table1(results, tests, out_dir=None, stem="table1") -> tuple[str, Path, Path]:
+    from .report import table1
+    from .staged import METHODS, archive_path
+
+    rows = [table1.read_row(t, m.label, archive_path(results, t, m.key)) for t in tests for m in METHODS]
+    md, csv_path = table1.write_table1(rows, results if out_dir is None else out_dir, stem)
+    return table1.text(rows), md, csv_path
+
+
+def cmd_table1(args) -> int:
+    from .staged import parse_tests
+
+    text, md, csv_path = _table1(args.results, parse_tests(args.tests))
+    print(text, end="")
+    print(f"\ntable: {md} (Markdown), {csv_path} (CSV)")
+    return 0
+
+
+def cmd_demo(args) -> int:
+    import time
+
+    from .build import build_models
+
+    t0 = time.perf_counter()
+    print("1/3 building the iGrGen test benches (only what changed)")
+    build_models(package=args.package, fmu_dir=args.fmus, backend=args.backend)
+    config = Path(args.experiments) / args.test
+    print(f"2/3 calibrating {config} with PSO10+NM and PF10+NM (seed {args.seed}, {args.n_jobs} workers)")
+    test = _staged_tests(args, [config])[0]
+    print("3/3 Table 1 for this test, from its archives")
+    _, md, csv_path = _table1(args.results, [test], Path(args.results) / test, f"table1-{test}")
+    print(f"\ndemo done in {time.perf_counter() - t0:.0f} s")
+    print(f"  figure: {Path(args.results) / test / (test + '.png')}")
+    print(f"  table:  {md} and {csv_path}")
+    print("  next:   make table1 (tests 1-8), make figures, make joint")
+    return 0
+
+
+def cmd_figures(args) -> int:
+    from .report.fits import plot_fit_grid, plot_test_fit
+    from .report.search import plot_convergence, plot_particle_clouds
+    from .report.archives import caption, load_run
+    from .staged import METHODS, archive_path, parse_tests, natural_key
+
+    results = Path(args.results)
+    if args.tests:
+        tests = parse_tests(args.tests)
+    else:
+        tests = sorted({p.parent.name for p in results.glob("*/*.h5") if p.parent.name != "joint"}, key=natural_key)
+    have = {t: {m.label: archive_path(results, t, m.key) for m in METHODS} for t in tests}
+    missing = [str(p) for a in have.values() for p in a.values() if not p.exists()]
+    if missing:
+        print(f"rapid-cosim figures: missing archives (run make testN or make table1): {', '.join(missing)}",
+              file=sys.stderr)
+        return 2
+    if not have:
+        print(f"rapid-cosim figures: no staged-test archives under {results}; run make table1 first", file=sys.stderr)
+        return 2
+    written = []
+    for t, archives in have.items():
+        title = caption(load_run(next(iter(archives.values()))).experiment)
+        written.append(plot_test_fit(archives, results / t / f"{t}.png", title=title))
+        written.append(plot_particle_clouds(archives, results / t / f"{t}-particles.png",
+                                            title=f"{title}: particles of the first stage"))
+    paper = [t for t in tests if t in [f"test{k}" for k in range(1, 7)]]
+    if paper:
+        written.append(plot_fit_grid([have[t] for t in paper], results / "figures" / "figs3-8.png",
+                                     title="Counterparts of Figs. 3-8: measured pm and both calibrated simulations"))
+    written.append(plot_convergence(have, results / "figures" / "convergence.png"))
+    for w in written:
+        print(f"wrote {w}")
+    return 0
+
+
+def cmd_joint(args) -> int:
+    from .report.joint import markdown, write_joint_report
+    from .staged import archive_path, ensure_laplace, laplace_cache, method, parse_tests, run_joint
+
+    tests = parse_tests(args.tests)
+    configs = [Path(args.experiments) / t for t in tests]
+    per_test = [archive_path(args.results, t, args.per_test_method) for t in tests]
+    missing = [str(p) for p in per_test if not p.exists()]
+    if missing:
+        raise RapidCosimError(f"the consistency check needs the per-test runs first (make table1): "
+                              f"{', '.join(missing)}")
+    method(args.per_test_method)
+    print(f"joint SMC fit of R and Ts over {', '.join(tests)} (seed {args.seed}, {args.n_jobs} workers)")
+    from .archive.runs import parse_option_overrides
+
+    options = parse_option_overrides(args.option) if args.option else None
+    path, result, action = run_joint(configs, results=args.results, seed=args.seed, n_jobs=args.n_jobs,
+                                     options=options, progress=not args.quiet, fmu_dir=args.fmus, package=args.package,
+                                     backend=args.backend)
+    print(f"{path}: {action}, {result.nfev} evaluations, {result.wall_time:.0f} s")
+    print("Laplace approximations at each test's optimum")
+    ensure_laplace(per_test, laplace_cache(args.results), n_jobs=args.n_jobs)
+    summary, md, js, png = write_joint_report(path, laplace_cache(args.results), Path(args.results) / "joint")
+    print()
+    print(markdown(summary))
+    print(f"written: {md}, {js}, {png}")
     return 0
 
 
@@ -228,9 +359,51 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="FILE", help="also write the summary as JSON (best parameters under 'best')")
     p.set_defaults(func=cmd_show)
 
-    p = sub.add_parser("demo", help="build the FMUs and plot every test bench's step response")
+    p = sub.add_parser("benches", help="build the FMUs and plot every test bench's step response")
     p.add_argument("--results", default="results", help="output directory (default %(default)s)")
     model_options(p)
+    p.set_defaults(func=cmd_benches)
+
+    def staged_options(p, n_jobs=2):
+        p.add_argument("--results", default="results", help="results folder (default %(default)s)")
+        p.add_argument("--seed", type=int, default=1, help="random seed of both chains (default %(default)s)")
+        p.add_argument("--n-jobs", type=int, default=n_jobs, help="worker processes (default %(default)s)")
+        p.add_argument("--quiet", action="store_true", help="no progress bar")
+        model_options(p)
+
+    p = sub.add_parser("staged-test", help="calibrate staged tests with PSO10+NM and PF10+NM (archived, "
+                       "make-like) and draw each test's fit figure")
+    p.add_argument("experiments", nargs="+", help="experiment folders or configs, e.g. experiments/test1")
+    staged_options(p)
+    p.set_defaults(func=cmd_staged_test)
+
+    p = sub.add_parser("table1", help="Table 1 of the paper (Markdown + CSV) from the staged-test archives")
+    p.add_argument("--results", default="results", help="results folder (default %(default)s)")
+    p.add_argument("--tests", default="1-8", help="tests, e.g. 1-8 or 1,3,9-10 (default %(default)s)")
+    p.set_defaults(func=cmd_table1)
+
+    p = sub.add_parser("figures", help="fit figures (Figs. 3-8), convergence and particle clouds from the archives")
+    p.add_argument("--results", default="results", help="results folder (default %(default)s)")
+    p.add_argument("--tests", help="tests, e.g. 1-8 (default: every test with archives under --results)")
+    p.set_defaults(func=cmd_figures)
+
+    p = sub.add_parser("joint", help="joint Bayesian (SMC) fit of R and Ts over several tests, with a "
+                       "consistency check of the per-test estimates")
+    p.add_argument("--tests", default="1-8", help="tests (default %(default)s)")
+    p.add_argument("--experiments", default="experiments", help="experiments folder (default %(default)s)")
+    p.add_argument("--per-test-method", default="pf10+nm",
+                   help="whose per-test optima are checked against the joint fit (default %(default)s)")
+    p.add_argument("--option", action="append", metavar="smc.NAME=VALUE",
+                   help="SMC option instead of the defaults (100 particles, 2 moves per stage), e.g. "
+                        "smc.n_particles=200 (repeatable)")
+    staged_options(p)
+    p.set_defaults(func=cmd_joint)
+
+    p = sub.add_parser("demo", help="build the FMUs, calibrate one staged test with both chains, "
+                       "write its figure and table")
+    p.add_argument("--test", default="test1", help="staged test (default %(default)s)")
+    p.add_argument("--experiments", default="experiments", help="experiments folder (default %(default)s)")
+    staged_options(p)
     p.set_defaults(func=cmd_demo)
     return parser
 

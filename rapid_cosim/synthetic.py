@@ -26,6 +26,11 @@ class NoiseModel:
     phi: float = 0.0
     offset: float = 0.0
 
+    @property
+    def sigma(self) -> float:
+        """Standard deviation of the noise (offset aside)."""
+        return float(np.hypot(self.white_sigma, self.ar1_sigma))
+
     def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
         e = self.white_sigma * rng.standard_normal(n)
         if self.ar1_sigma > 0:

@@ -1,0 +1,279 @@
+"""The staged tests as experiments: each test calibrated with the paper's two chains
+(PSO10+NM and PF10+NM, section 3), one joint Bayesian fit of R and Ts over tests 1-8,
+and the Laplace approximation at each test's optimum that the consistency check needs.
+
+Everything here runs estimations or simulations and writes archives (or JSON beside
+them); tables and figures are made from those files by :mod:`rapid_cosim.report`.
+
+Layout under a results folder (default ``results/``)::
+
+    <test>/pso10+nm.h5  <test>/pf10+nm.h5    one archive per test and method
+    <test>/<test>.png                        the test's fit figure (report)
+    joint/smc.h5                             the joint SMC run over tests 1-8
+    joint/laplace.json                       per-test Laplace approximations
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from .archive.runs import (RunOptions, ensure_run, inputs_from_archive, inputs_from_configs,
+                           log_likelihood_for)
+from .archive.store import RunArchive
+from .data import noise_level
+from .errors import RapidCosimError
+from .estimators.base import EstimationResult
+from .estimators.laplace import laplace
+from .evaluate import ProblemObjective
+
+
+@dataclass(frozen=True)
+class Method:
+    """One of the paper's two chains with the particle count used here."""
+
+    key: str  # archive file stem
+    label: str  # as the paper writes it
+    chain: str  # estimator chain (rapid_cosim.estimators.chain)
+    options: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def run_options(self, seed: int, n_jobs: int) -> RunOptions:
+        return RunOptions(method=self.chain, seed=seed, n_jobs=n_jobs, estimator_options=self.options)
+
+
+# Particle counts: the paper gives none. 30 particles for the swarm (PSO's usual 20-40
+# for a few parameters), 50 for the filter (Algorithm 1 needs enough particles to prune
+# half and still cover the box). Both first stages take 10 iterations, as in the paper;
+# NM then runs to scipy's tolerances. One run takes 3-10 s on 2 cores.
+METHODS: tuple[Method, ...] = (
+    Method("pso10+nm", "PSO10+NM", "pso:10+nm", {"pso": {"n_particles": 30}}),
+    Method("pf10+nm", "PF10+NM", "pf:10+nm", {"pf": {"n_particles": 50}}),
+)
+
+# The joint fit: 2 parameters, 8 experiments per evaluation. 100 particles with 2 moves
+# per tempering stage keep it to a few minutes on 2 cores (see README, "Staged tests").
+JOINT_OPTIONS = {"smc": {"n_particles": 100, "n_mcmc_steps": 2}}
+JOINT_METHOD = "smc"
+
+
+def method(key: str) -> Method:
+    for m in METHODS:
+        if m.key == key:
+            return m
+    raise RapidCosimError(f"unknown method {key!r}; methods: {', '.join(m.key for m in METHODS)}")
+
+
+def archive_path(results: str | Path, test: str, method_key: str) -> Path:
+    return Path(results) / test / f"{method_key}.h5"
+
+
+def joint_archive_path(results: str | Path) -> Path:
+    return Path(results) / "joint" / "smc.h5"
+
+
+def parse_tests(spec: str, prefix: str = "test") -> list[str]:
+    """``"1-8"`` -> test1..test8; ``"1,3,9-10"``; names (``test2``) pass through."""
+    names: list[str] = []
+    for part in (p.strip() for p in spec.split(",")):
+        if not part:
+            continue
+        m = re.fullmatch(r"(\d+)\s*-\s*(\d+)", part)
+        if m:
+            lo, hi = int(m.group(1)), int(m.group(2))
+            if lo > hi:
+                raise RapidCosimError(f"bad test range {part!r}: {lo} > {hi}")
+            names += [f"{prefix}{k}" for k in range(lo, hi + 1)]
+        elif part.isdigit():
+            names.append(f"{prefix}{int(part)}")
+        elif re.fullmatch(r"[A-Za-z0-9_.\-]+", part):
+            names.append(part)
+        else:
+            raise RapidCosimError(f"bad test list {spec!r}: write e.g. 1-8 or 1,3,9-10")
+    if not names:
+        raise RapidCosimError(f"no tests in {spec!r}")
+    return list(dict.fromkeys(names))
+
+
+def natural_key(name: str):
+    """test2 before test10."""
+    m = re.fullmatch(r"(.*?)(\d+)", name)
+    return (m.group(1), int(m.group(2))) if m else (name, -1)
+
+
+# --------------------------------------------------------------------------- one test
+
+
+@dataclass(frozen=True)
+class StagedRun:
+    test: str
+    method: Method
+    archive: Path
+    result: EstimationResult
+    action: str  # 'new', 'resumed' or 'archived' (see ensure_run)
+
+
+def run_staged_test(config: str | Path, *, results: str | Path = "results", seed: int = 1, n_jobs: int = 2,
+                    methods: Sequence[Method] = METHODS, progress: bool = True,
+                    fmu_dir: str | Path = "fmus", package: str | Path = "modelica/iGrGen",
+                    backend: str = "auto") -> list[StagedRun]:
+    """Both chains on one staged test, make-like (a finished archive of the same run is
+    reused, an interrupted one resumed)."""
+    inputs = inputs_from_configs([config], package=package, fmu_dir=fmu_dir, backend=backend)
+    test = inputs.experiments[0].name
+    runs = []
+    for m in methods:
+        path = archive_path(results, test, m.key)
+        result, action = ensure_run(inputs, m.run_options(seed, n_jobs), path, progress=progress)
+        if result.nfev and result.n_failed == result.nfev:
+            raise RapidCosimError(f"{path}: every one of the {result.nfev} simulations of {m.label} on {test} "
+                                  f"failed, so the run found nothing; 'rapid-cosim show {path}' summarises it. "
+                                  f"Remove the archive to run again once the simulator works.")
+        runs.append(StagedRun(test, m, path, result, action))
+    return runs
+
+
+# --------------------------------------------------------------------------- the joint fit
+
+
+def run_joint(configs: Sequence[str | Path], *, results: str | Path = "results", seed: int = 1, n_jobs: int = 2,
+              options: dict[str, dict[str, Any]] | None = None, progress: bool = True,
+              fmu_dir: str | Path = "fmus", package: str | Path = "modelica/iGrGen",
+              backend: str = "auto") -> tuple[Path, EstimationResult, str]:
+    """One SMC fit of shared R, Ts over the given tests (offsets profiled per test),
+    archived (make-like) in ``<results>/joint/smc.h5``; ``options`` override
+    :data:`JOINT_OPTIONS` key by key."""
+    inputs = inputs_from_configs(configs, package=package, fmu_dir=fmu_dir, backend=backend)
+    merged = {m: dict(kw) for m, kw in JOINT_OPTIONS.items()}
+    for m, kw in (options or {}).items():
+        if m != JOINT_METHOD:
+            raise RapidCosimError(f"the joint fit runs {JOINT_METHOD}; options for {m!r} do not apply")
+        merged.setdefault(m, {}).update(kw)
+    opts = RunOptions(method=JOINT_METHOD, seed=seed, n_jobs=n_jobs, estimator_options=merged)
+    path = joint_archive_path(results)
+    result, action = ensure_run(inputs, opts, path, progress=progress)
+    return path, result, action
+
+
+# --------------------------------------------------------------------------- Laplace
+
+
+@dataclass(frozen=True)
+class Laplace:
+    """Gaussian approximation of one test's likelihood at its archived optimum.
+
+    ``hessian`` is that of the negative log-likelihood ``0.5 * M * RSSD / sigma**2``
+    (white noise of the pre-step level ``sigma``), by central differences;
+    ``cov`` its inverse. ``phi`` is the pre-step lag-1 autocorrelation and
+    ``inflation = (1 + phi) / (1 - phi)`` the factor by which AR(1) noise of that
+    coefficient inflates the variance of a mean (and, roughly, of a least-squares
+    estimate driven by slow residual components): ``cov_inflated = inflation * cov``.
+    """
+
+    test: str
+    archive: str
+    names: tuple[str, ...]
+    x: np.ndarray
+    fitness: float
+    hessian: np.ndarray
+    cov: np.ndarray
+    sigma: float
+    n_samples: int
+    phi: float
+    inflation: float
+    steps: np.ndarray
+    simulations: int
+    at_bound: tuple[str, ...]
+
+    @property
+    def cov_inflated(self) -> np.ndarray:
+        return self.inflation * self.cov
+
+    def to_json(self) -> dict:
+        return {"test": self.test, "archive": self.archive, "names": list(self.names), "x": self.x.tolist(),
+                "fitness": self.fitness, "hessian": self.hessian.tolist(), "cov": self.cov.tolist(),
+                "sigma": self.sigma, "n_samples": self.n_samples, "phi": self.phi, "inflation": self.inflation,
+                "steps": self.steps.tolist(), "simulations": self.simulations, "at_bound": list(self.at_bound)}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "Laplace":
+        return cls(d["test"], d["archive"], tuple(d["names"]), np.array(d["x"]), float(d["fitness"]),
+                   np.array(d["hessian"]), np.array(d["cov"]), float(d["sigma"]), int(d["n_samples"]),
+                   float(d["phi"]), float(d["inflation"]), np.array(d["steps"]), int(d["simulations"]),
+                   tuple(d["at_bound"]))
+
+
+def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float = 0.5) -> Laplace:
+    """Laplace approximation at an archived single-test run's best point (two passes of
+    :func:`rapid_cosim.estimators.laplace.laplace`, 18 simulations for R and Ts). A best
+    point within a step of a bound is reported in ``at_bound``."""
+    with RunArchive(archive) as view:
+        inputs = inputs_from_archive(view)
+        result = view.result()
+    if result is None:
+        raise RapidCosimError(f"{archive}: the run is not finished")
+    problem = inputs.problem
+    if len(problem.experiments) != 1:
+        raise RapidCosimError(f"{archive}: the Laplace check is per test; this run fits {len(problem.experiments)}")
+    exp = problem.experiments[0]
+    loglik = log_likelihood_for(problem)
+    if loglik is None:
+        raise RapidCosimError(f"{archive}: {exp.name} has no noise level ([fitness] noise)")
+    objective = ProblemObjective(problem, inputs.fmus, n_jobs=n_jobs)
+
+    def neg_log_likelihood(X):
+        ev = objective(X)
+        if ev.failed.any():
+            raise RapidCosimError(f"{archive}: a simulation near the optimum failed")
+        return -loglik(ev)
+
+    approx = laplace(neg_log_likelihood, problem.space, np.asarray(result.x, dtype=float), rel_step=rel_step)
+    out = list(exp.outputs)[0]
+    col = exp.outputs[out]
+    noise = noise_level(exp.data, col, exp.pre_step_end)
+    return Laplace(test=exp.name, archive=str(archive), names=problem.names, x=approx.mean, fitness=float(result.fun),
+                   hessian=approx.hessian, cov=approx.covariance, sigma=float(exp.noise_sigma[out]),
+                   n_samples=exp.windowed_data().n_valid(col), phi=float(noise.phi),
+                   inflation=ar1_inflation(noise.phi), steps=approx.steps, simulations=approx.evaluations,
+                   at_bound=approx.at_bound)
+
+
+def ar1_inflation(phi: float) -> float:
+    """Variance factor ``(1 + phi) / (1 - phi)`` of a mean of AR(1) noise of lag-1
+    correlation ``phi`` (negative phi taken as 0, phi capped at 0.99)."""
+    phi = min(max(float(phi), 0.0), 0.99)
+    return (1 + phi) / (1 - phi)
+
+
+def laplace_cache(results: str | Path) -> Path:
+    return Path(results) / "joint" / "laplace.json"
+
+
+def ensure_laplace(archives: Sequence[str | Path], cache: str | Path, *, n_jobs: int = 1,
+                   log: Callable[[str], None] = print) -> list[Laplace]:
+    """Laplace approximations of the given archives, computed once and kept in ``cache``
+    (keyed by archive path and best point: a new run recomputes it)."""
+    cache = Path(cache)
+    known = {}
+    if cache.exists():
+        known = {d["archive"]: d for d in json.loads(cache.read_text())}
+    out = []
+    for a in archives:
+        with RunArchive(a) as view:
+            result = view.result()
+        if result is None:
+            raise RapidCosimError(f"{a}: the run is not finished")
+        d = known.get(str(a))
+        if d is not None and np.array_equal(np.array(d["x"]), result.x):
+            out.append(Laplace.from_json(d))
+            continue
+        lap = laplace_at_optimum(a, n_jobs=n_jobs)
+        log(f"  Laplace at the optimum of {a}: {lap.simulations} simulations")
+        out.append(lap)
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    cache.write_text(json.dumps([lap.to_json() for lap in out], indent=1) + "\n")
+    return out
