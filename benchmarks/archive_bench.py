@@ -1,5 +1,6 @@
-"""Archive figures: appendable datasets vs one HDF5 group per iteration, and what a
-``kill -9`` of the writer does to the file with and without SWMR.
+"""Archive figures: the archive vs one HDF5 group per iteration (``bench_append`` in
+``rapid_cosim.archive.store``), and what a ``kill -9`` of the writer does to the file:
+resizable datasets with plain flushes, the same in SWMR mode, and the archive.
 
     python benchmarks/archive_bench.py                      # a PSO-like and a simplex-like run
     python benchmarks/archive_bench.py --cases 500x200 --dim 8
@@ -23,96 +24,7 @@ import h5py
 import numpy as np
 
 from rapid_cosim.archive import ArchiveWriter, RunArchive
-from rapid_cosim.estimators.base import EstimationResult, Iteration
-
-
-def _iterations(n_iter: int, n_particles: int, d: int, n_experiments: int):
-    rng = np.random.default_rng(0)
-    for i in range(n_iter):
-        x = rng.random((n_particles, d))
-        fitness = rng.random(n_particles)
-        k = int(np.argmin(fitness))
-        it = Iteration(
-            stage="pso", index=i, x=x, fitness=fitness,
-            weights=np.full(n_particles, 1 / n_particles),
-            failed=rng.random(n_particles) < 0.02, best_x=x[k], best_fitness=float(fitness[k]),
-            n_sims=n_particles, wall_time=1.0, rng_state=json.dumps(rng.bit_generator.state),
-            extras={"velocity": rng.standard_normal((n_particles, d))},
-        )
-        yield it, rng.random((n_particles, n_experiments))
-
-
-def _write_appendable(path, n_iter, n_particles, d, n_experiments):
-    """Write and finish a run; return the size of the live file just before finishing."""
-    names = [f"p{j}" for j in range(d)]
-    with ArchiveWriter.create(
-        path, method="pso", seed=0, names=names, lower=np.zeros(d), upper=np.ones(d), configs={},
-        options={}, fmus={}, data={}, n_experiments=n_experiments,
-    ) as w:
-        for it, rssd in _iterations(n_iter, n_particles, d, n_experiments):
-            w.append(it, rssd)
-        live = os.path.getsize(path)
-        w.finish(EstimationResult("pso", tuple(names), it.best_x, it.best_fitness,
-                                  n_iter * n_particles, n_iter, 0.0, "budget", ()))
-    return live
-
-
-def _write_groups(path, n_iter, n_particles, d, n_experiments):
-    """The alternative: one group per iteration, flushed after each."""
-    with h5py.File(path, "w", libver=("v110", "v110")) as f:
-        runs = f.create_group("iterations")
-        for it, rssd in _iterations(n_iter, n_particles, d, n_experiments):
-            g = runs.create_group(f"{it.index:06d}")
-            for name in ("x", "fitness", "weights", "failed", "best_x"):
-                g.create_dataset(name, data=getattr(it, name))
-            g.create_dataset("rssd", data=rssd)
-            for key, value in it.extras.items():
-                g.create_dataset(f"extras/{key}", data=value)
-            g.attrs.update(stage=it.stage, index=it.index, best_fitness=it.best_fitness,
-                           n_sims=it.n_sims, wall_time=it.wall_time, rng_state=it.rng_state)
-            f.flush()
-    return os.path.getsize(path)
-
-
-def _read_appendable(path):
-    with RunArchive(path) as a:
-        return sum(len(it.x) for it in a.iterations())
-
-
-def _read_groups(path):
-    with h5py.File(path, "r") as f:
-        return sum(len(g["x"][()]) for g in f["iterations"].values())
-
-
-def bench_append(n_iter: int, n_particles: int, d: int, n_experiments: int = 3) -> dict:
-    """Write (flushing every iteration) and read back a run both ways; time and size.
-
-    The archive is finished at the end (cut to its content: ``bytes``); while the run
-    is live it holds spare room (``bytes_while_running``).
-    """
-    out = {"n_iter": n_iter, "n_particles": n_particles, "d": d, "n_experiments": n_experiments}
-    with tempfile.TemporaryDirectory() as tmp:
-        for label, write, read in (
-            ("appendable", _write_appendable, _read_appendable),
-            ("group_per_iteration", _write_groups, _read_groups),
-        ):
-            path = os.path.join(tmp, f"{label}.h5")
-            t0 = time.perf_counter()
-            live = write(path, n_iter, n_particles, d, n_experiments)
-            t1 = time.perf_counter()
-            rows = read(path)
-            t2 = time.perf_counter()
-            assert rows == n_iter * n_particles
-            out[label] = {
-                "write_s": t1 - t0,
-                "ms_per_iteration": 1e3 * (t1 - t0) / n_iter,
-                "read_s": t2 - t1,
-                "bytes": os.path.getsize(path),
-                "bytes_while_running": live,
-            }
-    payload = n_iter * n_particles * 8 * (2 * d + n_experiments + 2) + n_iter * n_particles
-    out["payload_bytes"] = payload  # x, velocity, rssd, fitness, weights (f8) + failed
-    return out
+from rapid_cosim.archive.store import _bench_iterations, bench_append
 
 
 # ------------------------------------------------------------------ kill -9 survey
@@ -174,7 +86,7 @@ def _write_appendable_forever(path: str, sleep: float) -> None:
                              upper=np.ones(_D), configs={"run.toml": "x = 1\n"}, options={},
                              fmus={"m": bytes(range(256)) * 64}, data={}, n_experiments=_E)
     print("ready", flush=True)
-    for it, rssd in _iterations(10**9, 20, _D, _E):
+    for it, rssd in _bench_iterations(10**9, 20, _D, _E):
         w.append(it, rssd)
         if sleep:
             time.sleep(sleep)
@@ -185,7 +97,7 @@ def _survey_check(path: str, mode: str) -> int:
     if mode == "archive":
         with RunArchive(path) as a:
             n = a.n_iterations
-            for got, (want, rssd) in zip(a.iterations(), _iterations(n, 20, _D, _E)):
+            for got, (want, rssd) in zip(a.iterations(), _bench_iterations(n, 20, _D, _E)):
                 assert got.x.tobytes() == want.x.tobytes() and got.rng_state == want.rng_state
                 assert got.extras["velocity"].tobytes() == want.extras["velocity"].tobytes()
             assert a.fmus["m"] == bytes(range(256)) * 64
@@ -270,16 +182,10 @@ def main(argv=None) -> None:
         return
     for case in args.cases.split(","):
         n_iter, n_points = (int(v) for v in case.lower().split("x"))
-        r = bench_append(n_iter, n_points, args.dim)
-        print(f"{r['n_iter']} iterations x {r['n_particles']} points, d={r['d']}, "
-              f"E={r['n_experiments']}; payload {r['payload_bytes'] / 1e6:.2f} MB")
-        for label in ("appendable", "group_per_iteration"):
-            v = r[label]
-            print(f"  {label:20s} write {v['write_s']:6.2f} s "
-                  f"({v['ms_per_iteration']:5.2f} ms/iteration)"
-                  f"  read {v['read_s']:6.3f} s  file {v['bytes'] / 1e6:7.2f} MB"
-                  f" ({v['bytes_while_running'] / 1e6:.2f} MB while running)")
-
+        figures = bench_append(n_iter, n_points, args.dim)
+        print(f"{n_iter} iterations x {n_points} points, d={args.dim}, E=3")
+        for key, value in figures.items():
+            print(f"  {key:42s} {value:g}")
 
 if __name__ == "__main__":
     main()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import json
 import os
 import random
@@ -583,6 +582,26 @@ def test_kill_9_leaves_a_complete_prefix_that_can_be_resumed(tmp_path):
     print(f"\nkill -9 trials: iterations read back {read}")
 
 
+def test_readers_open_a_live_archive_at_any_moment(tmp_path):
+    script = tmp_path / "writer.py"
+    script.write_text(WRITER.format(tests=str(Path(__file__).parent)))
+    path = tmp_path / "run.h5"
+    proc = subprocess.Popen([sys.executable, str(script), str(path), "0"],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline() == "committed 4\n"
+        seen = []
+        for _ in range(12):  # while it appends and, with little room, enlarges
+            with RunArchive(path) as a:
+                check_prefix(a, a.n_iterations)
+                seen.append(a.n_iterations)
+    finally:
+        proc.kill()
+        proc.wait()
+        proc.stdout.close()
+    assert seen[0] >= 4 and seen == sorted(seen)
+
+
 # ------------------------------------------------------------------ size and speed
 
 
@@ -611,18 +630,11 @@ def test_size_and_speed_figures(tmp_path, capsys):
         ev = a.evaluations()
         assert same_array(ev.x, np.concatenate([it.x for it, _ in its]))
         assert same_array(ev.rssd, np.concatenate([r for _, r in its]))
-    bench = _load_bench().bench_append(20, 10, 4)
-    assert bench["appendable"]["bytes"] > 0 and bench["group_per_iteration"]["bytes"] > 0
+    bench = store.bench_append(20, 10, 4)
+    assert bench["archive: file MB"] > 0 and bench["group per iteration: file MB"] > 0
     with capsys.disabled():
         size = os.path.getsize(path) / 1e6
         print(f"\narchive, 100 iterations x 100 particles (d=8, E=3): {size:.2f} MB finished "
               f"({live:.2f} MB while running), written and finished in {seconds:.2f} s "
               f"({1e3 * seconds / 100:.2f} ms per iteration, flushed)")
 
-
-def _load_bench():
-    spec = importlib.util.spec_from_file_location(
-        "archive_bench", Path(__file__).parent.parent / "benchmarks" / "archive_bench.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
