@@ -16,7 +16,7 @@ RUN_OPTS     := --results $(RESULTS) --seed $(SEED) --n-jobs $(N_JOBS)
 T0           := $(shell date +%s)
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test bench clean table1 figures rerun joint $(STAGED_TESTS)
+.PHONY: help install fmus demo test bench bench-diagnose clean table1 figures rerun joint diagnose $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -59,6 +59,14 @@ joint: fmus  ## joint Bayesian fit of R and Ts over tests 1-8, and how consisten
 	$(RC) staged-test $(TABLE1_TESTS) $(RUN_OPTS) --quiet
 	$(RC) joint --tests 1-8 $(RUN_OPTS)
 	@echo "make joint: $$(( $$(date +%s) - $(T0) )) s wall time"
+
+diagnose: fmus  ## name what TG Type I misses on tests 1-10 (4 and 8 held out), write it into iGrGen.Diagnosed
+	$(RC) diagnose $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
+		--results $(RESULTS)/diagnose --json $(RESULTS)/diagnose/verdict.json --seed $(SEED) --n-jobs $(N_JOBS)
+	@echo "make diagnose: $$(( $$(date +%s) - $(T0) )) s wall time"
+
+bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5)
+	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS)
 
 bench: fmus  ## print the performance figures
 	$(PY) benchmarks/run.py

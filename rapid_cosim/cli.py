@@ -207,6 +207,45 @@ def cmd_joint(args) -> int:
     return 0
 
 
+def cmd_diagnose(args) -> int:
+    import json
+
+    from .diagnose.workflow import DiagnoseOptions, diagnose
+    from .experiment import load_experiment
+    from .report.diagnosis import markdown, residual_figure
+
+    experiments = [load_experiment(c) for c in args.configs]
+    names = [e.name for e in experiments]
+    unknown = [h for h in args.holdout or [] if h not in names]
+    if unknown:
+        raise RapidCosimError(f"--holdout {', '.join(unknown)}: not among the experiments ({', '.join(names)})")
+    training = [e for e in experiments if e.name not in (args.holdout or [])]
+    heldout = [e for e in experiments if e.name in (args.holdout or [])]
+    candidates = tuple(args.candidates.split(",")) if args.candidates else DiagnoseOptions().candidates
+    from .diagnose.catalogue import CATALOGUE
+
+    wrong = [c for c in candidates if c not in CATALOGUE]
+    if wrong:
+        raise RapidCosimError(f"--candidates {', '.join(wrong)}: not in the catalogue ({', '.join(CATALOGUE)})")
+    options = DiagnoseOptions(seed=args.seed, n_jobs=args.n_jobs, threshold=args.threshold,
+                              max_effects=args.max_effects, candidates=candidates,
+                              write_model=not args.no_write_model, model_name=args.model_name)
+    folder = Path(args.results)
+    diagnosis = diagnose(training, heldout, workdir=folder, options=options, package=args.package,
+                         fmu_dir=args.fmus)
+    js, h5 = diagnosis.save(folder)
+    figure = residual_figure(folder)
+    report = folder / "diagnosis.md"
+    report.write_text(markdown(folder))
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(diagnosis.to_json(), indent=2) + "\n")
+    print()
+    print(report.read_text())
+    print(f"written: {report}, {figure}, {js}, {h5}" + (f", {args.json}" if args.json else ""))
+    return 0
+
+
 def _result_table(result, labels=None) -> str:
     labels = labels or {}
     lines = [f"method {result.method}: best fitness {result.fun:.6g} after {result.nfev} simulations, "
@@ -398,6 +437,25 @@ def build_parser() -> argparse.ArgumentParser:
                         "smc.n_particles=200 (repeatable)")
     staged_options(p)
     p.set_defaults(func=cmd_joint)
+
+    p = sub.add_parser("diagnose", help="find what the base model misses: try each named effect, rank, "
+                       "write the winner into the Modelica package and re-calibrate")
+    p.add_argument("configs", nargs="+", help="experiment configs (or their folders)")
+    p.add_argument("--holdout", action="append", metavar="EXPERIMENT",
+                   help="experiment kept out of the fits to confirm the verdict (repeatable)")
+    p.add_argument("--candidates", help="comma-separated effects to try (default: the whole catalogue)")
+    p.add_argument("--max-effects", type=int, default=2, help="effects to add greedily (default %(default)s)")
+    p.add_argument("--threshold", type=float, default=10.0,
+                   help="BIC difference that counts as decisive (default %(default)s)")
+    p.add_argument("--no-write-model", action="store_true",
+                   help="do not write the named model into the package (nor re-calibrate with it)")
+    p.add_argument("--model-name", help="class of the model written (default iGrGen.Diagnosed.Calibrated<Effects>)")
+    p.add_argument("--results", default="results/diagnose", help="work and report folder (default %(default)s)")
+    p.add_argument("--json", metavar="FILE", help="also write the verdict as JSON here")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s)")
+    model_options(p)
+    p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("demo", help="build the FMUs, calibrate one staged test with both chains, "
                        "write its figure and table")

@@ -1,0 +1,156 @@
+"""Named candidate effects: what each is physically, where it sits in the signal path,
+its parameters with bounds, and how to compose it with others into a test bench.
+
+Every effect is a Modelica extension of the base staged test (``iGrGen.TestBenches.
+StagedTest``): frequency-path blocks go between the source and the governor, valve-side
+effects swap the governor for a TG Type I variant, the transducer goes after it. Single
+effects have hand-written benches in the package; combinations (the greedy second effect)
+and calibrated results are generated here as Modelica text.
+
+Each parameter carries an ``off`` value (the effect absent) and a ``material`` value: a
+size an engineer would care about. If a fit with the effect held at its material size is
+as good as the base model, the data cannot exclude the effect (it is confounded with the
+base parameters, e.g. a deadband with a larger droop when every step has one size).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+BASE_BENCH = "iGrGen.TestBenches.StagedTest"
+NONE = "none"
+
+
+@dataclass(frozen=True)
+class EffectParameter:
+    name: str  # FMU parameter name in the bench
+    label: str
+    unit: str
+    min: float
+    max: float
+    off: float
+    material: float
+    scale: str = "linear"  # "log" for ranges spanning decades
+
+
+@dataclass(frozen=True)
+class Effect:
+    name: str
+    title: str
+    site: str  # "frequency" | "valve" | "output"
+    bench: str  # hand-written single-effect bench
+    parameters: tuple[EffectParameter, ...]
+    physics: str  # what it is, for the report
+    signature: str  # how it shows in the residuals, for the report
+
+
+CATALOGUE: dict[str, Effect] = {e.name: e for e in [
+    Effect("deadband", "intentional deadband on the frequency deviation", "frequency",
+           "iGrGen.TestBenches.StagedTestDeadband",
+           (EffectParameter("db.db", "deadband", "Hz", 0.0, 0.1, 0.0, 0.03),),
+           "deviations smaller than the band are ignored; larger ones act reduced by it",
+           "responses do not scale with the step size: small steps respond less than in proportion"),
+    Effect("rate_limit", "valve rate limits (opening, closing)", "valve",
+           "iGrGen.TestBenches.StagedTestRateLimit",
+           (EffectParameter("gov.rate_open", "opening rate", "pu/s", 0.001, 0.2, 0.2, 0.01, "log"),
+            EffectParameter("gov.rate_close", "closing rate", "pu/s", 0.001, 0.2, 0.2, 0.01, "log")),
+           "the valve cannot move faster than its actuator allows, possibly differently each way",
+           "constant-slope ramps; rises and falls at different speeds (up/down asymmetry)"),
+    Effect("delay", "transport delay", "frequency", "iGrGen.TestBenches.StagedTestDelay",
+           (EffectParameter("dly.T", "delay", "s", 0.01, 3.0, 0.01, 0.8, "log"),),
+           "the governor acts on the frequency deviation late (measurement, communication)",
+           "the response starts late and stays shifted in time (a lag in the cross-correlation)"),
+    Effect("backlash", "backlash on the valve position", "valve", "iGrGen.TestBenches.StagedTestBacklash",
+           (EffectParameter("gov.backlash", "backlash", "pu", 0.0, 0.05, 0.0, 0.01),),
+           "play between governor and valve: a reversal moves the governor through the play first",
+           "part of the response is missing, and after a return step the power does not come back"),
+    Effect("load_controller", "slow load controller pulling power back", "valve",
+           "iGrGen.TestBenches.StagedTestLoadController",
+           (EffectParameter("gov.K_lc", "load-loop gain", "1/s", 1e-4, 0.05, 1e-4, 0.01, "log"),),
+           "an outer loop integrates the power error and drags the output back to its set-point",
+           "the power withdraws slowly after the step instead of settling"),
+    Effect("measurement_lag", "lagging power transducer", "output", "iGrGen.TestBenches.StagedTestMeasurementLag",
+           (EffectParameter("meas.T", "transducer lag", "s", 0.01, 5.0, 0.01, 0.8, "log"),),
+           "the recorded power is a filtered version of the mechanical power",
+           "the measured response is smoother and later than the model, most at the step"),
+]}
+
+# Fixed sharpness settings of the combined governor, equal to the single-effect variants.
+_VALVE = {"rate_limit", "backlash", "load_controller"}
+
+
+def effect_parameters(effects: Sequence[str]) -> tuple[EffectParameter, ...]:
+    return tuple(p for name in effects for p in CATALOGUE[name].parameters)
+
+
+def _check(effects: Sequence[str]) -> tuple[str, ...]:
+    unknown = [e for e in effects if e not in CATALOGUE]
+    if unknown:
+        raise ValueError(f"unknown effect(s) {unknown}; catalogue: {', '.join(CATALOGUE)}")
+    if len(set(effects)) != len(effects):
+        raise ValueError(f"effect listed twice in {list(effects)}")
+    # a canonical order makes one bench per set of effects
+    return tuple(e for e in CATALOGUE if e in effects)
+
+
+def bench_name(effects: Sequence[str]) -> str:
+    """Class name of the bench for a set of effects (hand-written for zero or one)."""
+    effects = _check(effects)
+    if not effects:
+        return BASE_BENCH
+    if len(effects) == 1:
+        return CATALOGUE[effects[0]].bench
+    return "iGrGen.Diagnosed.StagedTest" + "".join(_camel(e) for e in effects)
+
+
+def _camel(name: str) -> str:
+    return "".join(part.capitalize() for part in name.split("_"))
+
+
+def _modifiers(values: Mapping[str, float], prefix: str) -> str:
+    own = {k[len(prefix) + 1:]: v for k, v in values.items() if k.startswith(prefix + ".")}
+    return "(" + ", ".join(f"{k} = {v:.10g}" for k, v in own.items()) + ")" if own else ""
+
+
+def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str, float] | None = None,
+                 description: str = "") -> str:
+    """Modelica text of a bench: the base staged test with ``effects`` composed in, and
+    ``values`` (FMU names such as ``gov.R``) as modifiers, e.g. calibrated parameters."""
+    effects = _check(effects)
+    values = dict(values or {})
+    short = class_name.rsplit(".", 1)[-1]
+    within = class_name.rsplit(".", 1)[0] if "." in class_name else ""
+    valve = [e for e in effects if e in _VALVE]
+    governor = {0: "TGTypeI", 1: {"rate_limit": "TGTypeIRateLimit", "backlash": "TGTypeIBacklash",
+                                  "load_controller": "TGTypeILoadControl"}.get(valve[0] if valve else "", "")}
+    gov_class = governor[0] if not valve else (governor[1] if len(valve) == 1 else "TGTypeIValveEffects")
+    if gov_class == "TGTypeIValveEffects" and "backlash" not in effects:
+        values.setdefault("gov.T_bl", 1e-3)  # without backlash the valve should simply follow
+    lines = [f"within {within};" if within else "within;",
+             f'model {short} "{description or "staged test with " + (", ".join(effects) or "no effect")}"',
+             f"  Sources.FrequencyStep src{_modifiers(values, 'src')};"]
+    path = "src.y"
+    connects = []
+    if "deadband" in effects:
+        lines.append(f"  Effects.Deadband db{_modifiers(values, 'db')};")
+        connects.append(f"connect({path}, db.u);")
+        path = "db.y"
+    if "delay" in effects:
+        lines.append(f"  Effects.PadeDelay dly{_modifiers(values, 'dly')};")
+        connects.append(f"connect({path}, dly.u);")
+        path = "dly.y"
+    lines.append(f"  Governors.{gov_class} gov{_modifiers(values, 'gov')};")
+    connects.append(f"connect({path}, gov.dw);")
+    if "measurement_lag" in effects:
+        lines.append(f"  Effects.MeasurementLag meas{_modifiers(values, 'meas')};")
+        connects.append("connect(gov.pm, meas.u);")
+        out = "meas.y.signal"
+    else:
+        out = "gov.pm.signal"
+    lines.append('  output Real pm "mechanical power as recorded (pu)";')
+    lines.append("equation")
+    lines += [f"  {c}" for c in connects]
+    lines.append(f"  pm = {out};")
+    lines.append(f"end {short};")
+    return "\n".join(lines) + "\n"

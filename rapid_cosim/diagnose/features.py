@@ -1,0 +1,237 @@
+"""Residual analysis: where the base model's residual is systematic rather than noise,
+and features of the data that point at a cause.
+
+Whiteness is judged against each test's own noise, measured before the step: the
+residual, prewhitened with the noise's lag-1 autocorrelation, should be white (Ljung-Box
+on 10 lags) and no larger than the noise's innovations (a chi-square variance test), in
+every 10 s window. Windows that fail either are called systematic.
+
+Features are computed on the measurements (and the base fit) per test:
+
+=====================  ===============================================  =================
+feature                what it measures                                  points at
+=====================  ===============================================  =================
+lag_s                  shift maximising the correlation of measured and  delay, measurement
+                       simulated increments (positive: data later)        lag
+asymmetry              rise speed / fall speed of the response           rate_limit
+                       (0-63 % times, step vs return or up vs down)
+step_scaling           response per Hz of the smaller step over that of  deadband, backlash
+                       the larger one (1 for a linear plant)
+ramp_fraction          share of the rise spent at nearly constant slope  rate_limit
+return_residue         level after the return step minus the level       backlash
+                       before the step, in units of the step response
+withdrawal             fall of the response over the second half of the  load_controller
+                       step, in units of the step response
+pre_step_bias          mean residual before the step, in standard        measurement offset
+                       errors of that mean
+=====================  ===============================================  =================
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Sequence
+
+import numpy as np
+from scipy import stats
+
+from ..experiment import Experiment
+from .selection import NoiseFloor, prewhitened
+
+WINDOW_S = 10.0
+LAGS = 10
+ALPHA = 0.01
+
+
+@dataclass
+class Window:
+    start: float
+    end: float
+    ljung_box_p: float
+    variance_ratio: float
+    variance_p: float
+    systematic: bool
+
+
+@dataclass
+class TestFeatures:
+    name: str
+    df_hz: float
+    has_return: bool
+    systematic_share: float  # of the post-step windows
+    windows: list[Window]
+    lag_s: float
+    step_response: float  # measured change during the step (pu)
+    per_hz: float  # step_response / |df|
+    rise_time_s: float | None  # 63 % time after the step
+    fall_time_s: float | None  # 63 % time after the return
+    ramp_fraction: float | None
+    return_residue: float | None  # in units of the step response
+    withdrawal: float | None  # in units of the step response
+    pre_step_bias: float  # in standard errors
+
+
+@dataclass
+class Features:
+    tests: list[TestFeatures] = field(default_factory=list)
+    summary: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+def _mean_in(t, y, a, b):
+    m = (t >= a) & (t < b) & np.isfinite(y)
+    return float(np.mean(y[m])) if m.any() else float("nan")
+
+
+def _windows(t, r, floor: NoiseFloor, start: float) -> list[Window]:
+    out = []
+    innovation_var = floor.sigma ** 2 * (1 - floor.phi ** 2)
+    edges = np.arange(start, t[-1] + 1e-9, WINDOW_S)
+    for a, b in zip(edges[:-1], edges[1:]):
+        m = (t >= a) & (t < b)
+        e = prewhitened(r[m], floor.phi)
+        if e.size < LAGS + 5:
+            continue
+        e0 = e - e.mean()
+        denom = np.sum(e0 ** 2)
+        rho = np.array([np.sum(e0[k:] * e0[:-k]) / denom for k in range(1, LAGS + 1)])
+        n = e.size
+        q = n * (n + 2) * np.sum(rho ** 2 / (n - np.arange(1, LAGS + 1)))
+        p_lb = float(stats.chi2.sf(q, LAGS))
+        ratio = float(np.mean(e ** 2) / innovation_var)
+        p_var = float(stats.chi2.sf(ratio * n, n))
+        out.append(Window(float(a), float(b), p_lb, ratio, p_var, p_lb < ALPHA or p_var < ALPHA))
+    return out
+
+
+def _lag(t, y, yhat, max_lag_s=3.0) -> float:
+    ok = np.isfinite(y) & np.isfinite(yhat)
+    if ok.sum() < 20:
+        return 0.0
+    dt = float(np.median(np.diff(t)))
+    grid = np.arange(t[0], t[-1], dt)
+    dy = np.diff(np.interp(grid, t[ok], y[ok]))
+    dm = np.diff(np.interp(grid, t[ok], yhat[ok]))
+    k_max = int(round(max_lag_s / dt))
+    best, best_k = -np.inf, 0
+    for k in range(-k_max, k_max + 1):
+        a, b = (dy[k:], dm[:dy.size - k]) if k >= 0 else (dy[:k], dm[-k:])
+        c = float(np.dot(a - a.mean(), b - b.mean()))
+        if c > best:
+            best, best_k = c, k
+    return best_k * dt
+
+
+def _time_to(t, y, t0, t1, y0, y1, share=0.63) -> float | None:
+    """Time after t0 at which y first covers ``share`` of the way from y0 to y1."""
+    m = (t >= t0) & (t < t1) & np.isfinite(y)
+    if not m.any() or abs(y1 - y0) < 1e-12:
+        return None
+    progress = (y[m] - y0) / (y1 - y0)
+    hit = np.flatnonzero(progress >= share)
+    return float(t[m][hit[0]] - t0) if hit.size else None
+
+
+def _ramp_fraction(t, y, t0, t1, y0, y1) -> float | None:
+    """Share of the 10-90 % rise where the (smoothed) slope is within 25 % of its peak."""
+    m = (t >= t0) & (t < t1) & np.isfinite(y)
+    if m.sum() < 20 or abs(y1 - y0) < 1e-12:
+        return None
+    tt, yy = t[m], (y[m] - y0) / (y1 - y0)
+    width = max(int(round(1.0 / np.median(np.diff(tt)))), 3)  # one-second moving average
+    smooth = np.convolve(yy, np.ones(width) / width, mode="same")
+    inside = (smooth > 0.1) & (smooth < 0.9)
+    if inside.sum() < 5:
+        return None
+    slope = np.gradient(smooth, tt)
+    peak = np.max(slope[inside])
+    return float(np.mean(slope[inside] > 0.75 * peak)) if peak > 0 else None
+
+
+def test_features(exp: Experiment, residual: np.ndarray, time: np.ndarray, floor: NoiseFloor) -> TestFeatures:
+    (out,) = [o for o in exp.outputs if exp.weights[o] > 0]
+    data = exp.windowed_data()
+    t, y = data.time, data.columns[exp.outputs[out]]
+    t_step = float(exp.fixed.get("src.t_step", 10.0))
+    t_ret = float(exp.fixed.get("src.t_return", np.inf))
+    has_return = t_ret < t[-1] - 10.0
+    df = float(exp.fixed.get("src.df", np.nan))
+    step_end = min(t_ret, t[-1])
+    y0 = _mean_in(t, y, t[0], t_step)
+    y1 = _mean_in(t, y, step_end - 0.25 * (step_end - t_step), step_end)
+    yhat = y - residual  # the base model's (offset-corrected) prediction on the same samples
+    response = y1 - y0
+    half = _mean_in(t, y, t_step + 0.4 * (step_end - t_step), t_step + 0.6 * (step_end - t_step))
+    withdrawal = (half - y1) / response if abs(response) > 0 else None
+    rise = _time_to(t, y, t_step, step_end, y0, y1)
+    fall, residue = None, None
+    if has_return:
+        y2 = _mean_in(t, y, t[-1] - 0.3 * (t[-1] - t_ret), t[-1])
+        fall = _time_to(t, y, t_ret, t[-1], y1, y2)
+        residue = (y2 - y0) / response if abs(response) > 0 else None
+    pre = np.isfinite(residual) & (time < t_step)
+    n_eff = max(pre.sum() * (1 - floor.phi) / (1 + floor.phi), 1.0)
+    bias = float(np.mean(residual[pre]) / (floor.sigma / np.sqrt(n_eff))) if pre.any() else 0.0
+    windows = _windows(time, residual, floor, t_step)
+    systematic = float(np.mean([w.systematic for w in windows])) if windows else 0.0
+    return TestFeatures(
+        name=exp.name, df_hz=df, has_return=has_return, systematic_share=systematic, windows=windows,
+        lag_s=_lag(time, y, yhat), step_response=float(response),
+        per_hz=float(abs(response) / abs(df)) if df else float("nan"), rise_time_s=rise, fall_time_s=fall,
+        ramp_fraction=_ramp_fraction(t, y, t_step, step_end, y0, y1), return_residue=residue,
+        withdrawal=withdrawal, pre_step_bias=bias)
+
+
+def residual_features(experiments: Sequence[Experiment], base_fit, ctx) -> Features:
+    """Features of every test, from the data and the base model's residuals."""
+    tests = dict(base_fit.tests)
+    heldout = [e for e in experiments if e.name not in tests]
+    if heldout:
+        tests.update(ctx.predict(base_fit))
+    per_test = [test_features(e, tests[e.name].residual, tests[e.name].time, ctx.noise[e.name]) for e in experiments]
+    return Features(per_test, _summary(per_test))
+
+
+def _summary(tests: list[TestFeatures]) -> dict:
+    """Campaign-level readings of the features, each with the effect it points at."""
+    out: dict = {}
+    sizes = sorted({round(abs(t.df_hz), 4) for t in tests if np.isfinite(t.df_hz)})
+    if len(sizes) >= 2:
+        small = [t.per_hz for t in tests if round(abs(t.df_hz), 4) == sizes[0]]
+        large = [t.per_hz for t in tests if round(abs(t.df_hz), 4) == sizes[-1]]
+        out["step_scaling"] = {"value": float(np.mean(small) / np.mean(large)), "points_at": ["deadband", "backlash"],
+                               "reading": "1 if the response scales with the step size; below 1 if small steps "
+                                          "respond less than in proportion"}
+    else:
+        out["step_scaling"] = {"value": None, "points_at": ["deadband"],
+                               "reading": "one step size only: a deadband cannot be told from a larger droop"}
+    rises = [t.rise_time_s for t in tests if t.rise_time_s]
+    falls = [t.fall_time_s for t in tests if t.fall_time_s]
+    ups = [t.rise_time_s for t in tests if t.rise_time_s and t.df_hz < 0] + \
+          [t.fall_time_s for t in tests if t.fall_time_s and t.df_hz > 0]
+    downs = [t.rise_time_s for t in tests if t.rise_time_s and t.df_hz > 0] + \
+            [t.fall_time_s for t in tests if t.fall_time_s and t.df_hz < 0]
+    if ups and downs:
+        out["asymmetry"] = {"value": float(np.mean(ups) / np.mean(downs)), "points_at": ["rate_limit"],
+                            "reading": "63 % time of power increases over that of decreases (1: symmetric)"}
+    out["rise_over_fall"] = float(np.mean(rises) / np.mean(falls)) if rises and falls else None
+    ramps = [t.ramp_fraction for t in tests if t.ramp_fraction is not None]
+    out["ramp_fraction"] = {"value": float(np.mean(ramps)) if ramps else None, "points_at": ["rate_limit"],
+                            "reading": "share of the rise at nearly constant slope (about 0.3 for a lag, "
+                                       "towards 1 for a ramp)"}
+    residues = [t.return_residue for t in tests if t.return_residue is not None]
+    out["return_residue"] = {"value": float(np.mean(np.abs(residues))) if residues else None,
+                             "points_at": ["backlash"],
+                             "reading": "part of the step response still there after the return (0: it all came back)"}
+    withdrawals = [t.withdrawal for t in tests if t.withdrawal is not None]
+    out["withdrawal"] = {"value": float(np.mean(withdrawals)) if withdrawals else None, "points_at": ["load_controller"],
+                         "reading": "share of the response given back during the second half of the step"}
+    out["lag_s"] = {"value": float(np.median([t.lag_s for t in tests])), "points_at": ["delay", "measurement_lag"],
+                    "reading": "shift of the measured response against the base model's (positive: data later)"}
+    out["pre_step_bias"] = {"value": float(np.max(np.abs([t.pre_step_bias for t in tests]))),
+                            "points_at": ["measurement offset"],
+                            "reading": "largest mean residual before the step, in standard errors"}
+    out["systematic_share"] = {t.name: t.systematic_share for t in tests}
+    return out

@@ -1,0 +1,195 @@
+"""Synthetic studies of the workflow: campaigns with a known effect hidden in the data.
+
+Each case draws a plant (R, Ts, dispatch), an effect of realistic size (or none), a
+meter offset and noise like the field recordings' (white plus AR(1)), simulates a small
+campaign of staged tests with the catalogue's own models, and runs :func:`diagnose` on
+it. A confusion matrix of the true effect against the verdict measures the workflow.
+"""
+
+from __future__ import annotations
+
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..build import ensure_fmu
+from ..experiment import load_experiment
+from ..simulator import get_simulator
+from ..synthetic import NoiseModel, synthesize, write_experiment
+from .catalogue import CATALOGUE, NONE, bench_name
+from .workflow import DiagnoseOptions, Diagnosis, diagnose
+
+# (df in Hz, return time in s or None); the last one is held out to confirm the verdict
+CAMPAIGN = ((-0.2, 50.0), (0.1, 50.0), (0.2, 50.0))
+SINGLE_SIZE = ((-0.2, 50.0), (0.2, 50.0), (-0.2, 50.0))
+# short records at a low rate keep a study quick; the field recordings are longer and faster
+DURATION_S, RATE_HZ, T_STEP = 80.0, 5.0, 20.0
+
+# realistic sizes that a campaign like CAMPAIGN reveals
+EFFECT_SIZES: dict[str, Callable[[np.random.Generator], dict[str, float]]] = {
+    "deadband": lambda g: {"db.db": g.uniform(0.02, 0.04)},
+    "rate_limit": lambda g: (lambda r: {"gov.rate_open": r, "gov.rate_close": r * g.uniform(1.5, 3.0)})(
+        g.uniform(0.004, 0.01)),
+    "delay": lambda g: {"dly.T": g.uniform(0.8, 2.0)},
+    "backlash": lambda g: {"gov.backlash": g.uniform(0.01, 0.03)},
+    "load_controller": lambda g: {"gov.K_lc": g.uniform(0.008, 0.02)},
+    "measurement_lag": lambda g: {"meas.T": g.uniform(1.0, 3.0)},
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    truth: str  # an effect name or "none"
+    seed: int
+    plant: dict[str, float]
+    effect_values: dict[str, float]
+    steps: tuple[tuple[float, float | None], ...]
+    noise: NoiseModel
+
+    @property
+    def label(self) -> str:
+        return f"{self.truth}-{self.seed}"
+
+
+VISIBILITY = 1.5  # an effect is hidden only if its RMS contribution is this many noise levels
+
+
+def draw_case(truth: str, seed: int, steps=CAMPAIGN, *, package, fmu_dir, visibility: float = VISIBILITY) -> Case:
+    """A plant, an effect and noise; redrawn until the effect is visible in the data.
+
+    Visible means: simulated with and without the effect (same plant, same tests), the
+    responses differ by at least ``visibility`` times the noise level (RMS over the
+    campaign, offset removed). An effect below that is not a discrepancy any method
+    could show, and no gap could shrink by half once it is added.
+    """
+    g = np.random.default_rng([seed, list(CATALOGUE).index(truth) + 1 if truth in CATALOGUE else 0])
+    noise = NoiseModel(white_sigma=0.0008, ar1_sigma=0.0008, phi=0.6, offset=g.uniform(-0.003, 0.003))
+    for _ in range(50):
+        plant = {"gov.R": g.uniform(0.045, 0.065), "gov.Ts": g.uniform(1.5, 5.0),
+                 "gov.p_ref": float(g.choice([0.6, 0.8]))}
+        values = EFFECT_SIZES[truth](g) if truth in CATALOGUE else {}
+        case = Case(truth, seed, plant, values, tuple(steps), noise)
+        if truth not in CATALOGUE or effect_rms(case, package=package, fmu_dir=fmu_dir) >= visibility * noise.sigma:
+            return case
+    raise RuntimeError(f"no visible {truth} drawn in 50 tries; widen EFFECT_SIZES")
+
+
+def effect_rms(case: Case, *, package, fmu_dir) -> float:
+    """RMS difference the effect makes to the campaign's responses (offset removed)."""
+    with_effect = get_simulator(ensure_fmu(bench_name((case.truth,)), package=package, fmu_dir=fmu_dir))
+    without = get_simulator(ensure_fmu(bench_name(()), package=package, fmu_dir=fmu_dir))
+    squares = []
+    for df, t_return in case.steps:
+        fixed = {"gov.p_ref": case.plant["gov.p_ref"], "src.df": df, "src.t_step": T_STEP,
+                 **({"src.t_return": t_return} if t_return is not None else {})}
+        a = with_effect.simulate({**fixed, **case.plant, **case.effect_values}, stop_time=DURATION_S,
+                                 output_interval=1 / RATE_HZ)["pm"]
+        b = without.simulate({**fixed, **case.plant}, stop_time=DURATION_S, output_interval=1 / RATE_HZ)["pm"]
+        d = a - b
+        squares.append(np.mean((d - d.mean()) ** 2))
+    return float(np.sqrt(np.mean(squares)))
+
+
+def write_campaign(case: Case, folder: Path, *, package, fmu_dir) -> list[Path]:
+    """Configs of the case's staged tests, their data simulated with the hidden effect."""
+    effects = () if case.truth == NONE else (case.truth,)
+    fmu = ensure_fmu(bench_name(effects), package=package, fmu_dir=fmu_dir)
+    rng = np.random.default_rng([case.seed, 7919])
+    paths = []
+    for k, (df, t_return) in enumerate(case.steps):
+        fixed = {"gov.p_ref": case.plant["gov.p_ref"], "src.df": df, "src.t_step": T_STEP}
+        if t_return is not None:
+            fixed["src.t_return"] = t_return
+        t, y = synthesize(fmu, {**fixed, **case.plant, **case.effect_values}, duration=DURATION_S, rate=RATE_HZ,
+                          noise=case.noise, rng=rng)
+        paths.append(write_experiment(
+            folder / f"step{k + 1}", model="iGrGen.TestBenches.StagedTest", time=t, values=y, fixed=fixed,
+            estimate={"gov.R": {"min": 0.02, "max": 0.12, "label": "R"},
+                      "gov.Ts": {"min": 0.1, "max": 20.0, "label": "Ts"}},
+            fitness={"offset": True, "noise": "pre-step", "pre_step_end": T_STEP},
+            description=f"synthetic: {case.truth} hidden, df = {1000 * df:+.0f} mHz"))
+    return paths
+
+
+@dataclass
+class CaseResult:
+    case: Case
+    diagnosis: Diagnosis
+    seconds: float
+    named_first: str = field(init=False)
+    gap_shrink: float | None = field(init=False)
+
+    def __post_init__(self):
+        d = self.diagnosis
+        self.named_first = d.effects[0] if d.effects else d.effect
+        self.gap_shrink = None if d.effect in (NONE, "ambiguous") else _shrink(d, self.case.noise.sigma)
+
+    @property
+    def gap_shrink_estimated_floor(self) -> float | None:
+        """The same, against the noise floor the workflow estimated (what it reports)."""
+        d = self.diagnosis
+        if d.effect in (NONE, "ambiguous"):
+            return None
+        before = [v["gap"] for v in d.gap_before.values()]
+        after = [v["gap"] for v in d.gap_after.values()]
+        gb = float(np.sqrt(np.mean(np.square(before))))
+        return None if gb == 0 else 1.0 - float(np.sqrt(np.mean(np.square(after)))) / gb
+
+    @property
+    def correct(self) -> bool:
+        return self.named_first == self.case.truth
+
+
+def _shrink(d: Diagnosis, sigma: float) -> float | None:
+    """1 - gap after / gap before, the gap being the RMS residual above the *true* noise
+    level of the synthetic data (known here; the workflow had to estimate it)."""
+    def gap(which: dict) -> float:
+        rmse2 = np.mean([v["rmse"] ** 2 for v in which.values()])
+        return float(np.sqrt(max(rmse2 - sigma ** 2, 0.0)))
+
+    before = gap(d.gap_before)
+    return None if before == 0 else 1.0 - gap(d.gap_after) / before
+
+
+def run_case(case: Case, workdir: Path, *, options: DiagnoseOptions, package, fmu_dir, held_out: int = 1,
+             log: Callable[[str], None] = lambda *_: None) -> CaseResult:
+    folder = workdir / case.label
+    if folder.exists():
+        shutil.rmtree(folder)
+    paths = write_campaign(case, folder / "data", package=package, fmu_dir=fmu_dir)
+    experiments = [load_experiment(p) for p in paths]
+    split = len(experiments) - held_out
+    t0 = time.perf_counter()
+    diagnosis = diagnose(experiments[:split], experiments[split:], workdir=folder / "diagnosis", options=options,
+                         package=package, fmu_dir=fmu_dir, log=log)
+    return CaseResult(case, diagnosis, time.perf_counter() - t0)
+
+
+def confusion(results: Sequence[CaseResult]) -> tuple[list[str], list[str], np.ndarray]:
+    truths = [t for t in [*CATALOGUE, NONE] if any(r.case.truth == t for r in results)]
+    verdicts = [*CATALOGUE, NONE, "ambiguous"]
+    m = np.zeros((len(truths), len(verdicts)), dtype=int)
+    for r in results:
+        m[truths.index(r.case.truth), verdicts.index(r.named_first)] += 1
+    return truths, verdicts, m
+
+
+def confusion_text(results: Sequence[CaseResult]) -> str:
+    truths, verdicts, m = confusion(results)
+    short = {v: v[:9] for v in verdicts}
+    head = f"{'true / named':16s}" + "".join(f"{short[v]:>10s}" for v in verdicts) + f"{'correct':>9s}"
+    lines = [head]
+    for i, t in enumerate(truths):
+        lines.append(f"{t:16s}" + "".join(f"{n:10d}" for n in m[i]) +
+                     f"{m[i, verdicts.index(t)] / m[i].sum():9.0%}")
+    n_ok = sum(r.correct for r in results)
+    lines.append(f"overall: {n_ok}/{len(results)} correct ({n_ok / len(results):.0%})")
+    shrinks = [r.gap_shrink for r in results if r.gap_shrink is not None and r.correct]
+    if shrinks:
+        lines.append(f"gap shrink when the effect is added: median {np.median(shrinks):.0%}, "
+                     f"min {min(shrinks):.0%} (over {len(shrinks)} correctly named cases)")
+    return "\n".join(lines)

@@ -1,0 +1,385 @@
+"""The discrepancy workflow: calibrate the base model, try each named effect, decide,
+write the named effect into the Modelica package, compile it and re-calibrate with it.
+
+Everything runs through the project's own machinery: candidates are archived runs of
+the estimators (``candidates.py``), the verdict comes from ``selection.py``, the new
+model is Modelica text from the catalogue, built like any other bench.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from dataclasses import asdict, dataclass, field, replace
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..archive.runs import RunOptions, inputs_from_configs
+from ..build import build_models
+from ..experiment import Experiment
+from .candidates import CandidateFit, CandidateSpec, candidate_config, default_start, fit_candidate, residuals_at
+from .catalogue import CATALOGUE, NONE, bench_name, bench_source, effect_parameters
+from .features import Features, residual_features
+from .selection import THRESHOLD, Ranked, Verdict, bic, decide, gap, pooled_noise, rank, score
+from .separate import separating_test
+
+
+@dataclass(frozen=True)
+class DiagnoseOptions:
+    method: str = "pf:10+nm"
+    estimator_options: dict = field(default_factory=lambda: {"pf": {"n_particles": 40},
+                                                             "nm": {"xatol": 1e-4, "fatol": 1e-10}})
+    seed: int = 1
+    n_jobs: int = 1
+    threshold: float = THRESHOLD
+    max_effects: int = 2
+    candidates: tuple[str, ...] = tuple(CATALOGUE)
+    write_model: bool = True  # write the named model into the package and re-calibrate with it
+    model_name: str | None = None  # class name of the model written; default from the effects
+
+
+@dataclass
+class Diagnosis:
+    """The verdict with its evidence, as the JSON report holds it."""
+
+    effect: str
+    effects: list[str]
+    candidates: list[str]
+    reason: str
+    ranking: list[dict]
+    second_effect_ranking: list[dict]
+    not_excluded: list[str]
+    separating_test: dict | None
+    held_out: dict | None
+    features: dict
+    gap_before: dict[str, dict]
+    gap_after: dict[str, dict]
+    parameters_before: dict[str, float]
+    parameters_after: dict[str, float]
+    parameter_intervals: dict[str, list[float]]
+    noise: dict[str, dict[str, float]]
+    model_written: str | None
+    model_file: str | None
+    archives: dict[str, str]
+    training: list[str]
+    heldout: list[str]
+    created: str
+    residuals: dict[str, dict[str, np.ndarray]] = field(default_factory=dict, repr=False)
+
+    def to_json(self) -> dict:
+        data = asdict(self)
+        data.pop("residuals")
+        return json.loads(json.dumps(data, default=_jsonable))
+
+    def save(self, folder: str | Path) -> tuple[Path, Path]:
+        """``diagnosis.json`` (the verdict and evidence) and ``diagnosis.h5`` (the residual
+        arrays before and after, which the report plots)."""
+        import h5py
+
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        js = folder / "diagnosis.json"
+        js.write_text(json.dumps(self.to_json(), indent=2) + "\n")
+        h5 = folder / "diagnosis.h5"
+        with h5py.File(h5, "w") as f:
+            f.attrs["effect"] = self.effect
+            f.attrs["json"] = json.dumps(self.to_json())
+            for test, arrays in self.residuals.items():
+                g = f.create_group(test)
+                for key, values in arrays.items():
+                    g.create_dataset(key, data=np.asarray(values, dtype=float))
+        return js, h5
+
+
+def _jsonable(value):
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return str(value)
+
+
+class _Context:
+    """The fits made so far, by candidate label (each fitted once)."""
+
+    def __init__(self, training, heldout, workdir, options, package, fmu_dir, log):
+        self.training, self.heldout = list(training), list(heldout)
+        self.workdir, self.options = Path(workdir), options
+        self.user_package, self.user_fmu_dir, self.log = Path(package), Path(fmu_dir), log
+        # Candidates are built from a copy of the package: combinations of effects are
+        # generated there, and the user's package changes only if the verdict is written.
+        self.package = self.workdir / "package" / self.user_package.name
+        self.fmu_dir = self.workdir / "fmus"
+        shutil.copytree(self.user_package, self.package, dirs_exist_ok=True)  # refreshed on every run
+        self.noise = pooled_noise(self.training + self.heldout)
+        self.fits: dict[str, CandidateFit] = {}
+        self.run_options = RunOptions(method=options.method, seed=options.seed, n_jobs=options.n_jobs,
+                                      estimator_options=options.estimator_options)
+
+    def fit(self, spec: CandidateSpec, start: dict | None = None) -> CandidateFit:
+        if len(spec.effects) > 1:
+            self._generate(spec.effects)
+        if spec.label not in self.fits:
+            self.log(f"  fitting {spec.label} ...")
+            fit = fit_candidate(spec, self.training, self.workdir, options=self.run_options,
+                                start=start if start is not None else default_start(spec, self.base_parameters()),
+                                package=self.package, fmu_dir=self.fmu_dir)
+            self.fits[spec.label] = fit
+            self.log(f"    fitness {fit.fitness:.4g}, BIC {bic(fit, self.noise):.1f}, {fit.nfev} evaluations")
+        return self.fits[spec.label]
+
+    def _generate(self, effects: tuple[str, ...]) -> None:
+        """Write the bench of a combination of effects into the work copy of the package."""
+        name = bench_name(effects)
+        path = self.package / "Diagnosed" / f"{name.rsplit('.', 1)[1]}.mo"
+        text = bench_source(effects, name, description=f"base staged test with {', '.join(effects)} (candidate)")
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
+            _register(path.parent / "package.order", path.stem)
+
+    def base_parameters(self) -> dict[str, float] | None:
+        base = self.fits.get(NONE)
+        return dict(base.parameters) if base else None
+
+    def predict(self, fit: CandidateFit) -> dict:
+        """Residuals of the held-out tests at the training calibration."""
+        if not self.heldout:
+            return {}
+        folder = self.workdir / "heldout" / fit.spec.slug
+        paths = []
+        for exp in self.heldout:
+            path = folder / exp.name / "config.toml"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(candidate_config(exp, fit.spec, fit.parameters))
+            paths.append(path)
+        inputs = inputs_from_configs(paths, package=self.package, fmu_dir=self.fmu_dir)
+        x = np.array([fit.parameters[n] for n in inputs.problem.names])
+        return residuals_at(inputs, x)
+
+
+def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (), *, workdir: str | Path,
+             options: DiagnoseOptions = DiagnoseOptions(), package: str | Path = "modelica/iGrGen",
+             fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print) -> Diagnosis:
+    if not training:
+        raise ValueError("diagnose needs at least one training experiment")
+    ctx = _Context(training, heldout, workdir, options, package, fmu_dir, log)
+    log(f"calibrating the base model and {len(options.candidates)} candidates on "
+        f"{', '.join(e.name for e in training)}" + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
+    base = ctx.fit(CandidateSpec())
+    features = residual_features(training + list(heldout), base, ctx)
+    singles = [ctx.fit(CandidateSpec((name,))) for name in options.candidates]
+    ranking = rank([base, *singles], ctx.noise)
+
+    not_excluded: list[str] = []
+    if ranking[0].label == NONE:
+        not_excluded = _material_checks(ctx, base, options)
+    verdict = decide(ranking, threshold=options.threshold, not_excluded=not_excluded)
+    chosen = ctx.fits[verdict.effect] if verdict.effect in ctx.fits and verdict.effect != NONE else None
+    if chosen is not None and ctx.heldout:
+        verdict = _confirm(ctx, chosen, base, verdict)
+        if verdict.effect == "ambiguous":
+            chosen = None
+
+    second: list[Ranked] = []
+    if chosen is not None and options.max_effects >= 2:
+        chosen, verdict, second = _second_effect(ctx, chosen, verdict, options)
+
+    separating = None
+    if verdict.effect == "ambiguous":
+        separating = _separating(ctx, verdict, not_excluded)
+
+    final_fit, model_written, model_file, recalibrated = base, None, None, base
+    if chosen is not None:
+        final_fit = chosen
+        if options.write_model:
+            model_written, model_file, recalibrated = _write_and_recalibrate(ctx, chosen, options)
+            final_fit = recalibrated
+    before_tests = _all_tests(ctx, base)
+    after_tests = _all_tests(ctx, final_fit) if chosen is not None else before_tests
+    gap_before = _gaps(ctx, before_tests)
+    gap_after = _gaps(ctx, after_tests)
+    residuals = {name: {"time": t.time, "before": t.residual, "after": after_tests[name].residual}
+                 for name, t in before_tests.items()}
+    return Diagnosis(
+        effect=verdict.effect, effects=verdict.effects, candidates=verdict.candidates, reason=verdict.reason,
+        ranking=[asdict(r) for r in ranking], second_effect_ranking=[asdict(r) for r in second],
+        not_excluded=not_excluded, separating_test=separating, held_out=verdict.held_out,
+        features=features.to_json(), gap_before=gap_before, gap_after=gap_after,
+        parameters_before=base.parameters, parameters_after=final_fit.parameters,
+        parameter_intervals=_intervals(ctx, final_fit),
+        noise={name: {"sigma": f.sigma, "phi": f.phi} for name, f in ctx.noise.items()},
+        model_written=model_written, model_file=model_file, residuals=residuals,
+        archives={label: str(f.archive) for label, f in ctx.fits.items()},
+        training=[e.name for e in training], heldout=[e.name for e in heldout],
+        created=datetime.now(timezone.utc).isoformat(timespec="seconds"))
+
+
+def _material_checks(ctx: _Context, base: CandidateFit, options: DiagnoseOptions) -> list[str]:
+    """Effects that, held at a material size, still fit within the threshold of none."""
+    base_bic = bic(base, ctx.noise)
+    found = []
+    for name in options.candidates:
+        held = tuple((p.name, p.material) for p in CATALOGUE[name].parameters)
+        fit = ctx.fit(CandidateSpec((name,), held))
+        # the held fit estimates no more parameters than none; compare the data terms
+        if bic(fit, ctx.noise) - base_bic < options.threshold:
+            found.append(name)
+    return found
+
+
+def _held_out_score(ctx: _Context, fit: CandidateFit) -> tuple[float, dict]:
+    tests = ctx.predict(fit)
+    data_term, _ = score(tests, ctx.noise)
+    return data_term, tests
+
+
+def _confirm(ctx: _Context, chosen: CandidateFit, base: CandidateFit, verdict: Verdict) -> Verdict:
+    named, _ = _held_out_score(ctx, chosen)
+    none, _ = _held_out_score(ctx, base)
+    improvement = none - named
+    verdict.held_out = {"tests": [e.name for e in ctx.heldout], "criterion_improvement": improvement,
+                        "confirmed": improvement > 0}
+    if improvement <= 0:
+        return Verdict("ambiguous", candidates=[verdict.effect, NONE], held_out=verdict.held_out,
+                       reason=f"{verdict.effect} wins on the training tests but does not predict the held-out "
+                              f"tests better than the base model ({improvement:+.1f})")
+    verdict.reason += f"; confirmed on held-out {', '.join(e.name for e in ctx.heldout)} ({improvement:+.1f})"
+    return verdict
+
+
+def _second_effect(ctx: _Context, chosen: CandidateFit, verdict: Verdict, options: DiagnoseOptions):
+    first = chosen.spec.effects
+    start = dict(chosen.parameters)
+    combos = []
+    for name in options.candidates:
+        if name in first:
+            continue
+        spec = CandidateSpec(first + (name,))
+        combos.append(ctx.fit(spec, start=default_start(spec, start)))
+    ranked = rank([chosen, *combos], ctx.noise)
+    best = ranked[0]
+    if best.label == chosen.spec.label:
+        verdict.reason += f"; no second effect improves it (closest {ranked[1].label}, {ranked[1].delta:+.1f})"
+        return chosen, verdict, ranked
+    margin = next(r for r in ranked if r.label == chosen.spec.label).delta
+    rivals = [r.label for r in ranked[1:] if r.label != chosen.spec.label and r.delta < options.threshold]
+    if margin < options.threshold or rivals:
+        verdict.reason += (f"; a second effect is not decisive ({best.label} by {margin:.1f}"
+                           + (f", rivals {', '.join(rivals)})" if rivals else ")"))
+        return chosen, verdict, ranked
+    fit = ctx.fits[best.label]
+    if ctx.heldout:
+        named, _ = _held_out_score(ctx, fit)
+        prev, _ = _held_out_score(ctx, chosen)
+        if named >= prev:
+            verdict.reason += f"; {best.label} not confirmed on the held-out tests"
+            return chosen, verdict, ranked
+    added = fit.spec.effects[-1]
+    verdict.effects = list(fit.spec.effects)
+    verdict.reason += f"; adding {added} improves it by {margin:.1f}"
+    return fit, verdict, ranked
+
+
+def _separating(ctx: _Context, verdict: Verdict, not_excluded: Sequence[str]) -> dict | None:
+    labels = verdict.candidates
+    if len(labels) < 2:
+        return None
+    a = ctx.fits.get(labels[0])
+    other = labels[1]
+    if other in not_excluded or (labels[0] == NONE and other in CATALOGUE):
+        held = tuple((p.name, p.material) for p in CATALOGUE[other].parameters)
+        b = ctx.fits.get(CandidateSpec((other,), held).label)
+    else:
+        b = ctx.fits.get(other)
+    if a is None or b is None:
+        return None
+    return separating_test(a, b, ctx.training[0], ctx.noise[ctx.training[0].name], package=ctx.package,
+                           fmu_dir=ctx.fmu_dir)
+
+
+def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: DiagnoseOptions):
+    """The named model written into the package, compiled, and calibrated again."""
+    effects = chosen.spec.effects
+    name = options.model_name or "iGrGen.Diagnosed.Calibrated" + "".join(
+        part.capitalize() for e in effects for part in e.split("_"))
+    if not re.fullmatch(r"iGrGen\.Diagnosed\.[A-Za-z_][A-Za-z0-9_]*", name):
+        raise ValueError(f"model name {name!r} must be iGrGen.Diagnosed.<Identifier>")
+    values = {k: v for k, v in chosen.parameters.items()}
+    description = (f"base staged test with {', '.join(effects)}, calibrated on "
+                   f"{', '.join(e.name for e in ctx.training)} by rapid-cosim diagnose")
+    text = bench_source(effects, name, values=values, description=description)
+    package_dir = ctx.user_package
+    target = package_dir / "Diagnosed" / f"{name.rsplit('.', 1)[1]}.mo"
+    target.write_text(text)
+    _register(package_dir / "Diagnosed" / "package.order", name.rsplit(".", 1)[1])
+    build_models([name], package=package_dir, fmu_dir=ctx.user_fmu_dir, log=lambda *_: None)
+    ctx.log(f"  wrote {target} and compiled it; re-calibrating with it ...")
+    spec = CandidateSpec(effects)
+    folder = ctx.workdir / "recalibrated"
+    from ..archive.runs import ensure_run
+
+    paths = []
+    for exp in ctx.training:
+        path = folder / exp.name / "config.toml"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(candidate_config(exp, spec, values).replace(
+            f'model = "{chosen.model}"', f'model = "{name}"'))
+        paths.append(path)
+    inputs = inputs_from_configs(paths, package=package_dir, fmu_dir=ctx.user_fmu_dir)
+    archive = ctx.workdir / "recalibrated.h5"
+    result, _ = ensure_run(inputs, replace(ctx.run_options, method="nm"), archive, progress=False)
+    fit = CandidateFit(spec, archive, name, result.best(), len(result.names), float(result.fun), result.nfev,
+                       residuals_at(inputs, result.x), inputs=inputs)
+    ctx.fits["recalibrated"] = fit
+    return name, str(target), fit
+
+
+def _register(order: Path, entry: str) -> None:
+    lines = [line.strip() for line in order.read_text().splitlines() if line.strip()] if order.exists() else []
+    if entry not in lines:
+        order.write_text("\n".join(lines + [entry]) + "\n")
+
+
+def _all_tests(ctx: _Context, fit: CandidateFit) -> dict:
+    """Residuals on the training tests and, predicted, on the held-out ones."""
+    tests = dict(fit.tests)
+    if ctx.heldout:
+        tests.update(ctx.predict(fit))
+    return tests
+
+
+def _gaps(ctx: _Context, tests: dict) -> dict[str, dict]:
+    held = {e.name for e in ctx.heldout}
+    return {name: {**gap(t, ctx.noise[name]), "held_out": name in held} for name, t in tests.items()}
+
+
+def _intervals(ctx: _Context, fit: CandidateFit, level: float = 0.9) -> dict[str, list[float]]:
+    """90 % intervals of the calibrated parameters: Laplace's approximation of the
+    Gaussian likelihood (pre-step noise levels), widened by the AR(1) variance factor
+    (1 + phi) / (1 - phi), since correlated samples carry less information each."""
+    from ..archive.runs import log_likelihood_for
+    from ..estimators.laplace import laplace
+    from ..evaluate import ProblemObjective
+
+    problem = fit.inputs.problem
+    log_likelihood = log_likelihood_for(problem)
+    if log_likelihood is None:
+        return {}
+    objective = ProblemObjective(problem, fit.inputs.fmus, n_jobs=ctx.options.n_jobs)
+    x = np.array([fit.parameters[n] for n in problem.names])
+    approx = laplace(lambda X: -log_likelihood(objective(X)), problem.space, x, level=level)
+    phis = np.array([ctx.noise[e.name].phi for e in problem.experiments])
+    inflation = float(np.mean((1 + phis) / (1 - phis)))
+    z = approx.interval - approx.mean[:, None]
+    out = {}
+    for k, name in enumerate(problem.names):
+        half = np.sqrt(inflation) * (z[k, 1] if np.isfinite(z[k, 1]) else np.inf)
+        out[name] = [float(x[k] - half), float(x[k] + half)]
+    return out
+
+
+__all__ = ["DiagnoseOptions", "Diagnosis", "Features", "diagnose"]

@@ -1,0 +1,124 @@
+"""The discrepancy workflow's parts that need no calibration: the criterion, the rules
+of the verdict, the catalogue's generated benches, the residual features."""
+
+import shutil
+
+import numpy as np
+import pytest
+
+from rapid_cosim.build import build_models
+from rapid_cosim.diagnose.candidates import CandidateFit, CandidateSpec, TestFit
+from rapid_cosim.diagnose.catalogue import CATALOGUE, bench_name, bench_source
+from rapid_cosim.diagnose.selection import NoiseFloor, Ranked, bic, decide, prewhitened, score
+from rapid_cosim.estimators.base import SearchSpace
+from rapid_cosim.estimators.laplace import laplace
+from rapid_cosim.simulator import Simulator
+
+
+def _fit(label_effects, residuals, n_estimated):
+    tests = {f"t{k}": TestFit(f"t{k}", np.arange(r.size) * 0.1, r, float(np.mean(r ** 2)), 0.0, r.size)
+             for k, r in enumerate(residuals)}
+    return CandidateFit(CandidateSpec(label_effects), archive="-", model="-", parameters={}, n_estimated=n_estimated,
+                        fitness=0.0, nfev=0, tests=tests)
+
+
+def _ar1(n, phi, sigma, rng):
+    e = np.empty(n)
+    e[0] = rng.standard_normal() * sigma
+    a = rng.standard_normal(n) * sigma * np.sqrt(1 - phi ** 2)
+    for k in range(1, n):
+        e[k] = phi * e[k - 1] + a[k]
+    return e
+
+
+def test_prewhitening_makes_ar1_noise_white_and_skips_gaps():
+    rng = np.random.default_rng(0)
+    r = _ar1(20000, 0.7, 1e-3, rng)
+    a = prewhitened(r, 0.7)
+    assert abs(np.corrcoef(a[1:], a[:-1])[0, 1]) < 0.03
+    assert np.std(a) == pytest.approx(1e-3 * np.sqrt(1 - 0.49), rel=0.03)
+    r[100] = np.nan
+    assert prewhitened(r, 0.7).size == r.size - 3  # the pairs (99,100) and (100,101) are gone
+
+
+def test_coloured_noise_does_not_favour_an_extra_parameter():
+    """Noise only, AR(1) with phi = 0.8. A candidate with one extra parameter (the
+    least-squares coefficient of a slow step-like shape) always fits a little better.
+    Treated as white, the criterion would often take it; prewhitened, rarely."""
+    n, phi, wins_white, wins_prewhitened = 800, 0.8, 0, 0
+    shape = 1 - np.exp(-np.arange(n) * 0.1 / 5.0)
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        res = [_ar1(n, phi, 1e-3, rng) for _ in range(2)]
+        fitted = [r - (r @ shape) / (shape @ shape) * shape for r in res]
+        small, big = _fit((), res, 2), _fit(("delay",), fitted, 3)
+        white = {"t0": NoiseFloor(1e-3, 0.0), "t1": NoiseFloor(1e-3, 0.0)}
+        coloured = {"t0": NoiseFloor(1e-3, phi), "t1": NoiseFloor(1e-3, phi)}
+        wins_white += bic(big, white) < bic(small, white)
+        wins_prewhitened += bic(big, coloured) < bic(small, coloured)
+    assert wins_white >= 8
+    assert wins_prewhitened <= 3
+
+
+def _ranked(**deltas):
+    best = min(deltas.values())
+    return sorted([Ranked(k, () if k == "none" else (k,), v, v - best, 0.0, {}, "") for k, v in deltas.items()],
+                  key=lambda r: r.bic)
+
+
+def test_verdict_names_a_decisive_effect():
+    v = decide(_ranked(none=0.0, rate_limit=-200.0, delay=-150.0))
+    assert v.effect == "rate_limit" and v.effects == ["rate_limit"]
+
+
+def test_verdict_is_ambiguous_between_close_candidates():
+    v = decide(_ranked(none=0.0, delay=-120.0, measurement_lag=-115.0))
+    assert v.effect == "ambiguous" and set(v.candidates) == {"delay", "measurement_lag"}
+
+
+def test_verdict_is_ambiguous_when_the_effect_barely_beats_none():
+    v = decide(_ranked(none=0.0, deadband=-4.0))
+    assert v.effect == "ambiguous" and "none" in v.candidates
+
+
+def test_verdict_none_only_if_material_effects_are_excluded():
+    ranking = _ranked(none=0.0, deadband=7.0, delay=8.0)
+    assert decide(ranking).effect == "none"
+    v = decide(ranking, not_excluded=["deadband"])
+    assert v.effect == "ambiguous" and v.candidates == ["none", "deadband"]
+
+
+def test_laplace_recovers_a_known_gaussian():
+    space = SearchSpace(("a", "b"), np.array([0.02, 0.1]), np.array([0.12, 20.0]), (False, True))
+    mean = np.array([0.05, 3.0])
+    cov = np.array([[1e-6, 2e-5], [2e-5, 1e-2]])
+    precision = np.linalg.inv(cov)
+    g = laplace(lambda X: 0.5 * np.einsum("ni,ij,nj->n", X - mean, precision, X - mean), space, mean)
+    assert np.allclose(g.covariance, cov, rtol=1e-3)
+
+
+def test_generated_benches_equal_the_hand_written_ones(repo, tmp_path):
+    pkg = tmp_path / "iGrGen"
+    shutil.copytree(repo / "modelica" / "iGrGen", pkg)
+    generated = {}
+    for name in CATALOGUE:
+        cls = f"iGrGen.Diagnosed.Generated{name.title().replace('_', '')}"
+        (pkg / "Diagnosed" / f"{cls.rsplit('.', 1)[1]}.mo").write_text(bench_source([name], cls))
+        generated[name] = cls
+    built = {o.model: o.fmu for o in build_models(list(generated.values()) + [e.bench for e in CATALOGUE.values()],
+                                                  package=pkg, fmu_dir=tmp_path / "fmus", log=lambda *_: None)}
+    params = {"gov.Ts": 3.0, "src.t_return": 40.0}
+    for name, cls in generated.items():
+        a = Simulator(built[cls]).simulate(params, stop_time=60, output_interval=0.1)
+        b = Simulator(built[CATALOGUE[name].bench]).simulate(params, stop_time=60, output_interval=0.1)
+        assert np.array_equal(a["pm"], b["pm"]), name
+
+
+def test_bench_names_and_errors():
+    assert bench_name([]) == "iGrGen.TestBenches.StagedTest"
+    assert bench_name(["delay"]) == CATALOGUE["delay"].bench
+    assert bench_name(["rate_limit", "deadband"]) == bench_name(["deadband", "rate_limit"])
+    with pytest.raises(ValueError, match="unknown effect"):
+        bench_name(["friction"])
+    text = bench_source(["rate_limit", "backlash"], "iGrGen.Diagnosed.X", values={"gov.R": 0.051})
+    assert "Governors.TGTypeIValveEffects gov(R = 0.051)" in text
