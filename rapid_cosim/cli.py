@@ -466,16 +466,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"warning: {message}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
+    import warnings
+
     args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except RapidCosimError as e:
-        print(f"rapid-cosim {args.command}: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+    with warnings.catch_warnings():  # restores the filters and showwarning on exit
+        # a user wants each warning once, as a sentence, not the source line that raised it
+        warnings.filterwarnings("once", category=UserWarning)
+        warnings.showwarning = _show_warning
+        try:
+            return args.func(args)
+        except RapidCosimError as e:
+            print(f"rapid-cosim {args.command}: error: {e}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print("interrupted", file=sys.stderr)
+            return 130
 
 
 if __name__ == "__main__":

@@ -66,6 +66,7 @@ unreadable measurements stay :class:`DataError` naming the data file and row.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 import tomllib
@@ -157,7 +158,11 @@ class Experiment:
     simulation: SimulationSettings
 
     def windowed_data(self) -> MeasuredData:
-        """The measurements inside the fitness window."""
+        """The measurements inside the fitness window (made once: every simulation asks)."""
+        return self._windowed
+
+    @functools.cached_property
+    def _windowed(self) -> MeasuredData:
         return self.data.window(*self.window)
 
 

@@ -10,14 +10,14 @@ the archive, so each candidate is an ordinary archived run that ``rapid-cosim sh
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 
 from ..archive.runs import RunOptions, ensure_run, inputs_from_configs
-from ..evaluate import evaluate_in_detail
+from ..evaluate import ProblemObjective, evaluate_in_detail
 from ..experiment import Experiment, render_config
 from .catalogue import CATALOGUE, NONE, bench_name, effect_parameters
 
@@ -118,21 +118,51 @@ def default_start(spec: CandidateSpec, base: Mapping[str, float] | None) -> dict
     return start
 
 
-def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdir: Path, *,
-                  options: RunOptions, start: Mapping[str, float] | None = None, package: str | Path,
-                  fmu_dir: str | Path, progress: bool = False) -> CandidateFit:
-    folder = workdir / "candidates" / spec.slug
+def _write_configs(folder: Path, experiments: Sequence[Experiment], spec: CandidateSpec,
+                   start: Mapping[str, float], polish_from: Mapping[str, float] | None = None) -> list[Path]:
     paths = []
     for exp in experiments:
         path = folder / exp.name / "config.toml"
         path.parent.mkdir(parents=True, exist_ok=True)
-        text = candidate_config(exp, spec, start or {})
+        text = candidate_config(exp, spec, start)
+        if polish_from is not None:
+            text = _with_start(text, polish_from)
         if not path.exists() or path.read_text() != text:
             path.write_text(text)
         paths.append(path)
+    return paths
+
+
+def _with_start(text: str, start: Mapping[str, float]) -> str:
+    raw = tomllib.loads(text)
+    for name, spec in raw.get("estimate", {}).items():
+        if name in start:
+            spec["start"] = float(min(max(start[name], spec["min"]), spec["max"]))
+    return render_config(raw)
+
+
+def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdir: Path, *,
+                  options: RunOptions, start: Mapping[str, float] | None = None, package: str | Path,
+                  fmu_dir: str | Path, progress: bool = False) -> CandidateFit:
+    """Calibrate the candidate (archived); if the search ends worse than the point where
+    its effects are switched off at ``start`` (the base optimum), which it nests, it
+    missed that basin: Nelder-Mead polishes from there, also archived, and the better
+    of the two stands."""
+    start = dict(start or {})
+    paths = _write_configs(workdir / "candidates" / spec.slug, experiments, spec, start)
     inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, backend="auto")
     archive = workdir / "candidates" / f"{spec.slug}.h5"
     result, _ = ensure_run(inputs, options, archive, progress=progress)
+    if spec.effects and all(n in start for n in inputs.problem.names):
+        nested = inputs.problem.space.clip(np.array([start[n] for n in inputs.problem.names]))
+        if ProblemObjective(inputs.problem, inputs.fmus)(nested[None]).fitness[0] < result.fun:
+            polish = f"{spec.slug}-from-base"
+            paths = _write_configs(workdir / "candidates" / polish, experiments, spec, start, polish_from=start)
+            polished_inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, backend="auto")
+            polished, _ = ensure_run(polished_inputs, replace(options, method="nm"),
+                                     workdir / "candidates" / f"{polish}.h5", progress=progress)
+            if polished.fun < result.fun:
+                inputs, result, archive = polished_inputs, polished, workdir / "candidates" / f"{polish}.h5"
     return CandidateFit(spec, archive, inputs.experiments[0].model, result.best(),
                         n_estimated=len(result.names), fitness=float(result.fun), nfev=result.nfev,
                         tests=residuals_at(inputs, result.x), inputs=inputs)

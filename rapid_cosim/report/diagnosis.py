@@ -28,7 +28,7 @@ def residual_figure(folder: str | Path, out: str | Path | None = None) -> Path:
     effect, the noise band (+-2 sigma of the pre-step noise), systematic windows shaded."""
     record, arrays = load(folder)
     out = Path(out or Path(folder) / "residuals.png")
-    tests = list(arrays)
+    tests = [t for t in record["gap_before"] if t in arrays]  # training tests, then the held-out ones
     cols = 2 if len(tests) > 3 else 1
     rows = (len(tests) + cols - 1) // cols
     fig, axes = plt.subplots(rows, cols, figsize=(7 * cols, 2.3 * rows), squeeze=False, sharex=False)
