@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rapid_cosim.build import build_models
-from rapid_cosim.diagnose.candidates import CandidateFit, CandidateSpec, TestFit
+from rapid_cosim.diagnose.candidates import CandidateFit, CandidateSpec, ExperimentResiduals
 from rapid_cosim.diagnose.catalogue import CATALOGUE, bench_name, bench_source
 from rapid_cosim.diagnose.selection import NoiseFloor, Ranked, bic, decide, prewhitened, score
 from rapid_cosim.estimators.base import SearchSpace
@@ -16,7 +16,7 @@ from rapid_cosim.simulator import Simulator
 
 
 def _fit(label_effects, residuals, n_estimated):
-    tests = {f"t{k}": TestFit(f"t{k}", np.arange(r.size) * 0.1, r, float(np.mean(r ** 2)), 0.0, r.size)
+    tests = {f"t{k}": ExperimentResiduals(f"t{k}", np.arange(r.size) * 0.1, r, float(np.mean(r ** 2)), 0.0, r.size)
              for k, r in enumerate(residuals)}
     return CandidateFit(CandidateSpec(label_effects), archive="-", model="-", parameters={}, n_estimated=n_estimated,
                         fitness=0.0, nfev=0, tests=tests)

@@ -40,7 +40,7 @@ class CandidateSpec:
 
 
 @dataclass(frozen=True)
-class TestFit:
+class ExperimentResiduals:
     """Residuals of one test at a candidate's calibrated parameters."""
 
     name: str
@@ -60,7 +60,7 @@ class CandidateFit:
     n_estimated: int  # global parameters estimated (offsets are counted by the criterion)
     fitness: float
     nfev: int
-    tests: dict[str, TestFit] = field(default_factory=dict)
+    tests: dict[str, ExperimentResiduals] = field(default_factory=dict)
     inputs: object = field(default=None, repr=False)  # the RunInputs it was fitted on
 
 
@@ -168,14 +168,14 @@ def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdi
                         tests=residuals_at(inputs, result.x), inputs=inputs)
 
 
-def residuals_at(inputs, x) -> dict[str, TestFit]:
+def residuals_at(inputs, x) -> dict[str, ExperimentResiduals]:
     out = {}
     for r in evaluate_in_detail(inputs.problem, inputs.fmus, np.asarray(x)):
         (column,) = r.fit.residuals  # one output per staged test
-        out[r.experiment.name] = TestFit(r.experiment.name, r.fit.time, r.fit.residuals[column], r.fit.rssd,
+        out[r.experiment.name] = ExperimentResiduals(r.experiment.name, r.fit.time, r.fit.residuals[column], r.fit.rssd,
                                          r.fit.offsets[column], r.fit.n_valid[column])
     return out
 
 
-__all__ = ["CATALOGUE", "CandidateFit", "CandidateSpec", "TestFit", "candidate_config", "default_start",
+__all__ = ["CATALOGUE", "CandidateFit", "CandidateSpec", "ExperimentResiduals", "candidate_config", "default_start",
            "fit_candidate", "residuals_at"]

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..data import noise_level
 from ..experiment import Experiment
-from .candidates import CandidateFit, TestFit
+from .candidates import CandidateFit, ExperimentResiduals
 
 THRESHOLD = 10.0
 
@@ -94,7 +94,7 @@ def prewhitened(residual: np.ndarray, phi: float) -> np.ndarray:
     return (r[1:] - phi * r[:-1])[ok]
 
 
-def score(tests: Mapping[str, TestFit], noise: Mapping[str, NoiseFloor]) -> tuple[float, int]:
+def score(tests: Mapping[str, ExperimentResiduals], noise: Mapping[str, NoiseFloor]) -> tuple[float, int]:
     """(sum n_i log s2_i, N): the data term of the criterion and its sample count."""
     total, n_total = 0.0, 0
     for name, fit in tests.items():
@@ -110,7 +110,7 @@ def bic(fit: CandidateFit, noise: Mapping[str, NoiseFloor]) -> float:
     return data_term + k * math.log(n)
 
 
-def gap(fit: TestFit, floor: NoiseFloor) -> dict[str, float]:
+def gap(fit: ExperimentResiduals, floor: NoiseFloor) -> dict[str, float]:
     """RMSE of the residual, its ratio to the noise level, and the gap above the floor."""
     r = fit.residual[np.isfinite(fit.residual)]
     rmse = float(np.sqrt(np.mean(r ** 2)))
