@@ -23,7 +23,7 @@ def load(folder: str | Path) -> tuple[dict, dict[str, dict[str, np.ndarray]]]:
     return record, arrays
 
 
-def residual_figure(folder: str | Path, out: str | Path | None = None) -> Path:
+def residual_figure(folder: str | Path, out: str | Path | None = None, *, dpi: int = 110) -> Path:
     """One panel per test: the base model's residual and the residual with the named
     effect, the noise band (+-2 sigma of the pre-step noise), systematic windows shaded."""
     record, arrays = load(folder)
@@ -63,7 +63,7 @@ def residual_figure(folder: str | Path, out: str | Path | None = None) -> Path:
                  fontsize=10)
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=dpi)
     plt.close(fig)
     return out
 
