@@ -37,7 +37,7 @@ demo: fmus  ## set up, then calibrate staged test 1 with PSO10+NM and PF10+NM; p
 	$(RC) demo $(RUN_OPTS)
 
 test: fmus  ## run the test suite
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -rs
 
 $(STAGED_TESTS): test%: fmus  ## PSO10+NM and PF10+NM on one staged test, archived in results/testN/, with its figure
 	$(RC) staged-test experiments/test$* $(RUN_OPTS)
