@@ -2,8 +2,8 @@
 
 The package follows the way data flows, each module knowing only those before it::
 
-    modelica/iGrGen -> build -> simulator -> data/experiment -> fitness -> evaluate
-                    -> estimators -> archive -> diagnose -> report -> cli
+    modelica/iGrGen -> build -> simulator (integrator) -> data, experiment -> fitness
+                    -> evaluate -> estimators -> archive -> staged, diagnose -> report -> cli
 """
 
 __version__ = "0.1.0"
