@@ -210,7 +210,7 @@ class Laplace:
 def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float = 0.5) -> Laplace:
     """Laplace approximation at an archived single-test run's best point (two passes of
     :func:`rapid_cosim.estimators.laplace.laplace`, 18 simulations for R and Ts). A best
-    point within a step of a bound is reported in ``at_bound``."""
+    point within a step of a bound is reported in ``at_bound`` (its stencil moved inside)."""
     with RunArchive(archive) as view:
         inputs = inputs_from_archive(view)
         result = view.result()

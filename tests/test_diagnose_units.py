@@ -122,3 +122,18 @@ def test_bench_names_and_errors():
         bench_name(["friction"])
     text = bench_source(["rate_limit", "backlash"], "iGrGen.Diagnosed.X", values={"gov.R": 0.051})
     assert "Governors.TGTypeIValveEffects gov(R = 0.051)" in text
+
+
+def test_laplace_never_evaluates_outside_the_bounds():
+    space = SearchSpace(("db", "Ts"), np.array([0.0, 0.1]), np.array([0.1, 20.0]), (False, True))
+    seen = []
+
+    def nll(X):
+        seen.append(X.copy())
+        return 0.5 * ((X[:, 0] - 0.0) / 0.01) ** 2 + 0.5 * ((np.log(X[:, 1]) - np.log(3.0)) / 0.1) ** 2
+
+    g = laplace(nll, space, np.array([0.0, 3.0]))  # db at its lower bound
+    points = np.vstack(seen)
+    assert np.all(points >= space.lower) and np.all(points <= space.upper)
+    assert g.at_bound == ("db",)
+    assert np.isfinite(g.std).all()

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..archive.runs import RunOptions, inputs_from_configs
 from ..build import build_models
+from ..errors import RapidCosimError
 from ..experiment import Experiment
 from .candidates import CandidateFit, CandidateSpec, candidate_config, default_start, fit_candidate, residuals_at
 from .catalogue import CATALOGUE, NONE, bench_name, bench_source, effect_parameters
@@ -272,6 +273,20 @@ def _second_effect(ctx: _Context, chosen: CandidateFit, verdict: Verdict, option
                            + (f", rivals {', '.join(rivals)})" if rivals else ")"))
         return chosen, verdict, ranked
     fit = ctx.fits[best.label]
+    # Does the second effect do the work, or did the combination's search only find a
+    # better optimum of the first effect's parameters? Evaluate the first effect alone
+    # there; if that is about as good, the second effect is not needed (and that point,
+    # if better, replaces the first effect's calibration).
+    names = chosen.inputs.problem.names
+    nested_tests = residuals_at(chosen.inputs, np.array([fit.parameters[n] for n in names]))
+    nested = replace(chosen, parameters={n: fit.parameters[n] for n in names}, tests=nested_tests,
+                     fitness=float(np.mean([t.rssd for t in nested_tests.values()])))
+    if bic(nested, ctx.noise) < bic(chosen, ctx.noise):
+        chosen = ctx.fits[chosen.spec.label] = nested
+    if bic(nested, ctx.noise) - bic(fit, ctx.noise) < options.threshold:
+        verdict.reason += (f"; {best.label} fits better only because its search found better parameters of "
+                           f"{chosen.spec.label} (the second effect adds less than {options.threshold:g})")
+        return chosen, verdict, rank([chosen, *combos], ctx.noise)
     if ctx.heldout:
         named, _ = _held_out_score(ctx, fit)
         prev, _ = _held_out_score(ctx, chosen)
@@ -371,7 +386,11 @@ def _intervals(ctx: _Context, fit: CandidateFit, level: float = 0.9) -> dict[str
         return {}
     objective = ProblemObjective(problem, fit.inputs.fmus, n_jobs=ctx.options.n_jobs)
     x = np.array([fit.parameters[n] for n in problem.names])
-    approx = laplace(lambda X: -log_likelihood(objective(X)), problem.space, x, level=level)
+    try:
+        approx = laplace(lambda X: -log_likelihood(objective(X)), problem.space, x, level=level)
+    except RapidCosimError as e:  # intervals are evidence, not the verdict: report, do not fail
+        ctx.log(f"  no parameter intervals: {e}")
+        return {}
     phis = np.array([ctx.noise[e.name].phi for e in problem.experiments])
     inflation = float(np.mean((1 + phis) / (1 - phis)))
     z = approx.interval - approx.mean[:, None]

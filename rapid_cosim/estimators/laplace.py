@@ -30,7 +30,7 @@ class GaussianApproximation:
     level: float
     steps: np.ndarray  # the second pass's steps, physical units
     evaluations: int
-    at_bound: tuple[str, ...]  # parameters whose stencil left the box (evaluated there anyway)
+    at_bound: tuple[str, ...]  # parameters at a bound, whose stencil was moved inside
 
     @property
     def std(self) -> np.ndarray:
@@ -96,11 +96,16 @@ def laplace(neg_log_likelihood: Callable[[np.ndarray], np.ndarray], space: Searc
     """``neg_log_likelihood`` maps rows of physical parameter sets (n, d) to values (n,),
     evaluated in one call per pass (so a parallel objective parallelises the stencil)."""
     x = np.asarray(x, dtype=float)
-    u = space.to_unit(x)
+    u_x = space.to_unit(x)
     count = 0
+    shifted = np.zeros(space.dim, dtype=bool)
 
     def hessian(h):
-        nonlocal count
+        nonlocal count, shifted
+        # Parameters are not simulated outside their bounds: at a bound the stencil is
+        # centred one step inside (the curvature there stands in for that at the bound).
+        u = np.clip(u_x, h, 1 - h)
+        shifted = u != u_x
         points = hessian_stencil(u, h)
         count += len(points)
         return hessian_from_stencil(np.asarray(neg_log_likelihood(space.from_unit(points)), dtype=float), h)
@@ -111,8 +116,9 @@ def laplace(neg_log_likelihood: Callable[[np.ndarray], np.ndarray], space: Searc
     H_unit = hessian(h)
     # unit -> physical: x = g(u) with a diagonal Jacobian J = dx/du
     eps = 1e-7
-    J = (space.from_unit(u + eps) - space.from_unit(u - eps)) / (2 * eps)
+    u = np.clip(u_x, h, 1 - h)
+    J = (space.from_unit(np.minimum(u + eps, 1)) - space.from_unit(np.maximum(u - eps, 0))) / (2 * eps)
     cov = _inverse(H_unit) * np.outer(J, J)
     H = H_unit / np.outer(J, J)
-    at_bound = tuple(n for n, ui, hi in zip(space.names, u, h) if ui - hi < 0 or ui + hi > 1)
+    at_bound = tuple(n for n, moved in zip(space.names, shifted) if moved)
     return GaussianApproximation(space.names, x, H, cov, level, h * np.abs(J), count, at_bound)
