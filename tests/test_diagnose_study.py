@@ -102,3 +102,13 @@ def test_named_effect_is_written_compiled_recalibrated_through_the_cli(study, tm
     assert set(record["parameter_intervals"]) >= {"gov.R", "gov.Ts", "gov.backlash"}
     assert (tmp_path / "diagnosis" / "residuals.png").exists()
     assert (tmp_path / "diagnosis" / "diagnosis.md").read_text().startswith("# Discrepancy diagnosis")
+
+
+def test_two_hidden_effects_are_both_named_greedily(study, tmp_path):
+    work, package, fmu_dir = study
+    case = draw_case("rate_limit+load_controller", 1, package=package, fmu_dir=fmu_dir)
+    result = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False, max_effects=2), package=package,
+                      fmu_dir=fmu_dir)
+    d = result.diagnosis
+    assert set(d.effects) == {"rate_limit", "load_controller"}, (d.effect, d.effects, d.reason)
+    assert result.gap_shrink >= 0.5

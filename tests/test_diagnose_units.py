@@ -76,9 +76,11 @@ def test_verdict_is_ambiguous_between_close_candidates():
     assert v.effect == "ambiguous" and set(v.candidates) == {"delay", "measurement_lag"}
 
 
-def test_verdict_is_ambiguous_when_the_effect_barely_beats_none():
-    v = decide(_ranked(none=0.0, deadband=-4.0))
-    assert v.effect == "ambiguous" and "none" in v.candidates
+def test_an_effect_that_barely_beats_none_is_not_named():
+    ranking = _ranked(none=0.0, backlash=-4.0, deadband=-2.0)
+    assert decide(ranking).effect == "none"
+    v = decide(ranking, not_excluded=["deadband"])  # but a material deadband fits as well
+    assert v.effect == "ambiguous" and v.candidates == ["none", "deadband"]
 
 
 def test_verdict_none_only_if_material_effects_are_excluded():

@@ -145,29 +145,37 @@ def rank(fits: Sequence[CandidateFit], noise: Mapping[str, NoiseFloor]) -> list[
             for b, f in scored]
 
 
+def _margin(ranking: Sequence[Ranked], candidate: Ranked) -> float:
+    """How much better than ``none`` the candidate is (positive: better)."""
+    none = next(r for r in ranking if r.label == "none")
+    return none.bic - candidate.bic
+
+
+def decisive(ranking: Sequence[Ranked], threshold: float = THRESHOLD) -> bool:
+    """Whether the best candidate is an effect that beats ``none`` by the threshold."""
+    best = ranking[0]
+    return best.label != "none" and _margin(ranking, best) >= threshold
+
+
 def decide(ranking: Sequence[Ranked], *, threshold: float = THRESHOLD,
            not_excluded: Sequence[str] = ()) -> Verdict:
     """The verdict from a ranking of single-effect candidates and ``none``.
 
     ``not_excluded``: effects that, held at a material size, fit within the threshold of
-    ``none`` (only consulted when ``none`` ranks first).
+    ``none`` (consulted when no effect beats ``none`` decisively).
     """
-    by_label = {r.label: r for r in ranking}
     best = ranking[0]
-    none = by_label["none"]
-    if best.label == "none":
+    if not decisive(ranking, threshold):
+        closest = best if best.label != "none" else ranking[1]
+        support = (f"no effect improves the criterion decisively (closest: {closest.label}, "
+                   f"{_margin(ranking, closest):+.1f} against the base model)")
         if not_excluded:
             return Verdict("ambiguous", candidates=["none", *not_excluded],
-                           reason="no effect improves the fit, but the data cannot exclude "
-                                  + ", ".join(not_excluded) + " at a material size: "
-                                  "it fits as well as the base model with other parameters")
-        return Verdict("none", reason="no candidate improves the criterion over the base model "
-                                      f"(closest: {ranking[1].label}, {ranking[1].delta:+.1f})")
-    margin_none = none.bic - best.bic
+                           reason=support + "; but the data cannot exclude " + ", ".join(not_excluded)
+                                  + " at a material size: it fits as well as the base model with other parameters")
+        return Verdict("none", reason=support)
+    margin_none = _margin(ranking, best)
     rivals = [r.label for r in ranking[1:] if r.label != "none" and r.delta < threshold]
-    if margin_none < threshold:
-        return Verdict("ambiguous", candidates=[best.label, "none", *rivals],
-                       reason=f"{best.label} improves the criterion by only {margin_none:.1f} (< {threshold:g})")
     if rivals:
         return Verdict("ambiguous", candidates=[best.label, *rivals],
                        reason=f"{best.label} and {', '.join(rivals)} are within {threshold:g} of each other")

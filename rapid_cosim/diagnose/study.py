@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import shutil
 import time
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
@@ -20,7 +21,7 @@ from ..build import ensure_fmu
 from ..experiment import load_experiment
 from ..simulator import get_simulator
 from ..synthetic import NoiseModel, synthesize, write_experiment
-from .catalogue import CATALOGUE, NONE, bench_name
+from .catalogue import CATALOGUE, NONE, bench_name, bench_source
 from .workflow import DiagnoseOptions, Diagnosis, diagnose
 
 # (df in Hz, return time in s or None); the last one is held out to confirm the verdict
@@ -43,7 +44,7 @@ EFFECT_SIZES: dict[str, Callable[[np.random.Generator], dict[str, float]]] = {
 
 @dataclass(frozen=True)
 class Case:
-    truth: str  # an effect name or "none"
+    truth: str  # an effect name, "none", or effects joined by "+" (several hidden at once)
     seed: int
     plant: dict[str, float]
     effect_values: dict[str, float]
@@ -52,7 +53,11 @@ class Case:
 
     @property
     def label(self) -> str:
-        return f"{self.truth}-{self.seed}"
+        return f"{self.truth.replace('+', '_and_')}-{self.seed}"
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        return () if self.truth == NONE else tuple(self.truth.split("+"))
 
 
 VISIBILITY = 1.5  # an effect is hidden only if its RMS contribution is this many noise levels
@@ -66,27 +71,47 @@ def draw_case(truth: str, seed: int, steps=CAMPAIGN, *, package, fmu_dir, visibi
     campaign, offset removed). An effect below that is not a discrepancy any method
     could show, and no gap could shrink by half once it is added.
     """
-    g = np.random.default_rng([seed, list(CATALOGUE).index(truth) + 1 if truth in CATALOGUE else 0])
+    g = np.random.default_rng([seed, zlib.crc32(truth.encode())])
     noise = NoiseModel(white_sigma=0.0008, ar1_sigma=0.0008, phi=0.6, offset=g.uniform(-0.003, 0.003))
+    effects = () if truth == NONE else tuple(truth.split("+"))
+    unknown = [e for e in effects if e not in CATALOGUE]
+    if unknown:
+        raise ValueError(f"unknown effect(s) {unknown}; catalogue: {', '.join(CATALOGUE)}")
     for _ in range(50):
         plant = {"gov.R": g.uniform(0.045, 0.065), "gov.Ts": g.uniform(1.5, 5.0),
                  "gov.p_ref": float(g.choice([0.6, 0.8]))}
-        values = EFFECT_SIZES[truth](g) if truth in CATALOGUE else {}
+        values = {k: v for e in effects for k, v in EFFECT_SIZES[e](g).items()}
         case = Case(truth, seed, plant, values, tuple(steps), noise)
-        if truth not in CATALOGUE or effect_rms(case, package=package, fmu_dir=fmu_dir) >= visibility * noise.sigma:
+        if not effects or all(effect_rms(case, package=package, fmu_dir=fmu_dir, only=e) >= visibility * noise.sigma
+                              for e in effects):
             return case
     raise RuntimeError(f"no visible {truth} drawn in 50 tries; widen EFFECT_SIZES")
 
 
-def effect_rms(case: Case, *, package, fmu_dir) -> float:
-    """RMS difference the effect makes to the campaign's responses (offset removed)."""
-    with_effect = get_simulator(ensure_fmu(bench_name((case.truth,)), package=package, fmu_dir=fmu_dir))
+def _bench_fmu(effects: tuple[str, ...], package, fmu_dir):
+    """The bench of ``effects``; a combination is generated into the (study's) package."""
+    name = bench_name(effects)
+    if len(effects) > 1:
+        path = Path(package) / "Diagnosed" / f"{name.rsplit('.', 1)[1]}.mo"
+        text = bench_source(effects, name, description="synthetic study: effects hidden together")
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
+    return ensure_fmu(name, package=package, fmu_dir=fmu_dir)
+
+
+def effect_rms(case: Case, *, package, fmu_dir, only: str | None = None) -> float:
+    """RMS difference the effect (``only`` one of several) makes to the campaign's
+    responses, offset removed."""
+    effect = only or case.truth
+    with_effect = get_simulator(_bench_fmu((effect,), package, fmu_dir))
     without = get_simulator(ensure_fmu(bench_name(()), package=package, fmu_dir=fmu_dir))
+    own = {p.name for p in CATALOGUE[effect].parameters}
     squares = []
     for df, t_return in case.steps:
         fixed = {"gov.p_ref": case.plant["gov.p_ref"], "src.df": df, "src.t_step": T_STEP,
                  **({"src.t_return": t_return} if t_return is not None else {})}
-        a = with_effect.simulate({**fixed, **case.plant, **case.effect_values}, stop_time=DURATION_S,
+        values = {k: v for k, v in case.effect_values.items() if k in own}
+        a = with_effect.simulate({**fixed, **case.plant, **values}, stop_time=DURATION_S,
                                  output_interval=1 / RATE_HZ)["pm"]
         b = without.simulate({**fixed, **case.plant}, stop_time=DURATION_S, output_interval=1 / RATE_HZ)["pm"]
         d = a - b
@@ -96,8 +121,7 @@ def effect_rms(case: Case, *, package, fmu_dir) -> float:
 
 def write_campaign(case: Case, folder: Path, *, package, fmu_dir) -> list[Path]:
     """Configs of the case's staged tests, their data simulated with the hidden effect."""
-    effects = () if case.truth == NONE else (case.truth,)
-    fmu = ensure_fmu(bench_name(effects), package=package, fmu_dir=fmu_dir)
+    fmu = _bench_fmu(case.effects, package, fmu_dir)
     rng = np.random.default_rng([case.seed, 7919])
     paths = []
     for k, (df, t_return) in enumerate(case.steps):
@@ -141,6 +165,9 @@ class CaseResult:
 
     @property
     def correct(self) -> bool:
+        """The hidden effect named first; with several hidden, all of them named."""
+        if len(self.case.effects) > 1:
+            return set(self.diagnosis.effects) == set(self.case.effects)
         return self.named_first == self.case.truth
 
 

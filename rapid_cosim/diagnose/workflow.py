@@ -25,7 +25,7 @@ from ..experiment import Experiment
 from .candidates import CandidateFit, CandidateSpec, candidate_config, default_start, fit_candidate, residuals_at
 from .catalogue import CATALOGUE, NONE, bench_name, bench_source, effect_parameters
 from .features import Features, residual_features
-from .selection import THRESHOLD, Ranked, Verdict, bic, decide, gap, pooled_noise, rank, score
+from .selection import THRESHOLD, Ranked, Verdict, bic, decide, decisive, gap, pooled_noise, rank, score
 from .separate import separating_test
 
 
@@ -176,7 +176,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     ranking = rank([base, *singles], ctx.noise)
 
     not_excluded: list[str] = []
-    if ranking[0].label == NONE:
+    if not decisive(ranking, options.threshold):
         not_excluded = _material_checks(ctx, base, options)
     verdict = decide(ranking, threshold=options.threshold, not_excluded=not_excluded)
     chosen = ctx.fits[verdict.effect] if verdict.effect in ctx.fits and verdict.effect != NONE else None
