@@ -193,12 +193,11 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     if verdict.effect == "ambiguous":
         separating = _separating(ctx, verdict, not_excluded)
 
-    final_fit, model_written, model_file, recalibrated = base, None, None, base
+    final_fit, model_written, model_file = base, None, None
     if chosen is not None:
         final_fit = chosen
         if options.write_model:
-            model_written, model_file, recalibrated = _write_and_recalibrate(ctx, chosen, options)
-            final_fit = recalibrated
+            model_written, model_file, final_fit = _write_and_recalibrate(ctx, chosen, options)
     before_tests = _all_tests(ctx, base)
     after_tests = _all_tests(ctx, final_fit) if chosen is not None else before_tests
     gap_before = _gaps(ctx, before_tests)
