@@ -372,3 +372,13 @@ class Tracker:
             n_failed=self.n_failed,
             posterior=posterior,
         )
+
+
+def initial_population(space: SearchSpace, n: int, rng: np.random.Generator, x0=None) -> np.ndarray:
+    """``n`` uniform points in unit coordinates; a given ``x0`` replaces the first, so that a
+    chain's second stage starts from where the first ended."""
+    U = rng.uniform(size=(n, space.dim))
+    u0 = unit_start(space, x0)
+    if u0 is not None:
+        U[0] = u0
+    return U

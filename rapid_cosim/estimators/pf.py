@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .base import (EstimationResult, IterationCallback, Objective, SearchSpace, Tracker,
-                   check_option, reflect_unit, unit_start)
+                   check_option, initial_population, reflect_unit)
 
 
 @dataclass(frozen=True)
@@ -91,10 +91,7 @@ def particle_filter(
     o = options
     n, d = int(o.n_particles), space.dim
     t = Tracker("pf", objective, space, rng, callback)
-    U = rng.uniform(size=(n, d))
-    u0 = unit_start(space, x0)
-    if u0 is not None:
-        U[0] = u0
+    U = initial_population(space, n, rng, x0)
     sigma_k = float(o.sigma_k)
     n_keep = n - int(np.floor(o.epsilon * n))
     evaluated = np.ones(n, dtype=bool)  # after the first iteration, row 0 is the elite

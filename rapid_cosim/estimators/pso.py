@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .base import (EstimationResult, IterationCallback, Objective, SearchSpace, Tracker,
-                   check_option, unit_start)
+                   check_option, initial_population)
 
 
 @dataclass(frozen=True)
@@ -74,10 +74,7 @@ def pso(
     o = options
     n, d = int(o.n_particles), space.dim
     t = Tracker("pso", objective, space, rng, callback)
-    X = rng.uniform(size=(n, d))
-    u0 = unit_start(space, x0)
-    if u0 is not None:
-        X[0] = u0
+    X = initial_population(space, n, rng, x0)
     V = np.zeros((n, d))
     pbest_x, pbest_f = X.copy(), np.full(n, np.inf)
     pbest_failed = np.ones(n, dtype=bool)
