@@ -108,6 +108,9 @@ class Integrator:
         if hasattr(self, "_matrix"):
             _check(CVodeReInit(self._mem, time, self._x), "CVodeReInit")
 
+    def set_max_step(self, max_step: float) -> None:
+        _check(CVodeSetMaxStep(self._mem, max_step), "CVodeSetMaxStep")
+
     def advance(self, t_out: float) -> float:
         """Integrate to ``t_out`` and leave the FMU at that time and state."""
         flag = CVode(self._mem, t_out, self._x, byref(self._t), CV_NORMAL)

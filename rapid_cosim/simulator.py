@@ -200,15 +200,16 @@ class Simulator:
         has_event, t_event = self._update_discrete(fmu)
         fmu.enterContinuousTimeMode()
         stop_time = float(times[-1])
-        if self._solver is None or self._solver_span != (start_time, stop_time):
-            if self._solver is not None:
-                self._solver.close()
+        max_step = (stop_time - start_time) / 50.0
+        if self._solver is None:
             self._solver = Integrator(fmu, self.model_description.numberOfContinuousStates,
-                                      start_time=start_time, max_step=(stop_time - start_time) / 50.0,
+                                      start_time=start_time, max_step=max_step,
                                       relative_tolerance=self.relative_tolerance)
-            self._solver_span = (start_time, stop_time)
-        else:
+        else:  # a joint fit alternates spans: re-initialise the one solver rather than rebuild it
+            if self._solver_span != (start_time, stop_time):
+                self._solver.set_max_step(max_step)
             self._solver.reset(start_time)
+        self._solver_span = (start_time, stop_time)
         solver = self._solver
         component, m = fmu.component, len(names)
         vrs = (fmi2ValueReference * m)(*[self._vr[n] for n in names])
