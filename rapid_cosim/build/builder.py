@@ -19,6 +19,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import BuildError
+from .embedded import c_compiler
 from .modelica_source import PackageSource, class_index, load_package
 from .openmodelica import find_omc
 
@@ -84,7 +85,7 @@ def _version(dist: str) -> str:
 
 
 def _compiler_version() -> str:
-    cc = os.environ.get("CC", "cc")
+    cc = c_compiler()
     try:
         out = subprocess.run([cc, "--version"], capture_output=True, text=True).stdout
         return out.splitlines()[0] if out else cc
@@ -158,7 +159,7 @@ def build_models(models: list[str] | None = None, *, package: str | Path = DEFAU
             else:
                 from .openmodelica import OpenModelicaBuilder
 
-                omc_builder = omc_builder or OpenModelicaBuilder(Path(package) / "package.mo")
+                omc_builder = omc_builder or OpenModelicaBuilder(source.top_file)
                 omc_builder.build(model, fmu)
             seconds = time.perf_counter() - t0
             manifest = Manifest(

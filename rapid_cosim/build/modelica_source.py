@@ -86,6 +86,11 @@ class PackageSource:
         last = self._segments[-1]
         return str(last.file), last.first_line + last.n_lines - 1
 
+    @property
+    def top_file(self) -> Path:
+        """What a Modelica tool loads: the top ``package.mo``, or the single ``.mo`` file."""
+        return self.files[0]
+
     def sha256(self) -> str:
         h = hashlib.sha256()
         for f in self.files:

@@ -39,7 +39,6 @@ class OpenModelicaBuilder:
         from OMPython import OMCSessionLocal  # imported late: it starts nothing until used
 
         self.session = OMCSessionLocal(omhome=omc_home(omc))
-        self.version = str(self.session.sendExpression("getVersion()"))
         self.package_mo = Path(package_mo).resolve()
         ok = self._send(f'loadFile("{self._escape(self.package_mo)}")')
         if ok is not True:

@@ -22,6 +22,7 @@ import casadi as ca
 import fmpy
 
 from ...errors import BuildError
+from . import c_compiler
 from .structure import ExplicitModel
 
 WRAPPER = Path(__file__).with_name("fmi2_wrapper.c")
@@ -218,7 +219,7 @@ def write_fmu(em: ExplicitModel, fmu_path: str | Path, *, generation_tool: str, 
 
 
 def _compile(src: Path, binary: Path) -> None:
-    cc = os.environ.get("CC", "cc")
+    cc = c_compiler()
     include = Path(fmpy.__file__).parent / "c-code"
     cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", f"-I{include}", f"-I{src}",
            str(src / "fmi2_wrapper.c"), str(src / "rc_model.c"), "-o", str(binary), "-lm"]

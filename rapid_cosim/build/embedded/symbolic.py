@@ -73,10 +73,6 @@ class SymbolicModel:
     initial_equations: list[ca.SX]
     equation_text: list[str] = field(default_factory=list)
 
-    @property
-    def outputs(self) -> list[Variable]:
-        return [v for v in self.states + self.algebraics if v.is_output]
-
 
 class Translator:
     """Builds a :class:`SymbolicModel` from one pymoca flat class."""
