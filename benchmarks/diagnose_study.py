@@ -60,8 +60,10 @@ def main(argv: list[str]) -> int:
 
     print(f"{len(cases)} campaigns + 1 single-step-size campaign, {args.n_jobs} in parallel; work folder {work}")
     t0 = time.perf_counter()
+    # the single-size case has the label of a regular deadband case: its own folder, or
+    # run_case (which clears the case folder first) would wipe the other's work in parallel
     results = joblib.Parallel(n_jobs=args.n_jobs)(
-        joblib.delayed(one)(c, "cases") for c in [*cases, single])
+        [*(joblib.delayed(one)(c, "cases") for c in cases), joblib.delayed(one)(single, "single")])
     *results, single_result = results
     elapsed = time.perf_counter() - t0
     print()
