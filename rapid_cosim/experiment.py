@@ -132,6 +132,16 @@ class SimulationSettings:
 
 
 @dataclass(frozen=True, eq=False)
+class ScoredSamples:
+    """Measured values, validity masks and weights, (samples, outputs), in ``outputs`` order."""
+
+    outputs: tuple[str, ...]
+    measured: np.ndarray
+    valid: np.ndarray
+    weights: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class Experiment:
     """One staged test: its config (verbatim and parsed) and its measurements.
 
@@ -164,6 +174,17 @@ class Experiment:
     @functools.cached_property
     def _windowed(self) -> MeasuredData:
         return self.data.window(*self.window)
+
+    @functools.cached_property
+    def scored(self) -> ScoredSamples:
+        """The windowed measurements as the fitness reads them, one column per output
+        (made once: every simulation is scored against them)."""
+        data, outputs = self.windowed_data(), tuple(self.outputs)
+        return ScoredSamples(
+            outputs=outputs,
+            measured=np.column_stack([data.columns[self.outputs[o]] for o in outputs]),
+            valid=np.column_stack([data.valid[self.outputs[o]] for o in outputs]),
+            weights=np.array([self.weights[o] for o in outputs]))
 
 
 # --------------------------------------------------------------------------- loading

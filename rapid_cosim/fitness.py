@@ -134,8 +134,9 @@ class ExperimentFit:
 
 def experiment_fitness(exp: Experiment, t_sim, y_sim: dict[str, np.ndarray]) -> ExperimentFit:
     """Score a simulation of ``exp``: ``y_sim`` maps model outputs to trajectories on
-    ``t_sim`` (a fine grid); they are sampled onto the measured times inside the
-    window, and the masked samples, weights and offset setting of ``exp`` applied."""
+    ``t_sim`` (the measured times inside the window, or any grid spanning them, which
+    is then interpolated onto them), with the masked samples, weights and offset
+    setting of ``exp`` applied."""
     data = exp.windowed_data()
     t_sim = np.asarray(t_sim, dtype=np.float64)
     t_meas = data.time
@@ -146,18 +147,18 @@ def experiment_fitness(exp: Experiment, t_sim, y_sim: dict[str, np.ndarray]) -> 
         raise SimulationError(f"{exp.name}: the simulation spans {t_sim[0]:g} s to {t_sim[-1]:g} s "
                               f"but the samples to score span {t_meas[0]:g} s to {t_meas[-1]:g} s "
                               f"(did it stop early?)")
-    outputs = list(exp.outputs)
+    scored = exp.scored
+    outputs = scored.outputs
     for out in outputs:
         if out not in y_sim:
             raise ConfigError(f"the simulation of {exp.model} has no output '{out}'; it returned: "
                               f"{', '.join(y_sim) or '(nothing)'}",
                               str(exp.config_path), config_key("data.outputs", out))
-    measured = np.column_stack([data.columns[exp.outputs[o]] for o in outputs])
-    valid = np.column_stack([data.valid[exp.outputs[o]] for o in outputs])
-    simulated = np.column_stack([sample_onto(t_sim, np.asarray(y_sim[o], dtype=np.float64), t_meas)
-                                 for o in outputs])
-    weights = np.array([exp.weights[o] for o in outputs])
-    fit = fit_outputs(measured, simulated, valid, weights, exp.offset)
+    simulated = np.column_stack([np.asarray(y_sim[o], dtype=np.float64) for o in outputs])
+    on_samples = t_sim is t_meas or (t_sim.shape == t_meas.shape and np.array_equal(t_sim, t_meas))
+    if not (on_samples and np.all(np.isfinite(simulated))):  # interpolating would change nothing then
+        simulated = sample_onto(t_sim, simulated, t_meas)
+    fit = fit_outputs(scored.measured, simulated, scored.valid, scored.weights, exp.offset)
     n_valid = {o: int(n) for o, n in zip(outputs, fit.n_valid)}
     return ExperimentFit(
         experiment=exp.name,
