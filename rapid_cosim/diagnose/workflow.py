@@ -311,8 +311,7 @@ def _separating(ctx: _Context, verdict: Verdict, not_excluded: Sequence[str]) ->
         b = ctx.fits.get(other)
     if a is None or b is None:
         return None
-    return separating_test(a, b, ctx.training[0], ctx.noise[ctx.training[0].name], package=ctx.package,
-                           fmu_dir=ctx.fmu_dir)
+    return separating_test(a, b, ctx.training[0], ctx.noise[ctx.training[0].name])
 
 
 def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: DiagnoseOptions):
