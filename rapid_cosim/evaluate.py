@@ -23,8 +23,8 @@ import numpy as np
 
 from .errors import RapidCosimError, SimulationError
 from .estimators.base import Evaluations
-from .experiment import Experiment, Problem
-from .fitness import ExperimentFit, experiment_fitness
+from .experiment import Experiment, Problem, assign_parameters
+from .fitness import ExperimentFit, arssd, experiment_fitness
 from .simulator import FmuRef, Trajectory, get_simulator
 
 PENALTY = 1.0  # pu^2: ~10^4 times a poor fit of a 0.08 pu step, finite for every method
@@ -38,7 +38,6 @@ class Payload:
     experiments: tuple[Experiment, ...]
     fmus: tuple[FmuRef, ...]  # one per experiment
     assignments: tuple[tuple[tuple[str, int], ...], ...]
-    penalty: float
 
 
 @dataclass
@@ -54,10 +53,6 @@ class FailureLog:
             self.messages.append(message)
 
 
-def _parameters(payload: Payload, x: np.ndarray, i: int) -> dict[str, float]:
-    values = dict(payload.experiments[i].fixed)
-    values.update({name: float(x[j]) for name, j in payload.assignments[i]})
-    return values
 
 
 def simulate_experiment(exp: Experiment, fmu: FmuRef | str, params: Mapping[str, float], *,
@@ -82,7 +77,7 @@ def _score_chunk(payload: Payload, X: np.ndarray) -> tuple[np.ndarray, np.ndarra
     for k in range(n):
         for i, exp in enumerate(payload.experiments):
             try:
-                traj = simulate_experiment(exp, payload.fmus[i], _parameters(payload, X[k], i))
+                traj = simulate_experiment(exp, payload.fmus[i], assign_parameters(exp, payload.assignments[i], X[k]))
                 rssd[k, i] = experiment_fitness(exp, traj.time, traj.outputs).rssd
             except SimulationError as e:
                 failed[k] = True
@@ -109,7 +104,7 @@ class ProblemObjective:
         self.backend = backend
         self.penalty = float(penalty)
         self.payload = Payload(problem.experiments, tuple(fmus[e.model] for e in problem.experiments),
-                               problem.assignments, self.penalty)
+                               problem.assignments)
         self.failures = FailureLog()
         self.n_evaluations = 0
         self.simulation_seconds = 0.0  # wall time spent inside evaluation calls
@@ -122,7 +117,7 @@ class ProblemObjective:
         self.n_evaluations += X.shape[0]
         for m in messages:
             self.failures.add(m)
-        fitness = np.where(failed, self.penalty, rssd.mean(axis=1))
+        fitness = np.where(failed, self.penalty, arssd(rssd))
         return Evaluations(fitness, rssd, failed)
 
     def _score(self, X: np.ndarray):

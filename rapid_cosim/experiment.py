@@ -492,9 +492,15 @@ class Problem:
         if x.shape != (self.space.dim,):
             raise ValueError(f"x has shape {x.shape}; the search space has {self.space.dim} "
                              f"dimensions ({', '.join(self.names)})")
-        values = dict(self.experiments[i].fixed)
-        values.update({param: float(x[j]) for param, j in self.assignments[i]})
-        return values
+        return assign_parameters(self.experiments[i], self.assignments[i], x)
+
+
+def assign_parameters(experiment: Experiment, assignment: Sequence[tuple[str, int]], x) -> dict[str, float]:
+    """The experiment's fixed values plus ``x[j]`` for each ``(name, j)`` of its assignment;
+    unchecked, as workers call it once per simulation."""
+    values = dict(experiment.fixed)
+    values.update({name: float(x[j]) for name, j in assignment})
+    return values
 
 
 def check_parameters(experiment: Experiment, parameter_info: Mapping[str, ParameterInfo]) -> None:

@@ -106,14 +106,6 @@ class Evaluations:
         f = np.asarray(fitness, dtype=float)
         return cls(f, f[:, None].copy(), np.zeros(f.shape, dtype=bool))
 
-    @classmethod
-    def concatenate(cls, parts: list["Evaluations"]) -> "Evaluations":
-        return cls(
-            np.concatenate([p.fitness for p in parts]),
-            np.concatenate([p.rssd for p in parts]),
-            np.concatenate([p.failed for p in parts]),
-        )
-
 
 class Objective(Protocol):
     """Scores parameter sets given as rows of ``X`` (physical units, shape (n, d))."""

@@ -83,8 +83,6 @@ def pso(
         ev = t.evaluate(X)
         # like the global best: a successful run beats a failed one, then lower fitness wins
         better = (ev.failed < pbest_failed) | ((ev.failed == pbest_failed) & (ev.fitness < pbest_f))
-        if t.nit == 0:
-            better[:] = True
         pbest_x[better], pbest_f[better] = X[better], ev.fitness[better]
         pbest_failed[better] = ev.failed[better]
         t.record(X, ev.fitness, ev.failed, None, {"velocity": V.copy()})
