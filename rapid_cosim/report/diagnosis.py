@@ -10,7 +10,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from .figures import plt
+from .figures import plt, save
 
 
 def load(folder: str | Path) -> tuple[dict, dict[str, dict[str, np.ndarray]]]:
@@ -62,10 +62,7 @@ def residual_figure(folder: str | Path, out: str | Path | None = None, *, dpi: i
     fig.suptitle(f"Residuals of the staged tests: verdict {verdict} (red: windows not explained by noise)",
                  fontsize=10)
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
-    return out
+    return save(fig, out, dpi=dpi, tight=False)
 
 
 def _fmt(v, digits=4) -> str:

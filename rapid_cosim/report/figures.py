@@ -1,5 +1,9 @@
 """Figures people would rather look at than read. Every function writes one file and
-returns its path; matplotlib runs headless (Agg)."""
+returns its path.
+
+Every plotting module of this package takes ``plt`` and :func:`save` from here, so the
+headless backend (Agg) is selected before pyplot is first imported, whichever module
+is imported first."""
 
 from __future__ import annotations
 
@@ -14,10 +18,26 @@ import matplotlib.pyplot as plt  # noqa: E402  (after selecting the backend)
 from ..simulator import Trajectory  # noqa: E402
 
 
+def save(fig, out: str | Path, *, dpi: int, tight: bool, pad: float | None = None) -> Path:
+    """Write ``fig`` to ``out`` and close it (reports draw many figures in one process).
+
+    ``tight`` crops to what is drawn, ``pad`` inches around it (matplotlib's default if
+    None); without it the file keeps the figure's own size, as laid out by the caller."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if not tight:
+        fig.savefig(out, dpi=dpi)
+    elif pad is None:
+        fig.savefig(out, dpi=dpi, bbox_inches="tight")
+    else:
+        fig.savefig(out, dpi=dpi, bbox_inches="tight", pad_inches=pad)
+    plt.close(fig)
+    return out
+
+
 def plot_step_responses(responses: Mapping[str, Trajectory], out: str | Path, *, title: str = "",
                         output: str = "pm") -> Path:
     """One axis per test bench, the same staged test on each, so effects compare at a glance."""
-    out = Path(out)
     n = len(responses)
     cols = 2
     rows = (n + cols - 1) // cols
@@ -38,7 +58,4 @@ def plot_step_responses(responses: Mapping[str, Trajectory], out: str | Path, *,
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save(fig, out, dpi=110, tight=False)

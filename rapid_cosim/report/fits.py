@@ -11,13 +11,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Mapping, Sequence
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .archives import ArchivedRun, FitCurves, caption, fit_curves, load_run  # noqa: E402
+from .archives import ArchivedRun, FitCurves, caption, fit_curves, load_run
+from .figures import plt, save
 
 COLORS = {"PSO10+NM": "tab:blue", "PF10+NM": "tab:red"}
 STYLES = {"PSO10+NM": "-", "PF10+NM": "--"}
@@ -79,7 +76,7 @@ def plot_test_fit(archives: Mapping[str, str | Path], out: str | Path, *, title:
     fig, (ax, ax_res) = plt.subplots(2, 1, figsize=(8.5, 5.4), sharex=True,
                                      gridspec_kw={"height_ratios": [3, 1.25], "hspace": 0.06})
     draw_fit(ax, ax_res, runs, curves, title=title)
-    return _save(fig, out, dpi)
+    return save(fig, out, dpi=dpi, tight=True)
 
 
 def plot_fit_grid(tests: Sequence[Mapping[str, str | Path]], out: str | Path, *, ncols: int = 2,
@@ -98,15 +95,4 @@ def plot_fit_grid(tests: Sequence[Mapping[str, str | Path]], out: str | Path, *,
         draw_fit(ax, ax_res, runs, curves, legend_size=6.5, dot_size=2.0)
     if title:
         fig.suptitle(title, fontsize=12, y=1 - 0.12 / fig.get_figheight())
-    return _save(fig, out, dpi, tight=False)
-
-
-def _save(fig, out: str | Path, dpi: int, tight: bool = True) -> Path:
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if tight:
-        fig.savefig(out, dpi=dpi, bbox_inches="tight")
-    else:
-        fig.savefig(out, dpi=dpi, bbox_inches="tight", pad_inches=0.15)
-    plt.close(fig)
-    return out
+    return save(fig, out, dpi=dpi, tight=True, pad=0.15)

@@ -14,15 +14,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-import matplotlib
+import numpy as np
+from matplotlib.ticker import MaxNLocator
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
-
-from .archives import load_run, offsets_at  # noqa: E402
-from .consistency import Homogeneity, ellipse, homogeneity  # noqa: E402
+from .archives import load_run, offsets_at
+from .consistency import Homogeneity, ellipse, homogeneity
+from .figures import plt, save
 
 PARAMS = ("gov.R", "gov.Ts")
 LABELS = {"gov.R": "R", "gov.Ts": "Ts"}
@@ -243,11 +240,7 @@ def plot_joint(s: JointSummary, out: str | Path, dpi: int = 110) -> Path:
     b.set_ylim(s.mean[1] - span[1], s.mean[1] + span[1])
     b.xaxis.set_major_locator(MaxNLocator(5))
     fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
-    return out
+    return save(fig, out, dpi=dpi, tight=True)
 
 
 def write_joint_report(joint_archive: str | Path, laplace_json: str | Path, out_dir: str | Path

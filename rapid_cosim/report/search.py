@@ -7,16 +7,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Mapping, Sequence
 
-import matplotlib
+import numpy as np
+from matplotlib import cm, colors
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib import cm, colors  # noqa: E402
-
-from ..archive.store import RunArchive  # noqa: E402
-from ..estimators.base import Iteration  # noqa: E402
-from .fits import COLORS, STYLES  # noqa: E402
+from ..archive.store import RunArchive
+from ..estimators.base import Iteration
+from .figures import plt, save
+from .fits import COLORS, STYLES
 
 GLOBAL_STAGES = ("pf", "pso", "smc")
 
@@ -80,7 +77,7 @@ def plot_convergence(tests: Mapping[str, Mapping[str, str | Path]], out: str | P
                  "fitness is within 1 % of the lower of the two final values)",
                  fontsize=10)
     fig.tight_layout()
-    return _save(fig, out, dpi)
+    return save(fig, out, dpi=dpi, tight=True)
 
 
 def plot_particle_clouds(archives: Mapping[str, str | Path], out: str | Path, *, title: str = "",
@@ -126,12 +123,4 @@ def plot_particle_clouds(archives: Mapping[str, str | Path], out: str | Path, *,
         cbar.set_label("iteration of the first stage")
     if title:
         fig.suptitle(title, fontsize=10)
-    return _save(fig, out, dpi)
-
-
-def _save(fig, out: str | Path, dpi: int) -> Path:
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
-    return out
+    return save(fig, out, dpi=dpi, tight=True)
