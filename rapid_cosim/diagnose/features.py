@@ -30,12 +30,13 @@ pre_step_bias          mean residual before the step, in standard        measure
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import stats
 
 from ..experiment import Experiment
+from .candidates import ExperimentResiduals
 from .selection import NoiseFloor, prewhitened
 
 WINDOW_S = 10.0
@@ -193,13 +194,11 @@ def test_features(exp: Experiment, residual: np.ndarray, time: np.ndarray, floor
         withdrawal=withdrawal, pre_step_bias=bias)
 
 
-def residual_features(experiments: Sequence[Experiment], base_fit, ctx) -> Features:
-    """Features of every test, from the data and the base model's residuals."""
-    tests = dict(base_fit.tests)
-    heldout = [e for e in experiments if e.name not in tests]
-    if heldout:
-        tests.update(ctx.predict(base_fit))
-    per_test = [test_features(e, tests[e.name].residual, tests[e.name].time, ctx.noise[e.name]) for e in experiments]
+def residual_features(experiments: Sequence[Experiment], tests: Mapping[str, ExperimentResiduals],
+                      noise: Mapping[str, NoiseFloor]) -> Features:
+    """Features of every test, from the data and the base model's residuals (``tests``,
+    held-out ones predicted)."""
+    per_test = [test_features(e, tests[e.name].residual, tests[e.name].time, noise[e.name]) for e in experiments]
     return Features(per_test, _summary(per_test))
 
 

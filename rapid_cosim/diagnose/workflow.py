@@ -118,6 +118,7 @@ class _Context:
         shutil.copytree(self.user_package, self.package, dirs_exist_ok=True)  # refreshed on every run
         self.noise = pooled_noise(self.training + self.heldout)
         self.fits: dict[str, CandidateFit] = {}
+        self._predictions: dict[tuple, dict] = {}
         self.run_options = RunOptions(method=options.method, seed=options.seed, n_jobs=options.n_jobs,
                                       estimator_options=options.estimator_options)
 
@@ -147,9 +148,16 @@ class _Context:
         return dict(base.parameters) if base else None
 
     def predict(self, fit: CandidateFit) -> dict:
-        """Residuals of the held-out tests at the training calibration."""
+        """Residuals of the held-out tests at the training calibration; kept, as the
+        verdict and the report ask for the same fits more than once."""
         if not self.heldout:
             return {}
+        key = (fit.spec, tuple(sorted(fit.parameters.items())))
+        if key not in self._predictions:
+            self._predictions[key] = self._predict(fit)
+        return self._predictions[key]
+
+    def _predict(self, fit: CandidateFit) -> dict:
         folder = self.workdir / "heldout" / fit.spec.slug
         paths = []
         for exp in self.heldout:
@@ -171,7 +179,8 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     log(f"calibrating the base model and {len(options.candidates)} candidates on "
         f"{', '.join(e.name for e in training)}" + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
     base = ctx.fit(CandidateSpec())
-    features = residual_features(training + list(heldout), base, ctx)
+    before_tests = _all_tests(ctx, base)
+    features = residual_features(training + list(heldout), before_tests, ctx.noise)
     singles = [ctx.fit(CandidateSpec((name,))) for name in options.candidates]
     ranking = rank([base, *singles], ctx.noise)
 
@@ -198,7 +207,6 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
         final_fit = chosen
         if options.write_model:
             model_written, model_file, final_fit = _write_and_recalibrate(ctx, chosen, options)
-    before_tests = _all_tests(ctx, base)
     after_tests = _all_tests(ctx, final_fit) if chosen is not None else before_tests
     gap_before = _gaps(ctx, before_tests)
     gap_after = _gaps(ctx, after_tests)
@@ -231,15 +239,14 @@ def _material_checks(ctx: _Context, base: CandidateFit, options: DiagnoseOptions
     return found
 
 
-def _held_out_score(ctx: _Context, fit: CandidateFit) -> tuple[float, dict]:
-    tests = ctx.predict(fit)
-    data_term, _ = score(tests, ctx.noise)
-    return data_term, tests
+def _held_out_score(ctx: _Context, fit: CandidateFit) -> float:
+    data_term, _ = score(ctx.predict(fit), ctx.noise)
+    return data_term
 
 
 def _confirm(ctx: _Context, chosen: CandidateFit, base: CandidateFit, verdict: Verdict) -> Verdict:
-    named, _ = _held_out_score(ctx, chosen)
-    none, _ = _held_out_score(ctx, base)
+    named = _held_out_score(ctx, chosen)
+    none = _held_out_score(ctx, base)
     improvement = none - named
     verdict.held_out = {"tests": [e.name for e in ctx.heldout], "criterion_improvement": improvement,
                         "confirmed": improvement > 0}
@@ -287,8 +294,8 @@ def _second_effect(ctx: _Context, chosen: CandidateFit, verdict: Verdict, option
                            f"{chosen.spec.label} (the second effect adds less than {options.threshold:g})")
         return chosen, verdict, rank([chosen, *combos], ctx.noise)
     if ctx.heldout:
-        named, _ = _held_out_score(ctx, fit)
-        prev, _ = _held_out_score(ctx, chosen)
+        named = _held_out_score(ctx, fit)
+        prev = _held_out_score(ctx, chosen)
         if named >= prev:
             verdict.reason += f"; {best.label} not confirmed on the held-out tests"
             return chosen, verdict, ranked
