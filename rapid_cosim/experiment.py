@@ -166,6 +166,7 @@ class Experiment:
     noise_sigma: dict[str, float] | None
     pre_step_end: float | None
     simulation: SimulationSettings
+    time_column: str = "time"  # as the data file names it (archives store the data under it)
 
     def windowed_data(self) -> MeasuredData:
         """The measurements inside the fitness window (made once: every simulation asks)."""
@@ -282,7 +283,7 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         name=name, config_path=path, config_text=text, model=model, description=description,
         data=data, outputs=outputs, fixed=fixed, estimate=estimate, weights=weights,
         window=window, offset=offset, noise=noise, noise_sigma=noise_sigma,
-        pre_step_end=pre_step_end, simulation=simulation,
+        pre_step_end=pre_step_end, simulation=simulation, time_column=time_column,
     )
 
 

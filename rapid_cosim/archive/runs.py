@@ -12,7 +12,8 @@ cache left empty: every simulation is done again and every iteration compared.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field, fields
+import warnings
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
@@ -30,7 +31,7 @@ from ..experiment import (Experiment, ParameterInfo, Problem, build_problem, che
                           load_experiment, parse_experiment)
 from ..fitness import gaussian_log_likelihood
 from ..simulator import FmuRef, get_simulator
-from .store import ArchiveWriter, RunArchive
+from .store import ArchiveWriter, RunArchive, data_sha256
 
 
 @dataclass(frozen=True)
@@ -132,7 +133,7 @@ def _checked_problem(experiments: Sequence[Experiment], fmus: Mapping[str, FmuRe
 
 def inputs_from_archive(archive: RunArchive) -> RunInputs:
     """The run's problem and FMUs rebuilt from the archive alone (no file is read)."""
-    configs, data, blobs = archive.configs, archive.data, archive.fmus
+    configs, data, blobs, hashes = archive.configs, archive.data, archive.fmus, archive.hashes["fmus"]
     meta = archive.options.get("experiments", {})
     experiments = []
     for name, text in configs.items():
@@ -142,14 +143,8 @@ def inputs_from_archive(archive: RunArchive) -> RunInputs:
         measured = MeasuredData.from_arrays(columns.pop(time_column), columns,
                                             source=f"{archive.path}:/inputs/data/{name}")
         experiments.append(parse_experiment(text, info.get("config_path", f"{archive.path}:{name}"), data=measured))
-    fmus = {model: FmuRef(model, _sha(raw), raw) for model, raw in blobs.items()}
+    fmus = {model: FmuRef(model, hashes[model], raw) for model, raw in blobs.items()}  # archive.fmus checked them
     return RunInputs(_checked_problem(experiments, fmus), fmus)
-
-
-def _sha(raw: bytes) -> str:
-    import hashlib
-
-    return hashlib.sha256(raw).hexdigest()
 
 
 def log_likelihood_for(problem: Problem) -> Callable[[Evaluations], np.ndarray] | None:
@@ -236,19 +231,18 @@ class _Progress:
 def _archive_options(options: RunOptions, inputs: RunInputs) -> dict:
     return {**options.to_json(), "rapid_cosim_version": __version__,
             "experiments": {e.name: {"config_path": str(e.config_path), "model": e.model,
-                                     "time_column": _time_column(e)} for e in inputs.experiments}}
-
-
-def _time_column(exp: Experiment) -> str:
-    import tomllib
-
-    return tomllib.loads(exp.config_text).get("data", {}).get("time", "time")
+                                     "time_column": e.time_column} for e in inputs.experiments}}
 
 
 def _archived_data(exp: Experiment) -> dict[str, np.ndarray]:
-    columns = {_time_column(exp): np.asarray(exp.data.time, dtype=float)}
+    columns = {exp.time_column: np.asarray(exp.data.time, dtype=float)}
     columns.update({name: np.asarray(values, dtype=float) for name, values in exp.data.columns.items()})
     return columns
+
+
+def _objective(inputs: RunInputs, options: RunOptions, known=None) -> _RecordingObjective:
+    return _RecordingObjective(ProblemObjective(inputs.problem, inputs.fmus, n_jobs=options.n_jobs,
+                                                backend=options.backend, penalty=options.penalty), known)
 
 
 def _execute(inputs: RunInputs, options: RunOptions, objective: _RecordingObjective,
@@ -282,8 +276,7 @@ def start_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *, pr
     except (ValueError, TypeError) as e:
         raise RapidCosimError(str(e)) from None
     problem = inputs.problem
-    objective = _RecordingObjective(ProblemObjective(problem, inputs.fmus, n_jobs=options.n_jobs,
-                                                     backend=options.backend, penalty=options.penalty))
+    objective = _objective(inputs, options)
     Path(archive).parent.mkdir(parents=True, exist_ok=True)
     with ArchiveWriter.create(
             archive, method=options.method, seed=options.seed, names=problem.names,
@@ -309,8 +302,7 @@ def resume_run(archive: str | Path, *, n_jobs: int | None = None, backend: str |
         stored = view.iterations()
         ev = view.evaluations()
     known = {x.tobytes(): (float(f), bool(fl), r.copy()) for x, f, fl, r in zip(ev.x, ev.fitness, ev.failed, ev.rssd)}
-    objective = _RecordingObjective(ProblemObjective(inputs.problem, inputs.fmus, n_jobs=options.n_jobs,
-                                                     backend=options.backend, penalty=options.penalty), known)
+    objective = _objective(inputs, options, known)
     clock = {"offset": 0.0}
     with ArchiveWriter.reopen(archive) as writer:
         def on_iteration(it: Iteration) -> None:
@@ -322,13 +314,9 @@ def resume_run(archive: str | Path, *, n_jobs: int | None = None, backend: str |
                 clock["offset"] = stored[it.index].wall_time - it.wall_time
                 return
             # wall time continues the interrupted run's clock
-            from dataclasses import replace
-
             writer.append(replace(it, wall_time=it.wall_time + clock["offset"]), objective.rssd_of(it.x))
 
         result = _execute(inputs, options, objective, on_iteration, progress)
-        from dataclasses import replace
-
         result = replace(result, wall_time=result.wall_time + clock["offset"])
         writer.finish(result)
     return result
@@ -338,8 +326,6 @@ def _resumed_options(view: RunArchive, n_jobs: int | None, backend: str | None) 
     options = RunOptions.from_json(view.options)
     if options.method != view.method or options.seed != view.seed:
         raise ArchiveError(f"{view.path}: the stored options disagree with the run's method/seed")
-    from dataclasses import replace
-
     return replace(options, n_jobs=options.n_jobs if n_jobs is None else n_jobs,
                    backend=options.backend if backend is None else backend)
 
@@ -350,7 +336,6 @@ class RerunReport:
     iterations_compared: int
     first_difference: str | None
     result: EstimationResult
-    archived_best: dict[str, float] | None
     simulations: int
 
 
@@ -362,8 +347,7 @@ def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None
         options = _resumed_options(view, n_jobs, backend)
         stored = view.iterations()
         archived = view.result()
-    objective = _RecordingObjective(ProblemObjective(inputs.problem, inputs.fmus, n_jobs=options.n_jobs,
-                                                     backend=options.backend, penalty=options.penalty))
+    objective = _objective(inputs, options)
     differences: list[str] = []
 
     def on_iteration(it: Iteration) -> None:
@@ -383,7 +367,7 @@ def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None
         differences.append(f"the archive holds {len(stored)} iterations of an unfinished run, the re-run made {result.nit}")
     return RerunReport(identical=not differences, iterations_compared=min(len(stored), result.nit),
                        first_difference=differences[0] if differences else None, result=result,
-                       archived_best=archived.best() if archived else None, simulations=objective.simulated)
+                       simulations=objective.simulated)
 
 
 def summary_json(archive: str | Path) -> dict:
@@ -413,8 +397,6 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
             differences.append("method, seed or estimator options")
         if view.configs != {e.name: e.config_text for e in inputs.experiments}:
             differences.append("experiment config")
-        from .store import data_sha256
-
         if view.hashes["data"] != {e.name: data_sha256(_archived_data(e)) for e in inputs.experiments}:
             differences.append("measured data")
         if differences:
@@ -424,8 +406,6 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
         finished = view.status == "finished"
         result = view.result() if finished else None
     if stale_fmu:
-        import warnings
-
         warnings.warn(f"{archive} was made with another build of the FMU; 'rapid-cosim rerun {archive}' "
                       "checks that the archived result still holds", stacklevel=2)
     if finished:

@@ -883,8 +883,8 @@ class RunArchive:
         ends = _blob_ends(table)
         rng = it["rng_state"][: ends["rng_state"]].tobytes()
         extras = it["extras"][: ends["extras"]].tobytes()
-        x, fitness, failed, _ = self.evaluations()
-        weights = self._f["evaluations/weights"][: self.n_evaluations]
+        ev, n_ev = self._f["evaluations"], self.n_evaluations
+        x, fitness, failed, weights = (ev[k][:n_ev] for k in ("x", "fitness", "failed", "weights"))
         out = []
         for row in table:
             a, b = int(row["eval_offset"]), int(row["eval_offset"] + row["eval_count"])
