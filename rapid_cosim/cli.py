@@ -143,9 +143,9 @@ def cmd_demo(args) -> int:
 
 
 def cmd_figures(args) -> int:
-    from .report.fits import plot_fit_grid, plot_test_fit
+    from .report.archives import caption
+    from .report.fits import load_fits, plot_fit_grid, plot_test_fit
     from .report.search import plot_convergence, plot_particle_clouds
-    from .report.archives import caption, load_run
     from .staged import METHODS, archive_path, parse_tests, natural_key
 
     results = Path(args.results)
@@ -163,14 +163,16 @@ def cmd_figures(args) -> int:
         print(f"rapid-cosim figures: no staged-test archives under {results}; run make table1 first", file=sys.stderr)
         return 2
     written = []
+    fits = {}  # loading simulates: each test once, for its own figure and for the grid
     for t, archives in have.items():
-        title = caption(load_run(next(iter(archives.values()))).experiment)
-        written.append(plot_test_fit(archives, results / t / f"{t}.png", title=title))
+        fits[t] = load_fits(archives)
+        title = caption(next(iter(fits[t].runs.values())).experiment)
+        written.append(plot_test_fit(fits[t], results / t / f"{t}.png"))
         written.append(plot_particle_clouds(archives, results / t / f"{t}-particles.png",
                                             title=f"{title}: particles of the first stage"))
     paper = [t for t in tests if t in [f"test{k}" for k in range(1, 7)]]
     if paper:
-        written.append(plot_fit_grid([have[t] for t in paper], results / "figures" / "figs3-8.png",
+        written.append(plot_fit_grid([fits[t] for t in paper], results / "figures" / "figs3-8.png",
                                      title="Counterparts of Figs. 3-8: measured pm and both calibrated simulations"))
     written.append(plot_convergence(have, results / "figures" / "convergence.png"))
     for w in written:

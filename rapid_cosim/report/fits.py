@@ -9,7 +9,7 @@ offset added so that it overlays the recording.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -64,24 +64,38 @@ def draw_fit(ax, ax_res, runs: Mapping[str, ArchivedRun], curves: Mapping[str, F
     ax.set_xlim(data.time[0], data.time[-1])
 
 
-def load_fits(archives: Mapping[str, str | Path]) -> tuple[dict[str, ArchivedRun], dict[str, FitCurves]]:
+class Fits(NamedTuple):
+    """One staged test, loaded: the runs by method label and their curves. Loading
+    simulates, so a caller drawing a test in several figures loads it once."""
+
+    runs: dict[str, ArchivedRun]
+    curves: dict[str, FitCurves]
+
+
+def load_fits(archives: Mapping[str, str | Path]) -> Fits:
     runs = {label: load_run(path) for label, path in archives.items()}
-    return runs, {label: fit_curves(run) for label, run in runs.items()}
+    return Fits(runs, {label: fit_curves(run) for label, run in runs.items()})
 
 
-def plot_test_fit(archives: Mapping[str, str | Path], out: str | Path, *, title: str | None = None,
+def _loaded(test: Mapping[str, str | Path] | Fits) -> Fits:
+    return test if isinstance(test, Fits) else load_fits(test)
+
+
+def plot_test_fit(archives: Mapping[str, str | Path] | Fits, out: str | Path, *, title: str | None = None,
                   dpi: int = 110) -> Path:
-    """One staged test: ``archives`` maps a method label to its archive (same test)."""
-    runs, curves = load_fits(archives)
+    """One staged test: ``archives`` maps a method label to its archive (same test), or is
+    that test's :func:`load_fits`."""
+    runs, curves = _loaded(archives)
     fig, (ax, ax_res) = plt.subplots(2, 1, figsize=(8.5, 5.4), sharex=True,
                                      gridspec_kw={"height_ratios": [3, 1.25], "hspace": 0.06})
     draw_fit(ax, ax_res, runs, curves, title=title)
     return save(fig, out, dpi=dpi, tight=True)
 
 
-def plot_fit_grid(tests: Sequence[Mapping[str, str | Path]], out: str | Path, *, ncols: int = 2,
+def plot_fit_grid(tests: Sequence[Mapping[str, str | Path] | Fits], out: str | Path, *, ncols: int = 2,
                   title: str = "", dpi: int = 100) -> Path:
-    """Several tests, one (fit, residual) pair of axes each: Figs. 3-8 on one page."""
+    """Several tests (archives or :func:`load_fits`, as for :func:`plot_test_fit`), one
+    (fit, residual) pair of axes each: Figs. 3-8 on one page."""
     n = len(tests)
     nrows = (n + ncols - 1) // ncols
     fig = plt.figure(figsize=(7.0 * ncols, 4.3 * nrows))
@@ -91,7 +105,7 @@ def plot_fit_grid(tests: Sequence[Mapping[str, str | Path]], out: str | Path, *,
         inner = outer[k // ncols, k % ncols].subgridspec(2, 1, height_ratios=[3, 1.25], hspace=0.05)
         ax = fig.add_subplot(inner[0])
         ax_res = fig.add_subplot(inner[1], sharex=ax)
-        runs, curves = load_fits(archives)
+        runs, curves = _loaded(archives)
         draw_fit(ax, ax_res, runs, curves, legend_size=6.5, dot_size=2.0)
     if title:
         fig.suptitle(title, fontsize=12, y=1 - 0.12 / fig.get_figheight())
