@@ -64,8 +64,10 @@ class CandidateFit:
     inputs: object = field(default=None, repr=False)  # the RunInputs it was fitted on
 
 
-def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, float]) -> str:
-    """The TOML of ``exp`` turned into a candidate's experiment.
+def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, float], *,
+                     model: str | None = None) -> str:
+    """The TOML of ``exp`` turned into a candidate's experiment (``model``: another class
+    than the candidate's bench, such as the calibrated model written from it).
 
     ``start`` (the base model's optimum) narrows the governor's bounds around it but is
     not given as a starting point: a particle at the base optimum with the effect off
@@ -93,7 +95,7 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, f
             estimate[name]["min"] = max(estimate[name]["min"], low * start[name])
             estimate[name]["max"] = min(estimate[name]["max"], high * start[name])
             estimate[name]["scale"] = scale
-    sections = {**raw, "experiment": {**raw["experiment"], "model": bench_name(spec.effects),
+    sections = {**raw, "experiment": {**raw["experiment"], "model": model or bench_name(spec.effects),
                                       "description": f"{raw['experiment'].get('description', exp.name)} "
                                                      f"[candidate {spec.label}]"},
                 "data": data, "fixed": fixed, "estimate": estimate}
@@ -118,13 +120,15 @@ def default_start(spec: CandidateSpec, base: Mapping[str, float] | None) -> dict
     return start
 
 
-def _write_configs(folder: Path, experiments: Sequence[Experiment], spec: CandidateSpec,
-                   start: Mapping[str, float], polish_from: Mapping[str, float] | None = None) -> list[Path]:
+def write_configs(folder: Path, experiments: Sequence[Experiment], spec: CandidateSpec,
+                  start: Mapping[str, float], polish_from: Mapping[str, float] | None = None, *,
+                  model: str | None = None) -> list[Path]:
+    """``folder/<test>/config.toml`` of each experiment as the candidate's."""
     paths = []
     for exp in experiments:
         path = folder / exp.name / "config.toml"
         path.parent.mkdir(parents=True, exist_ok=True)
-        text = candidate_config(exp, spec, start)
+        text = candidate_config(exp, spec, start, model=model)
         if polish_from is not None:
             text = _with_start(text, polish_from)
         if not path.exists() or path.read_text() != text:
@@ -149,7 +153,7 @@ def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdi
     missed that basin: Nelder-Mead polishes from there, also archived, and the better
     of the two stands."""
     start = dict(start or {})
-    paths = _write_configs(workdir / "candidates" / spec.slug, experiments, spec, start)
+    paths = write_configs(workdir / "candidates" / spec.slug, experiments, spec, start)
     inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, backend="auto")
     archive = workdir / "candidates" / f"{spec.slug}.h5"
     result, _ = ensure_run(inputs, options, archive, progress=progress)
@@ -157,7 +161,7 @@ def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdi
         nested = inputs.problem.space.clip(np.array([start[n] for n in inputs.problem.names]))
         if ProblemObjective(inputs.problem, inputs.fmus)(nested[None]).fitness[0] < result.fun:
             polish = f"{spec.slug}-from-base"
-            paths = _write_configs(workdir / "candidates" / polish, experiments, spec, start, polish_from=start)
+            paths = write_configs(workdir / "candidates" / polish, experiments, spec, start, polish_from=start)
             polished_inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, backend="auto")
             polished, _ = ensure_run(polished_inputs, replace(options, method="nm"),
                                      workdir / "candidates" / f"{polish}.h5", progress=progress)
@@ -178,4 +182,4 @@ def residuals_at(inputs, x) -> dict[str, ExperimentResiduals]:
 
 
 __all__ = ["CATALOGUE", "CandidateFit", "CandidateSpec", "ExperimentResiduals", "candidate_config", "default_start",
-           "fit_candidate", "residuals_at"]
+           "fit_candidate", "residuals_at", "write_configs"]

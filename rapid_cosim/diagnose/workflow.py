@@ -22,7 +22,7 @@ from ..archive.runs import RunOptions, inputs_from_configs
 from ..build import build_models
 from ..errors import RapidCosimError
 from ..experiment import Experiment
-from .candidates import CandidateFit, CandidateSpec, candidate_config, default_start, fit_candidate, residuals_at
+from .candidates import CandidateFit, CandidateSpec, default_start, fit_candidate, residuals_at, write_configs
 from .catalogue import CATALOGUE, NONE, bench_name, bench_source, effect_parameters
 from .features import Features, residual_features
 from .selection import THRESHOLD, Ranked, Verdict, bic, decide, decisive, gap, pooled_noise, rank, score
@@ -158,13 +158,7 @@ class _Context:
         return self._predictions[key]
 
     def _predict(self, fit: CandidateFit) -> dict:
-        folder = self.workdir / "heldout" / fit.spec.slug
-        paths = []
-        for exp in self.heldout:
-            path = folder / exp.name / "config.toml"
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(candidate_config(exp, fit.spec, fit.parameters))
-            paths.append(path)
+        paths = write_configs(self.workdir / "heldout" / fit.spec.slug, self.heldout, fit.spec, fit.parameters)
         inputs = inputs_from_configs(paths, package=self.package, fmu_dir=self.fmu_dir)
         x = np.array([fit.parameters[n] for n in inputs.problem.names])
         return residuals_at(inputs, x)
@@ -339,16 +333,9 @@ def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: Diagnos
     build_models([name], package=package_dir, fmu_dir=ctx.user_fmu_dir, log=lambda *_: None)
     ctx.log(f"  wrote {target} and compiled it; re-calibrating with it ...")
     spec = CandidateSpec(effects)
-    folder = ctx.workdir / "recalibrated"
     from ..archive.runs import ensure_run
 
-    paths = []
-    for exp in ctx.training:
-        path = folder / exp.name / "config.toml"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(candidate_config(exp, spec, values).replace(
-            f'model = "{chosen.model}"', f'model = "{name}"'))
-        paths.append(path)
+    paths = write_configs(ctx.workdir / "recalibrated", ctx.training, spec, values, model=name)
     inputs = inputs_from_configs(paths, package=package_dir, fmu_dir=ctx.user_fmu_dir)
     archive = ctx.workdir / "recalibrated.h5"
     result, _ = ensure_run(inputs, replace(ctx.run_options, method="nm"), archive, progress=False)
