@@ -163,18 +163,18 @@ def cmd_figures(args) -> int:
         print(f"rapid-cosim figures: no staged-test archives under {results}; run make table1 first", file=sys.stderr)
         return 2
     written = []
-    fits = {}  # loading simulates: each test once, for its own figure and for the grid
+    fits = {}  # each test loaded (and simulated) once, for all its figures
     for t, archives in have.items():
         fits[t] = load_fits(archives)
         title = caption(next(iter(fits[t].runs.values())).experiment)
         written.append(plot_test_fit(fits[t], results / t / f"{t}.png"))
-        written.append(plot_particle_clouds(archives, results / t / f"{t}-particles.png",
+        written.append(plot_particle_clouds(fits[t].runs, results / t / f"{t}-particles.png",
                                             title=f"{title}: particles of the first stage"))
     paper = [t for t in tests if t in [f"test{k}" for k in range(1, 7)]]
     if paper:
         written.append(plot_fit_grid([fits[t] for t in paper], results / "figures" / "figs3-8.png",
                                      title="Counterparts of Figs. 3-8: measured pm and both calibrated simulations"))
-    written.append(plot_convergence(have, results / "figures" / "convergence.png"))
+    written.append(plot_convergence({t: f.runs for t, f in fits.items()}, results / "figures" / "convergence.png"))
     for w in written:
         print(f"wrote {w}")
     return 0

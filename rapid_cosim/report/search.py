@@ -12,14 +12,19 @@ from matplotlib import cm, colors
 
 from ..archive.store import RunArchive
 from ..estimators.base import Iteration
+from .archives import ArchivedRun
 from .figures import plt, save
 from .fits import COLORS, STYLES
 
 GLOBAL_STAGES = ("pf", "pso", "smc")
 
 
-def _iterations(path: str | Path) -> tuple[list[Iteration], tuple[str, ...], np.ndarray, np.ndarray]:
-    with RunArchive(path) as view:
+def _iterations(run: str | Path | ArchivedRun) -> tuple[list[Iteration], tuple[str, ...], np.ndarray, np.ndarray]:
+    """A loaded run already holds the archived iterations: no second read of the file."""
+    if isinstance(run, ArchivedRun):
+        space = run.inputs.problem.space
+        return list(run.result.history), tuple(run.result.names), space.lower, space.upper
+    with RunArchive(run) as view:
         return view.iterations(), view.names, view.lower, view.upper
 
 
@@ -42,16 +47,17 @@ def simulations_to_reach(sims: np.ndarray, best: np.ndarray, target: float) -> i
     return int(sims[hit[0]]) if hit.size else None
 
 
-def plot_convergence(tests: Mapping[str, Mapping[str, str | Path]], out: str | Path, *, ncols: int = 4,
-                     dpi: int = 100) -> Path:
+def plot_convergence(tests: Mapping[str, Mapping[str, str | Path | ArchivedRun]], out: str | Path, *,
+                     ncols: int = 4, dpi: int = 100) -> Path:
     """One panel per test: best fitness (log) against simulations, a line per method;
-    a dot marks where the first stage hands over to Nelder-Mead."""
+    a dot marks where the first stage hands over to Nelder-Mead. Runs are archive paths
+    or already loaded runs."""
     n = len(tests)
     ncols = min(ncols, n)
     nrows = (n + ncols - 1) // ncols
     fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 2.9 * nrows), squeeze=False)
     for ax, (test, archives) in zip(axes.flat, tests.items()):
-        curves = {label: convergence_curve(_iterations(path)[0]) for label, path in archives.items()}
+        curves = {label: convergence_curve(_iterations(run)[0]) for label, run in archives.items()}
         lowest = min(c[1][-1] for c in curves.values())
         for k, (label, (sims, best, k1)) in enumerate(curves.items()):
             color = COLORS.get(label, f"C{k}")
@@ -80,7 +86,7 @@ def plot_convergence(tests: Mapping[str, Mapping[str, str | Path]], out: str | P
     return save(fig, out, dpi=dpi, tight=True)
 
 
-def plot_particle_clouds(archives: Mapping[str, str | Path], out: str | Path, *, title: str = "",
+def plot_particle_clouds(archives: Mapping[str, str | Path | ArchivedRun], out: str | Path, *, title: str = "",
                          x_name: str = "gov.R", y_name: str = "gov.Ts", dpi: int = 100) -> Path:
     """The first stage's particles of each method in the R-Ts plane, coloured by
     iteration; the Nelder-Mead path in black and the final best as a star."""
@@ -88,8 +94,8 @@ def plot_particle_clouds(archives: Mapping[str, str | Path], out: str | Path, *,
     fig, axes = plt.subplots(1, n, figsize=(5.2 * n + 0.8, 4.4), squeeze=False, sharey=True)
     axes = axes[0]
     norm = None
-    for ax, (label, path) in zip(axes, archives.items()):
-        its, names, lower, upper = _iterations(path)
+    for ax, (label, run) in zip(axes, archives.items()):
+        its, names, lower, upper = _iterations(run)
         ix, iy = names.index(x_name), names.index(y_name)
         first = [it for it in its if it.stage in GLOBAL_STAGES]
         rest = [it for it in its if it.stage not in GLOBAL_STAGES]
