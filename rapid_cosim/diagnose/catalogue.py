@@ -16,6 +16,7 @@ base parameters, e.g. a deadband with a larger droop when every step has one siz
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Mapping, Sequence
 
 BASE_BENCH = "iGrGen.TestBenches.StagedTest"
@@ -84,7 +85,7 @@ def effect_parameters(effects: Sequence[str]) -> tuple[EffectParameter, ...]:
     return tuple(p for name in effects for p in CATALOGUE[name].parameters)
 
 
-def _check(effects: Sequence[str]) -> tuple[str, ...]:
+def check_effects(effects: Sequence[str]) -> tuple[str, ...]:
     unknown = [e for e in effects if e not in CATALOGUE]
     if unknown:
         raise ValueError(f"unknown effect(s) {unknown}; catalogue: {', '.join(CATALOGUE)}")
@@ -96,15 +97,15 @@ def _check(effects: Sequence[str]) -> tuple[str, ...]:
 
 def bench_name(effects: Sequence[str]) -> str:
     """Class name of the bench for a set of effects (hand-written for zero or one)."""
-    effects = _check(effects)
+    effects = check_effects(effects)
     if not effects:
         return BASE_BENCH
     if len(effects) == 1:
         return CATALOGUE[effects[0]].bench
-    return "iGrGen.Diagnosed.StagedTest" + "".join(_camel(e) for e in effects)
+    return "iGrGen.Diagnosed.StagedTest" + "".join(camel(e) for e in effects)
 
 
-def _camel(name: str) -> str:
+def camel(name: str) -> str:
     return "".join(part.capitalize() for part in name.split("_"))
 
 
@@ -117,7 +118,7 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
                  description: str = "") -> str:
     """Modelica text of a bench: the base staged test with ``effects`` composed in, and
     ``values`` (FMU names such as ``gov.R``) as modifiers, e.g. calibrated parameters."""
-    effects = _check(effects)
+    effects = check_effects(effects)
     values = dict(values or {})
     short = class_name.rsplit(".", 1)[-1]
     within = class_name.rsplit(".", 1)[0] if "." in class_name else ""
@@ -154,3 +155,20 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
     lines.append(f"  pm = {out};")
     lines.append(f"end {short};")
     return "\n".join(lines) + "\n"
+
+
+def write_bench(package: str | Path, effects: Sequence[str], class_name: str, *,
+                values: Mapping[str, float] | None = None, description: str = "", register: bool = True) -> Path:
+    """Write the bench of ``effects`` as ``class_name`` (in ``iGrGen.Diagnosed``) into
+    ``package``. An unchanged file is not rewritten; ``register`` lists it in
+    ``package.order``."""
+    path = Path(package) / "Diagnosed" / f"{class_name.rsplit('.', 1)[1]}.mo"
+    text = bench_source(effects, class_name, values=values, description=description)
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
+    if register:
+        order = path.parent / "package.order"
+        lines = [line.strip() for line in order.read_text().splitlines() if line.strip()] if order.exists() else []
+        if path.stem not in lines:
+            order.write_text("\n".join(lines + [path.stem]) + "\n")
+    return path

@@ -21,7 +21,7 @@ from ..build import ensure_fmu
 from ..experiment import load_experiment
 from ..simulator import get_simulator
 from ..synthetic import NoiseModel, synthesize, write_experiment
-from .catalogue import CATALOGUE, NONE, bench_name, bench_source
+from .catalogue import CATALOGUE, NONE, bench_name, check_effects, write_bench
 from .workflow import DiagnoseOptions, Diagnosis, diagnose
 
 # (df in Hz, return time in s or None); the last one is held out to confirm the verdict
@@ -74,9 +74,7 @@ def draw_case(truth: str, seed: int, steps=CAMPAIGN, *, package, fmu_dir, visibi
     g = np.random.default_rng([seed, zlib.crc32(truth.encode())])
     noise = NoiseModel(white_sigma=0.0008, ar1_sigma=0.0008, phi=0.6, offset=g.uniform(-0.003, 0.003))
     effects = () if truth == NONE else tuple(truth.split("+"))
-    unknown = [e for e in effects if e not in CATALOGUE]
-    if unknown:
-        raise ValueError(f"unknown effect(s) {unknown}; catalogue: {', '.join(CATALOGUE)}")
+    check_effects(effects)
     for _ in range(50):
         plant = {"gov.R": g.uniform(0.045, 0.065), "gov.Ts": g.uniform(1.5, 5.0),
                  "gov.p_ref": float(g.choice([0.6, 0.8]))}
@@ -92,10 +90,7 @@ def _bench_fmu(effects: tuple[str, ...], package, fmu_dir):
     """The bench of ``effects``; a combination is generated into the (study's) package."""
     name = bench_name(effects)
     if len(effects) > 1:
-        path = Path(package) / "Diagnosed" / f"{name.rsplit('.', 1)[1]}.mo"
-        text = bench_source(effects, name, description="synthetic study: effects hidden together")
-        if not path.exists() or path.read_text() != text:
-            path.write_text(text)
+        write_bench(package, effects, name, description="synthetic study: effects hidden together", register=False)
     return ensure_fmu(name, package=package, fmu_dir=fmu_dir)
 
 

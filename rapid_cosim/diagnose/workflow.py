@@ -23,7 +23,7 @@ from ..build import build_models
 from ..errors import RapidCosimError
 from ..experiment import Experiment
 from .candidates import CandidateFit, CandidateSpec, default_start, fit_candidate, residuals_at, write_configs
-from .catalogue import CATALOGUE, NONE, bench_name, bench_source, effect_parameters
+from .catalogue import CATALOGUE, NONE, bench_name, camel, write_bench
 from .features import Features, residual_features
 from .selection import THRESHOLD, Ranked, Verdict, bic, decide, decisive, gap, pooled_noise, rank, score
 from .separate import separating_test
@@ -123,8 +123,9 @@ class _Context:
                                       estimator_options=options.estimator_options)
 
     def fit(self, spec: CandidateSpec, start: dict | None = None) -> CandidateFit:
-        if len(spec.effects) > 1:
-            self._generate(spec.effects)
+        if len(spec.effects) > 1:  # a combination's bench is generated into the work copy
+            write_bench(self.package, spec.effects, bench_name(spec.effects),
+                        description=f"base staged test with {', '.join(spec.effects)} (candidate)")
         if spec.label not in self.fits:
             self.log(f"  fitting {spec.label} ...")
             fit = fit_candidate(spec, self.training, self.workdir, options=self.run_options,
@@ -133,15 +134,6 @@ class _Context:
             self.fits[spec.label] = fit
             self.log(f"    fitness {fit.fitness:.4g}, BIC {bic(fit, self.noise):.1f}, {fit.nfev} evaluations")
         return self.fits[spec.label]
-
-    def _generate(self, effects: tuple[str, ...]) -> None:
-        """Write the bench of a combination of effects into the work copy of the package."""
-        name = bench_name(effects)
-        path = self.package / "Diagnosed" / f"{name.rsplit('.', 1)[1]}.mo"
-        text = bench_source(effects, name, description=f"base staged test with {', '.join(effects)} (candidate)")
-        if not path.exists() or path.read_text() != text:
-            path.write_text(text)
-            _register(path.parent / "package.order", path.stem)
 
     def base_parameters(self) -> dict[str, float] | None:
         base = self.fits.get(NONE)
@@ -318,18 +310,14 @@ def _separating(ctx: _Context, verdict: Verdict, not_excluded: Sequence[str]) ->
 def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: DiagnoseOptions):
     """The named model written into the package, compiled, and calibrated again."""
     effects = chosen.spec.effects
-    name = options.model_name or "iGrGen.Diagnosed.Calibrated" + "".join(
-        part.capitalize() for e in effects for part in e.split("_"))
+    name = options.model_name or "iGrGen.Diagnosed.Calibrated" + "".join(camel(e) for e in effects)
     if not re.fullmatch(r"iGrGen\.Diagnosed\.[A-Za-z_][A-Za-z0-9_]*", name):
         raise ValueError(f"model name {name!r} must be iGrGen.Diagnosed.<Identifier>")
     values = {k: v for k, v in chosen.parameters.items()}
     description = (f"base staged test with {', '.join(effects)}, calibrated on "
                    f"{', '.join(e.name for e in ctx.training)} by rapid-cosim diagnose")
-    text = bench_source(effects, name, values=values, description=description)
     package_dir = ctx.user_package
-    target = package_dir / "Diagnosed" / f"{name.rsplit('.', 1)[1]}.mo"
-    target.write_text(text)
-    _register(package_dir / "Diagnosed" / "package.order", name.rsplit(".", 1)[1])
+    target = write_bench(package_dir, effects, name, values=values, description=description)
     build_models([name], package=package_dir, fmu_dir=ctx.user_fmu_dir, log=lambda *_: None)
     ctx.log(f"  wrote {target} and compiled it; re-calibrating with it ...")
     spec = CandidateSpec(effects)
@@ -343,12 +331,6 @@ def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: Diagnos
                        residuals_at(inputs, result.x), inputs=inputs)
     ctx.fits["recalibrated"] = fit
     return name, str(target), fit
-
-
-def _register(order: Path, entry: str) -> None:
-    lines = [line.strip() for line in order.read_text().splitlines() if line.strip()] if order.exists() else []
-    if entry not in lines:
-        order.write_text("\n".join(lines + [entry]) + "\n")
 
 
 def _all_tests(ctx: _Context, fit: CandidateFit) -> dict:
