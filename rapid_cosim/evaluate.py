@@ -22,7 +22,7 @@ import joblib
 import numpy as np
 
 from .errors import RapidCosimError, SimulationError
-from .estimators.base import Evaluations
+from .search import Evaluations
 from .experiment import Experiment, Problem, assign_parameters
 from .fitness import ExperimentFit, arssd, experiment_fitness
 from .simulator import FmuRef, Trajectory, get_simulator

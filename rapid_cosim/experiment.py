@@ -79,7 +79,7 @@ import numpy as np
 from rapid_cosim.data import (MeasuredData, MissingColumn, close_matches, describe_missing,
                               load_measurements, noise_level, split_hdf5_path)
 from rapid_cosim.errors import ConfigError, DataError
-from rapid_cosim.estimators.base import SearchSpace
+from rapid_cosim.search import SearchSpace
 
 CONFIG_NAME = "config.toml"
 DEFAULT_TIMEOUT = 30.0
