@@ -567,3 +567,10 @@ def noise_level(data: MeasuredData, column: str, t_end: float,
     dt = float(np.median(np.diff(t))) if n > 1 else float("nan")
     return NoiseEstimate(column, sigma, phi, sigma * float(np.sqrt(1.0 - phi ** 2)),
                          n, dt, float(t_end), detrend)
+
+
+def ar1_inflation(phi: float) -> float:
+    """Variance factor ``(1 + phi) / (1 - phi)`` of a mean of AR(1) noise of lag-1
+    correlation ``phi`` (negative phi taken as 0, phi capped at 0.99)."""
+    phi = min(max(float(phi), 0.0), 0.99)
+    return (1 + phi) / (1 - phi)

@@ -26,7 +26,7 @@ import numpy as np
 from .archive.runs import (RunOptions, ensure_run, inputs_from_archive, inputs_from_configs,
                            log_likelihood_for)
 from .archive.store import RunArchive
-from .data import noise_level
+from .data import ar1_inflation, noise_level
 from .errors import RapidCosimError
 from .estimators.base import EstimationResult
 from .estimators.laplace import laplace
@@ -240,13 +240,6 @@ def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float 
                    n_samples=exp.windowed_data().n_valid(col), phi=float(noise.phi),
                    inflation=ar1_inflation(noise.phi), steps=approx.steps, simulations=approx.evaluations,
                    at_bound=approx.at_bound)
-
-
-def ar1_inflation(phi: float) -> float:
-    """Variance factor ``(1 + phi) / (1 - phi)`` of a mean of AR(1) noise of lag-1
-    correlation ``phi`` (negative phi taken as 0, phi capped at 0.99)."""
-    phi = min(max(float(phi), 0.0), 0.99)
-    return (1 + phi) / (1 - phi)
 
 
 def laplace_cache(results: str | Path) -> Path:

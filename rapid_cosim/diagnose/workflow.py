@@ -20,6 +20,7 @@ import numpy as np
 
 from ..archive.runs import RunOptions, inputs_from_configs
 from ..build import build_models
+from ..data import ar1_inflation
 from ..errors import RapidCosimError
 from ..experiment import Experiment
 from .candidates import CandidateFit, CandidateSpec, default_start, fit_candidate, residuals_at, write_configs
@@ -365,8 +366,7 @@ def _intervals(ctx: _Context, fit: CandidateFit, level: float = 0.9) -> dict[str
     except RapidCosimError as e:  # intervals are evidence, not the verdict: report, do not fail
         ctx.log(f"  no parameter intervals: {e}")
         return {}
-    phis = np.array([ctx.noise[e.name].phi for e in problem.experiments])
-    inflation = float(np.mean((1 + phis) / (1 - phis)))
+    inflation = float(np.mean([ar1_inflation(ctx.noise[e.name].phi) for e in problem.experiments]))
     z = approx.interval - approx.mean[:, None]
     out = {}
     for k, name in enumerate(problem.names):
