@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import platform
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -107,8 +106,7 @@ def bench_pf() -> None:
 def bench_archive() -> None:
     from rapid_cosim.archive.store import bench_append
 
-    with tempfile.TemporaryDirectory():
-        figures = bench_append(n_iter=100, n_particles=100, d=2)
+    figures = bench_append(n_iter=100, n_particles=100, d=2)
     print("archive: 100 iterations x 100 particles, d = 2")
     for key, value in figures.items():
         print(f"  {key:40s} {value}")

@@ -90,7 +90,7 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, f
         else:
             estimate[p.name] = {"min": p.min, "max": p.max, "label": p.label, "scale": p.scale}
     for name, (low, high, scale) in _AROUND_BASE.items():
-        if name in estimate and name in start and not spec_is_base(spec):
+        if name in estimate and name in start and spec.effects:
             # the effects move the governor's parameters by a factor, not across the range
             estimate[name]["min"] = max(estimate[name]["min"], low * start[name])
             estimate[name]["max"] = min(estimate[name]["max"], high * start[name])
@@ -105,10 +105,6 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, f
 # Bounds of a candidate's governor parameters, as factors of the base model's optimum:
 # an effect explains part of the response, shifting R and Ts by a factor, not by decades.
 _AROUND_BASE = {"gov.R": (0.6, 1.6, "linear"), "gov.Ts": (0.25, 4.0, "log")}
-
-
-def spec_is_base(spec: CandidateSpec) -> bool:
-    return not spec.effects
 
 
 def default_start(spec: CandidateSpec, base: Mapping[str, float] | None) -> dict[str, float]:

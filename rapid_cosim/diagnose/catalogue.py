@@ -123,9 +123,13 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
     short = class_name.rsplit(".", 1)[-1]
     within = class_name.rsplit(".", 1)[0] if "." in class_name else ""
     valve = [e for e in effects if e in _VALVE]
-    governor = {0: "TGTypeI", 1: {"rate_limit": "TGTypeIRateLimit", "backlash": "TGTypeIBacklash",
-                                  "load_controller": "TGTypeILoadControl"}.get(valve[0] if valve else "", "")}
-    gov_class = governor[0] if not valve else (governor[1] if len(valve) == 1 else "TGTypeIValveEffects")
+    if not valve:
+        gov_class = "TGTypeI"
+    elif len(valve) == 1:
+        gov_class = {"rate_limit": "TGTypeIRateLimit", "backlash": "TGTypeIBacklash",
+                     "load_controller": "TGTypeILoadControl"}[valve[0]]
+    else:
+        gov_class = "TGTypeIValveEffects"
     if gov_class == "TGTypeIValveEffects" and "backlash" not in effects:
         values.setdefault("gov.T_bl", 1e-3)  # without backlash the valve should simply follow
     lines = [f"within {within};" if within else "within;",

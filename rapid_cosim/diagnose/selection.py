@@ -45,19 +45,13 @@ class NoiseFloor:
     sigma: float  # standard deviation of the noise
     phi: float  # lag-1 autocorrelation
 
-    @classmethod
-    def of(cls, exp: Experiment) -> "NoiseFloor":
-        sigma, phi, _, _ = _pre_step(exp)
-        return cls(sigma, phi)
-
 
 def _pre_step(exp: Experiment) -> tuple[float, float, int, float]:
     """(sigma, phi, samples, median sample interval) of one test's pre-step noise."""
     (output,) = [o for o in exp.outputs if exp.weights[o] > 0]
     end = exp.pre_step_end if exp.pre_step_end is not None else float(exp.fixed.get("src.t_step", 10.0))
     est = noise_level(exp.data, exp.outputs[output], end)
-    n = int(np.sum((exp.data.time < end) & exp.data.valid[exp.outputs[output]]))
-    return float(est.sigma), float(np.clip(est.phi, 0.0, 0.95)), n, float(np.median(np.diff(exp.data.time)))
+    return float(est.sigma), float(np.clip(est.phi, 0.0, 0.95)), est.n, float(np.median(np.diff(exp.data.time)))
 
 
 def pooled_noise(experiments: Sequence[Experiment]) -> dict[str, NoiseFloor]:

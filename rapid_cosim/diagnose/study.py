@@ -94,13 +94,12 @@ def _bench_fmu(effects: tuple[str, ...], package, fmu_dir):
     return ensure_fmu(name, package=package, fmu_dir=fmu_dir)
 
 
-def effect_rms(case: Case, *, package, fmu_dir, only: str | None = None) -> float:
-    """RMS difference the effect (``only`` one of several) makes to the campaign's
+def effect_rms(case: Case, *, package, fmu_dir, only: str) -> float:
+    """RMS difference the effect ``only`` (one of the case's) makes to the campaign's
     responses, offset removed."""
-    effect = only or case.truth
-    with_effect = get_simulator(_bench_fmu((effect,), package, fmu_dir))
+    with_effect = get_simulator(_bench_fmu((only,), package, fmu_dir))
     without = get_simulator(ensure_fmu(bench_name(()), package=package, fmu_dir=fmu_dir))
-    own = {p.name for p in CATALOGUE[effect].parameters}
+    own = {p.name for p in CATALOGUE[only].parameters}
     squares = []
     for df, t_return in case.steps:
         fixed = {"gov.p_ref": case.plant["gov.p_ref"], "src.df": df, "src.t_step": T_STEP,
@@ -146,17 +145,6 @@ class CaseResult:
         d = self.diagnosis
         self.named_first = d.effects[0] if d.effects else d.effect
         self.gap_shrink = None if d.effect in (NONE, "ambiguous") else _shrink(d, self.case.noise.sigma)
-
-    @property
-    def gap_shrink_estimated_floor(self) -> float | None:
-        """The same, against the noise floor the workflow estimated (what it reports)."""
-        d = self.diagnosis
-        if d.effect in (NONE, "ambiguous"):
-            return None
-        before = [v["gap"] for v in d.gap_before.values()]
-        after = [v["gap"] for v in d.gap_after.values()]
-        gb = float(np.sqrt(np.mean(np.square(before))))
-        return None if gb == 0 else 1.0 - float(np.sqrt(np.mean(np.square(after)))) / gb
 
     @property
     def correct(self) -> bool:

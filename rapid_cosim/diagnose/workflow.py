@@ -16,12 +16,15 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable, Sequence
 
+import h5py
 import numpy as np
 
-from ..archive.runs import RunOptions, inputs_from_configs
+from ..archive.runs import RunOptions, ensure_run, inputs_from_configs, log_likelihood_for
 from ..build import build_models
 from ..data import ar1_inflation
 from ..errors import RapidCosimError
+from ..estimators.laplace import laplace
+from ..evaluate import ProblemObjective
 from ..experiment import Experiment
 from .candidates import CandidateFit, CandidateSpec, default_start, fit_candidate, residuals_at, write_configs
 from .catalogue import CATALOGUE, NONE, bench_name, camel, write_bench
@@ -80,8 +83,6 @@ class Diagnosis:
     def save(self, folder: str | Path) -> tuple[Path, Path]:
         """``diagnosis.json`` (the verdict and evidence) and ``diagnosis.h5`` (the residual
         arrays before and after, which the report plots)."""
-        import h5py
-
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)
         js = folder / "diagnosis.json"
@@ -274,9 +275,10 @@ def _second_effect(ctx: _Context, chosen: CandidateFit, verdict: Verdict, option
     nested_tests = residuals_at(chosen.inputs, np.array([fit.parameters[n] for n in names]))
     nested = replace(chosen, parameters={n: fit.parameters[n] for n in names}, tests=nested_tests,
                      fitness=float(np.mean([t.rssd for t in nested_tests.values()])))
-    if bic(nested, ctx.noise) < bic(chosen, ctx.noise):
+    nested_bic = bic(nested, ctx.noise)
+    if nested_bic < bic(chosen, ctx.noise):
         chosen = ctx.fits[chosen.spec.label] = nested
-    if bic(nested, ctx.noise) - bic(fit, ctx.noise) < options.threshold:
+    if nested_bic - bic(fit, ctx.noise) < options.threshold:
         verdict.reason += (f"; {best.label} fits better only because its search found better parameters of "
                            f"{chosen.spec.label} (the second effect adds less than {options.threshold:g})")
         return chosen, verdict, rank([chosen, *combos], ctx.noise)
@@ -314,7 +316,7 @@ def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: Diagnos
     name = options.model_name or "iGrGen.Diagnosed.Calibrated" + "".join(camel(e) for e in effects)
     if not re.fullmatch(r"iGrGen\.Diagnosed\.[A-Za-z_][A-Za-z0-9_]*", name):
         raise ValueError(f"model name {name!r} must be iGrGen.Diagnosed.<Identifier>")
-    values = {k: v for k, v in chosen.parameters.items()}
+    values = dict(chosen.parameters)
     description = (f"base staged test with {', '.join(effects)}, calibrated on "
                    f"{', '.join(e.name for e in ctx.training)} by rapid-cosim diagnose")
     package_dir = ctx.user_package
@@ -322,8 +324,6 @@ def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: Diagnos
     build_models([name], package=package_dir, fmu_dir=ctx.user_fmu_dir, log=lambda *_: None)
     ctx.log(f"  wrote {target} and compiled it; re-calibrating with it ...")
     spec = CandidateSpec(effects)
-    from ..archive.runs import ensure_run
-
     paths = write_configs(ctx.workdir / "recalibrated", ctx.training, spec, values, model=name)
     inputs = inputs_from_configs(paths, package=package_dir, fmu_dir=ctx.user_fmu_dir)
     archive = ctx.workdir / "recalibrated.h5"
@@ -351,10 +351,6 @@ def _intervals(ctx: _Context, fit: CandidateFit, level: float = 0.9) -> dict[str
     """90 % intervals of the calibrated parameters: Laplace's approximation of the
     Gaussian likelihood (pre-step noise levels), widened by the AR(1) variance factor
     (1 + phi) / (1 - phi), since correlated samples carry less information each."""
-    from ..archive.runs import log_likelihood_for
-    from ..estimators.laplace import laplace
-    from ..evaluate import ProblemObjective
-
     problem = fit.inputs.problem
     log_likelihood = log_likelihood_for(problem)
     if log_likelihood is None:
