@@ -146,13 +146,13 @@ def cmd_figures(args) -> int:
     from .report.archives import caption
     from .report.fits import load_fits, plot_fit_grid, plot_test_fit
     from .report.search import plot_convergence, plot_particle_clouds
-    from .staged import METHODS, archive_path, parse_tests, natural_key
+    from .staged import METHODS, archive_path, archived_tests, parse_tests
 
     results = Path(args.results)
     if args.tests:
         tests = parse_tests(args.tests)
     else:
-        tests = sorted({p.parent.name for p in results.glob("*/*.h5") if p.parent.name != "joint"}, key=natural_key)
+        tests = archived_tests(results)
     have = {t: {m.label: archive_path(results, t, m.key) for m in METHODS} for t in tests}
     missing = [str(p) for a in have.values() for p in a.values() if not p.exists()]
     if missing:

@@ -72,6 +72,13 @@ def archive_path(results: str | Path, test: str, method_key: str) -> Path:
     return Path(results) / test / f"{method_key}.h5"
 
 
+def archived_tests(results: str | Path) -> list[str]:
+    """Tests with an archive of either chain under ``results`` (not the joint fit, nor a
+    diagnosis, which keep other archives there), in natural order."""
+    found = {p.parent.name for m in METHODS for p in Path(results).glob(f"*/{m.key}.h5")}
+    return sorted(found, key=natural_key)
+
+
 def joint_archive_path(results: str | Path) -> Path:
     return Path(results) / "joint" / "smc.h5"
 

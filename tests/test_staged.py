@@ -12,7 +12,7 @@ from rapid_cosim.archive import RunArchive
 from rapid_cosim.cli import main
 from rapid_cosim.errors import RapidCosimError
 from rapid_cosim.estimators.laplace import hessian_from_stencil, hessian_stencil
-from rapid_cosim.staged import (METHODS, archive_path, ar1_inflation,
+from rapid_cosim.staged import (METHODS, archive_path, archived_tests, ar1_inflation,
                                 parse_tests, natural_key)
 from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
 
@@ -183,3 +183,11 @@ def test_hessian_stencil_is_exact_on_a_quadratic():
 def test_ar1_inflation():
     assert ar1_inflation(0.0) == 1.0 and ar1_inflation(-0.2) == 1.0
     assert ar1_inflation(0.5) == pytest.approx(3.0)
+
+
+def test_archived_tests_skip_the_joint_fit_and_a_diagnosis(tmp_path):
+    for f in ("test10/pf10+nm.h5", "test2/pso10+nm.h5", "joint/smc.h5", "diagnose/diagnosis.h5",
+              "diagnose/recalibrated.h5"):
+        (tmp_path / f).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / f).touch()
+    assert archived_tests(tmp_path) == ["test2", "test10"]
