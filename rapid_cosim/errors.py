@@ -33,6 +33,11 @@ class ParameterError(RapidCosimError):
     """An unknown parameter name, or a value outside its declared range."""
 
 
+class FmuError(RapidCosimError):
+    """An FMU this toolkit cannot simulate (wrong FMI version or interface, no binary for
+    this platform, a variable it cannot drive), with the reason."""
+
+
 class SimulationError(RapidCosimError):
     """The solver failed for one parameter set; the caller decides what it costs."""
 

@@ -24,8 +24,8 @@ import numpy as np
 from .errors import RapidCosimError, SimulationError
 from .search import Evaluations
 from .experiment import Experiment, Problem, assign_parameters
-from .fitness import ExperimentFit, arssd, experiment_fitness
-from .simulator import FmuRef, Trajectory, get_simulator
+from .fitness import ExperimentFit, arssd, batch_rssd, experiment_fitness
+from .simulator import DEFAULT_RUNNER, FmuRef, Trajectory, check_runner, get_simulator
 
 PENALTY = 1.0  # pu^2: ~10^4 times a poor fit of a 0.08 pu step, finite for every method
 BACKENDS = ("loky", "multiprocessing", "threading", "sequential", "dask")
@@ -33,11 +33,13 @@ BACKENDS = ("loky", "multiprocessing", "threading", "sequential", "dask")
 
 @dataclass(frozen=True)
 class Payload:
-    """What a worker needs to score rows: experiments (with data) and FMUs by content."""
+    """What a worker needs to score rows: experiments (with data), FMUs by content and
+    the runner that simulates them."""
 
     experiments: tuple[Experiment, ...]
     fmus: tuple[FmuRef, ...]  # one per experiment
     assignments: tuple[tuple[tuple[str, int], ...], ...]
+    runner: str = DEFAULT_RUNNER
 
 
 @dataclass
@@ -53,37 +55,53 @@ class FailureLog:
             self.messages.append(message)
 
 
-
-
 def simulate_experiment(exp: Experiment, fmu: FmuRef | str, params: Mapping[str, float], *,
-                        fine: bool = False) -> Trajectory:
+                        fine: bool = False, runner: str | None = None) -> Trajectory:
     """Outputs at the measured samples inside the fitness window (what the fitness
     scores, with nothing interpolated), or on the config's fine grid for plots."""
     s = exp.simulation
     sim = get_simulator(fmu, timeout=s.timeout)
     if fine:
         return sim.simulate(params, start_time=s.start_time, stop_time=s.stop_time,
-                            output_interval=s.output_interval, outputs=list(exp.outputs))
+                            output_interval=s.output_interval, outputs=list(exp.outputs), runner=runner)
     return sim.simulate(params, start_time=s.start_time, output_times=exp.windowed_data().time,
-                        outputs=list(exp.outputs))
+                        outputs=list(exp.outputs), runner=runner)
+
+
+def simulate_batch(exp: Experiment, fmu: FmuRef | str, assignment, X: np.ndarray, runner: str | None = None):
+    """Every row of ``X`` (search points) simulated for ``exp`` in one runner call, at the
+    measured samples inside its fitness window."""
+    names = list(exp.fixed) + [name for name, _ in assignment]
+    values = np.empty((X.shape[0], len(names)))
+    values[:, :len(exp.fixed)] = list(exp.fixed.values())
+    for k, (_, j) in enumerate(assignment):
+        values[:, len(exp.fixed) + k] = X[:, j]
+    s = exp.simulation
+    sim = get_simulator(fmu, timeout=s.timeout)
+    return sim.simulate_batch(names, values, start_time=s.start_time, output_times=exp.windowed_data().time,
+                              outputs=list(exp.outputs), runner=runner, check=False)
 
 
 def _score_chunk(payload: Payload, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Worker: (rssd (n, E), failed (n,), failure messages)."""
+    """Worker: (rssd (n, E), failed (n,), failure messages). A set that fails in one
+    experiment is not simulated in the next."""
     n, n_exp = X.shape[0], len(payload.experiments)
-    rssd = np.empty((n, n_exp))
+    rssd = np.full((n, n_exp), np.inf)
     failed = np.zeros(n, dtype=bool)
-    messages = []
-    for k in range(n):
-        for i, exp in enumerate(payload.experiments):
-            try:
-                traj = simulate_experiment(exp, payload.fmus[i], assign_parameters(exp, payload.assignments[i], X[k]))
-                rssd[k, i] = experiment_fitness(exp, traj.time, traj.outputs).rssd
-            except SimulationError as e:
-                failed[k] = True
-                rssd[k, :] = np.inf
-                messages.append(f"{exp.name}: {e}")
-                break
+    messages: list[str] = []
+    alive = np.arange(n)
+    for i, exp in enumerate(payload.experiments):
+        if not alive.size:
+            break
+        batch = simulate_batch(exp, payload.fmus[i], payload.assignments[i], X[alive], payload.runner)
+        scores = batch_rssd(exp, batch.values)
+        ok = batch.ok & np.isfinite(scores)
+        rssd[alive[ok], i] = scores[ok]
+        for k in np.flatnonzero(~ok):
+            messages.append(f"{exp.name}: {batch.messages[k] or 'the simulated output is not finite at scored samples'}")
+        failed[alive[~ok]] = True
+        alive = alive[ok]
+    rssd[failed] = np.inf
     return rssd, failed, messages
 
 
@@ -91,7 +109,7 @@ class ProblemObjective:
     """The :class:`~rapid_cosim.estimators.base.Objective` of a :class:`Problem`."""
 
     def __init__(self, problem: Problem, fmus: Mapping[str, FmuRef], *, n_jobs: int = 1,
-                 backend: str = "loky", penalty: float = PENALTY):
+                 backend: str = "loky", penalty: float = PENALTY, runner: str = DEFAULT_RUNNER):
         if backend not in BACKENDS:
             raise RapidCosimError(f"unknown joblib backend {backend!r}; choose one of {', '.join(BACKENDS)}")
         if n_jobs == 0 or n_jobs < -1:
@@ -104,7 +122,7 @@ class ProblemObjective:
         self.backend = backend
         self.penalty = float(penalty)
         self.payload = Payload(problem.experiments, tuple(fmus[e.model] for e in problem.experiments),
-                               problem.assignments)
+                               problem.assignments, check_runner(runner))
         self.failures = FailureLog()
         self.n_evaluations = 0
         self.simulation_seconds = 0.0  # wall time spent inside evaluation calls
@@ -152,11 +170,12 @@ class ExperimentResult:
     fit: ExperimentFit
 
 
-def evaluate_in_detail(problem: Problem, fmus: Mapping[str, FmuRef], x: np.ndarray) -> list[ExperimentResult]:
+def evaluate_in_detail(problem: Problem, fmus: Mapping[str, FmuRef], x: np.ndarray,
+                       runner: str | None = None) -> list[ExperimentResult]:
     """Trajectories and residuals at ``x`` for every experiment (in this process)."""
     results = []
     for i, exp in enumerate(problem.experiments):
         params = problem.parameters_for(x, i)
-        traj = simulate_experiment(exp, fmus[exp.model], params)
+        traj = simulate_experiment(exp, fmus[exp.model], params, runner=runner)
         results.append(ExperimentResult(exp, params, traj, experiment_fitness(exp, traj.time, traj.outputs)))
     return results

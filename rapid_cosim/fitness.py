@@ -63,33 +63,66 @@ def fit_outputs(measured, simulated, valid, weights=None, offset: bool = False) 
     one = y.ndim == 1
     if one:
         y, yhat, ok = y[:, None], yhat[:, None], ok[:, None]
-    k = y.shape[1]
-    w = np.ones(k) if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
-    if w.shape != (k,) or np.any(~np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
-        raise ValueError(f"weights must be {k} finite non-negative numbers, not all zero; got {w}")
+    w = _weights(weights, y.shape[1])
     if np.any(ok & ~np.isfinite(y)):
         raise ValueError("measured values marked valid must be finite")
     if np.any(ok & ~np.isfinite(yhat)):
         raise SimulationError("the simulated output is not finite at scored samples")
+    total, per_output, c, residual = _batch_fit(y, yhat[None], ok, w, offset, residuals=True)
+    return Fit(float(total[0]), per_output[0], c[0], residual[0][:, 0] if one else residual[0], ok.sum(axis=0))
 
+
+def _weights(weights, k: int) -> np.ndarray:
+    w = np.ones(k) if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
+    if w.shape != (k,) or np.any(~np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
+        raise ValueError(f"weights must be {k} finite non-negative numbers, not all zero; got {w}")
+    return w
+
+
+def _batch_fit(y, yhat, ok, w, offset: bool, residuals: bool = False):
+    """The RSSD of each of n simulations ``yhat`` (n, M, K) against ``y`` (M, K).
+
+    Each output's valid samples are gathered into one contiguous (n, M_k) block, so that
+    every row is summed exactly as a single simulation's samples would be (numpy's
+    pairwise sum along the last axis): a batch scores each set bit for bit as one call
+    per set did, and archived runs re-run identically.
+    """
+    n, _, k = yhat.shape
     n_valid = ok.sum(axis=0)
-    per_output = np.full(k, np.nan)
-    c = np.zeros(k)
-    residual = np.full(y.shape, np.nan)
+    per_output = np.full((n, k), np.nan)
+    c = np.zeros((n, k))
+    residual = np.full(yhat.shape, np.nan) if residuals else None
     for j in range(k):
         if n_valid[j] == 0:
             if w[j] > 0:
                 raise ValueError(f"output {j} has weight {w[j]:g} but no valid samples")
             continue
-        r = y[ok[:, j], j] - yhat[ok[:, j], j]
+        r = np.ascontiguousarray(y[ok[:, j], j] - yhat[:, ok[:, j], j])  # rows contiguous, see above
         if offset:
-            c[j] = r.mean()
-            r = r - c[j]
-        per_output[j] = np.mean(r ** 2)
-        residual[ok[:, j], j] = r
+            c[:, j] = r.mean(axis=1)
+            r = r - c[:, j, None]
+        per_output[:, j] = np.mean(r ** 2, axis=1)
+        if residuals:
+            residual[:, ok[:, j], j] = r
     used = w > 0
-    total = float(np.sum(w[used] * per_output[used]) / np.sum(w[used]))
-    return Fit(total, per_output, c, residual[:, 0] if one else residual, n_valid)
+    total = np.sum(w[used] * per_output[:, used], axis=1) / np.sum(w[used])
+    return total, per_output, c, residual
+
+
+def batch_rssd(exp: Experiment, simulated: np.ndarray) -> np.ndarray:
+    """RSSD of each simulation of ``exp`` in a batch: ``simulated`` is (sets, samples,
+    outputs) at the measured samples inside the window, outputs in ``exp.outputs``
+    order. A set with a non-finite value where it is scored gets ``inf``."""
+    scored = exp.scored
+    yhat = np.asarray(simulated, dtype=np.float64)
+    if yhat.ndim != 3 or yhat.shape[1:] != scored.measured.shape:
+        raise ValueError(f"{exp.name}: simulated {yhat.shape}, expected (sets, {scored.measured.shape[0]}, "
+                         f"{scored.measured.shape[1]})")
+    bad = np.any(scored.valid[None] & ~np.isfinite(yhat), axis=(1, 2))
+    total = _batch_fit(scored.measured, np.where(bad[:, None, None], 0.0, yhat), scored.valid,
+                       _weights(scored.weights, len(scored.outputs)), exp.offset)[0]
+    total[bad] = np.inf
+    return total
 
 
 def rssd(measured, simulated, valid, weights=None, offset: bool = False) -> float:

@@ -30,7 +30,7 @@ from ..evaluate import PENALTY, ProblemObjective
 from ..experiment import (Experiment, ParameterInfo, Problem, build_problem, check_parameters,
                           load_experiment, parse_experiment)
 from ..fitness import gaussian_log_likelihood
-from ..simulator import FmuRef, get_simulator
+from ..simulator import DEFAULT_RUNNER, FmuRef, get_simulator
 from .store import ArchiveWriter, RunArchive, data_sha256
 
 
@@ -44,6 +44,7 @@ class RunOptions:
     backend: str = "loky"
     penalty: float = PENALTY
     estimator_options: dict[str, dict[str, Any]] = field(default_factory=dict)  # {"pf": {"n_particles": 50}}
+    runner: str = DEFAULT_RUNNER  # which simulator runner produced the run (see rapid_cosim.simulator)
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -51,7 +52,9 @@ class RunOptions:
     @classmethod
     def from_json(cls, data: Mapping) -> "RunOptions":
         known = {f.name for f in fields(cls)}
-        return cls(**{k: v for k, v in data.items() if k in known})
+        values = {k: v for k, v in data.items() if k in known}
+        values.setdefault("runner", "python")  # archives from before the compiled runner
+        return cls(**values)
 
 
 def parse_option_overrides(items: Sequence[str]) -> dict[str, dict[str, Any]]:
@@ -242,7 +245,8 @@ def _archived_data(exp: Experiment) -> dict[str, np.ndarray]:
 
 def _objective(inputs: RunInputs, options: RunOptions, known=None) -> _RecordingObjective:
     return _RecordingObjective(ProblemObjective(inputs.problem, inputs.fmus, n_jobs=options.n_jobs,
-                                                backend=options.backend, penalty=options.penalty), known)
+                                                backend=options.backend, penalty=options.penalty,
+                                                runner=options.runner), known)
 
 
 def _execute(inputs: RunInputs, options: RunOptions, objective: _RecordingObjective,

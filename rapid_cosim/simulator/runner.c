@@ -1,0 +1,665 @@
+/* rapid-cosim batch runner: many parameter sets through one FMI 2.0 Model Exchange FMU,
+ * integrated with CVODE, without returning to Python between sets, steps or samples.
+ *
+ * Why C: a calibration simulates the same model thousands of times. Driven from
+ * Python, every right-hand side is a ctypes callback and every output sample a Python
+ * call; here the whole batch is one call.
+ *
+ * Both libraries are opened with dlopen, so this file links against neither:
+ *   - the FMU's shared library (any FMI 2.0 ME binary: the embedded compiler's,
+ *     OpenModelica's or another tool's);
+ *   - SUNDIALS 7, the build that fmpy ships (the same binary the Python reference loop
+ *     uses, so both paths run the same CVODE). Its headers are not shipped, so the few
+ *     functions used are declared below from the SUNDIALS 7 API; rc_open checks the
+ *     library's major version before using any of them.
+ *
+ * Per set (the sequence of the Python reference loop, rapid_cosim/simulator/reference.py,
+ * so that both give the same numbers): reset, setupExperiment, parameters, inputs at the
+ * start, initialisation, event iteration, continuous-time mode; then for each output
+ * time: time events (the FMU's nextEventTime and steps of the input table) up to it,
+ * CVODE (BDF, dense LU, CV_NORMAL) to it, outputs read. State events: CVODE root-finding
+ * on the FMU's event indicators, then event iteration and re-initialisation as the FMI
+ * 2.0 standard describes; a step event requested by fmi2CompletedIntegratorStep too.
+ *
+ * Inputs: a table (rows of time and values, non-decreasing time) interpolated linearly;
+ * a time written twice is a step, taken as a time event. While CVODE integrates towards
+ * a step it may evaluate the model past it, so there the input keeps its value before
+ * the step (as the FMU's own conditions only switch in event mode).
+ *
+ * Failures stay with their set: a CVODE failure, an FMI error, a non-finite output or a
+ * set over its wall-clock budget gets a status and a message; the instance is reset (or
+ * re-instantiated) and the batch goes on.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <dlfcn.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "fmi2Functions.h"
+
+#define RC_EXPORT __attribute__((visibility("default")))
+
+/* ---- SUNDIALS 7 declarations (sunrealtype = double, sunindextype = int64_t) ---- */
+typedef void *SUNContext;
+typedef void *N_Vector;
+typedef void *SUNMatrix;
+typedef void *SUNLinearSolver;
+typedef int (*CVRhsFn)(double t, N_Vector y, N_Vector ydot, void *user_data);
+typedef int (*CVRootFn)(double t, N_Vector y, double *gout, void *user_data);
+typedef void (*SUNErrHandlerFn)(int line, const char *func, const char *file, const char *msg, int err_code,
+                                void *err_user_data, SUNContext ctx);
+#define CV_BDF 2
+#define CV_NORMAL 1
+#define CV_ROOT_RETURN 2
+
+typedef struct {
+    int (*SUNDIALSGetVersionNumber)(int *, int *, int *, char *, int);
+    int (*SUNContext_Create)(int, SUNContext *);
+    int (*SUNContext_Free)(SUNContext *);
+    int (*SUNContext_ClearErrHandlers)(SUNContext);
+    int (*SUNContext_PushErrHandler)(SUNContext, SUNErrHandlerFn, void *);
+    N_Vector (*N_VNew_Serial)(long long, SUNContext);
+    double *(*N_VGetArrayPointer)(N_Vector);
+    void (*N_VDestroy)(N_Vector);
+    SUNMatrix (*SUNDenseMatrix)(long long, long long, SUNContext);
+    void (*SUNMatDestroy)(SUNMatrix);
+    SUNLinearSolver (*SUNLinSol_Dense)(N_Vector, SUNMatrix, SUNContext);
+    int (*SUNLinSolFree)(SUNLinearSolver);
+    void *(*CVodeCreate)(int, SUNContext);
+    int (*CVodeInit)(void *, CVRhsFn, double, N_Vector);
+    int (*CVodeReInit)(void *, double, N_Vector);
+    int (*CVodeSVtolerances)(void *, double, N_Vector);
+    int (*CVodeSetLinearSolver)(void *, SUNLinearSolver, SUNMatrix);
+    int (*CVodeSetMaxStep)(void *, double);
+    int (*CVodeSetMaxNumSteps)(void *, long);
+    int (*CVodeSetUserData)(void *, void *);
+    int (*CVodeRootInit)(void *, int, CVRootFn);
+    int (*CVodeGetRootInfo)(void *, int *);
+    int (*CVodeSetNoInactiveRootWarn)(void *);
+    int (*CVode)(void *, double, N_Vector, double *, int);
+    void (*CVodeFree)(void **);
+} Sundials;
+
+typedef struct {
+    fmi2InstantiateTYPE *instantiate;
+    fmi2FreeInstanceTYPE *free_instance;
+    fmi2SetupExperimentTYPE *setup_experiment;
+    fmi2EnterInitializationModeTYPE *enter_init;
+    fmi2ExitInitializationModeTYPE *exit_init;
+    fmi2ResetTYPE *reset;
+    fmi2TerminateTYPE *terminate;
+    fmi2SetRealTYPE *set_real;
+    fmi2GetRealTYPE *get_real;
+    fmi2GetIntegerTYPE *get_integer;
+    fmi2GetBooleanTYPE *get_boolean;
+    fmi2SetTimeTYPE *set_time;
+    fmi2SetContinuousStatesTYPE *set_states;
+    fmi2GetContinuousStatesTYPE *get_states;
+    fmi2GetDerivativesTYPE *get_derivatives;
+    fmi2GetEventIndicatorsTYPE *get_event_indicators;
+    fmi2GetNominalsOfContinuousStatesTYPE *get_nominals;
+    fmi2EnterEventModeTYPE *enter_event_mode;
+    fmi2NewDiscreteStatesTYPE *new_discrete_states;
+    fmi2EnterContinuousTimeModeTYPE *enter_continuous;
+    fmi2CompletedIntegratorStepTYPE *completed_step;
+} Fmi2;
+
+/* Set status codes (mirrored in rapid_cosim/simulator/compiled.py). */
+enum { RC_OK = 0, RC_SOLVER = 1, RC_FMI = 2, RC_NONFINITE = 3, RC_TIMEOUT = 4, RC_TERMINATED = 5 };
+
+#define MSG_LEN 256
+
+/* One batch: what rc_run reads. Arrays are row-major. */
+typedef struct {
+    int n_sets;
+    int n_params;
+    const fmi2ValueReference *param_vrs;
+    const double *param_values; /* n_sets x n_params */
+    int n_times;
+    const double *times;
+    int n_out;
+    const fmi2ValueReference *out_vrs;
+    const int *out_types; /* 0 Real, 1 Integer, 2 Boolean */
+    int n_inputs;
+    const fmi2ValueReference *input_vrs;
+    int n_rows;
+    const double *input_time;   /* n_rows */
+    const double *input_values; /* n_rows x n_inputs */
+    double start_time;
+    double timeout; /* seconds per set; <= 0: none */
+} Batch;
+
+typedef struct {
+    Sundials sun;
+    Fmi2 fmi;
+    void *fmu_lib;
+    void *sun_libs[5];
+    fmi2CallbackFunctions callbacks;
+    char *instance_name, *guid, *resource_uri;
+    fmi2Component c;
+    int fresh;
+    int n_states, n_dim, n_indicators;
+    double rtol;
+    SUNContext ctx;
+    void *mem;
+    N_Vector x, abstol;
+    double *px;
+    SUNMatrix matrix;
+    SUNLinearSolver solver;
+    double span[2];
+    int *root_info;
+    double *indicators;
+    /* the set being run */
+    const Batch *b;
+    int limit_row; /* first row of the next input step, -1 if none ahead */
+    double deadline;
+    int timed_out;
+    char message[MSG_LEN];
+    char fmu_log[MSG_LEN];
+    int fmi_failed;
+} Runner;
+
+static void set_message(Runner *r, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(r->message, MSG_LEN, fmt, ap);
+    va_end(ap);
+}
+
+static double now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ---- callbacks ---- */
+
+static void fmu_logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                       fmi2String message, ...) {
+    Runner *r = (Runner *)env;
+    va_list ap;
+    (void)name; (void)category;
+    if (!r || status < fmi2Warning) return;
+    va_start(ap, message);
+    vsnprintf(r->fmu_log, MSG_LEN, message, ap);
+    va_end(ap);
+}
+
+static void sundials_error(int line, const char *func, const char *file, const char *msg, int err_code,
+                           void *err_user_data, SUNContext ctx) {
+    Runner *r = (Runner *)err_user_data;
+    (void)line; (void)file; (void)ctx;
+    if (r && !r->timed_out) set_message(r, "%s: %s (flag %d)", func ? func : "CVODE", msg ? msg : "", err_code);
+}
+
+/* Input values at t, honouring the clamp before the next step (see the file comment). */
+static void input_at(const Runner *r, double t, double *u) {
+    const Batch *b = r->b;
+    const double *tt = b->input_time;
+    int n = b->n_rows, k = b->n_inputs, lo, hi, i, j;
+    if (r->limit_row >= 0 && t >= tt[r->limit_row]) {
+        memcpy(u, b->input_values + (size_t)r->limit_row * k, k * sizeof(double));
+        return;
+    }
+    if (t <= tt[0]) {  /* at the first time: after a step written there, if any */
+        i = 0;
+        while (i + 1 < n && tt[i + 1] <= t) i++;
+        memcpy(u, b->input_values + (size_t)i * k, k * sizeof(double));
+        return;
+    }
+    if (t >= tt[n - 1]) {
+        memcpy(u, b->input_values + (size_t)(n - 1) * k, k * sizeof(double));
+        return;
+    }
+    lo = 0; hi = n - 1; /* last row with time <= t: tt[lo] <= t < tt[hi] */
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (tt[mid] <= t) lo = mid; else hi = mid;
+    }
+    {
+        double w = (t - tt[lo]) / (tt[hi] - tt[lo]);
+        const double *a = b->input_values + (size_t)lo * k, *c = b->input_values + (size_t)hi * k;
+        for (j = 0; j < k; j++) u[j] = a[j] + w * (c[j] - a[j]);
+    }
+}
+
+static int set_inputs(Runner *r, double t) {
+    double u[64];
+    int k = r->b->n_inputs;
+    if (!k) return 0;
+    input_at(r, t, u);
+    return r->fmi.set_real(r->c, r->b->input_vrs, (size_t)k, u) >= fmi2Error;
+}
+
+static int check_clock(Runner *r) {
+    if (r->deadline > 0 && now() > r->deadline) r->timed_out = 1;
+    return r->timed_out;
+}
+
+static int rhs(double t, N_Vector y, N_Vector ydot, void *user_data) {
+    Runner *r = (Runner *)user_data;
+    double *dx = r->sun.N_VGetArrayPointer(ydot);
+    if (check_clock(r)) return -1; /* unrecoverable: CVODE returns at once */
+    if (!r->n_states) {
+        dx[0] = 0.0;
+        return 0;
+    }
+    if (r->fmi.set_time(r->c, t) >= fmi2Error || set_inputs(r, t)
+        || r->fmi.set_states(r->c, r->sun.N_VGetArrayPointer(y), (size_t)r->n_states) >= fmi2Error
+        || r->fmi.get_derivatives(r->c, dx, (size_t)r->n_states) >= fmi2Error)
+        return 1; /* recoverable: CVODE retries with a smaller step */
+    return 0;
+}
+
+static int roots(double t, N_Vector y, double *g, void *user_data) {
+    Runner *r = (Runner *)user_data;
+    if (r->fmi.set_time(r->c, t) >= fmi2Error || set_inputs(r, t)
+        || (r->n_states && r->fmi.set_states(r->c, r->sun.N_VGetArrayPointer(y), (size_t)r->n_states) >= fmi2Error)
+        || r->fmi.get_event_indicators(r->c, g, (size_t)r->n_indicators) >= fmi2Error)
+        return -1;
+    return 0;
+}
+
+/* ---- opening ---- */
+
+static void *sym(void *lib, const char *name, char *err, int err_len) {
+    void *p = dlsym(lib, name);
+    if (!p && err[0] == 0) snprintf(err, err_len, "symbol %s not found", name);
+    return p;
+}
+
+static int load_sundials(Runner *r, const char *const paths[5], char *err, int err_len) {
+    Sundials *s = &r->sun;
+    int i, major = 0, minor = 0, patch = 0;
+    char label[32] = "";
+    for (i = 0; i < 5; i++) {
+        r->sun_libs[i] = dlopen(paths[i], RTLD_NOW | RTLD_LOCAL);
+        if (!r->sun_libs[i]) {
+            snprintf(err, err_len, "cannot load SUNDIALS library %s: %s", paths[i], dlerror());
+            return 1;
+        }
+    }
+#define CORE(f) *(void **)(&s->f) = sym(r->sun_libs[0], #f, err, err_len)
+#define NVEC(f) *(void **)(&s->f) = sym(r->sun_libs[1], #f, err, err_len)
+#define MAT(f) *(void **)(&s->f) = sym(r->sun_libs[2], #f, err, err_len)
+#define LS(f) *(void **)(&s->f) = sym(r->sun_libs[3], #f, err, err_len)
+#define CV(f) *(void **)(&s->f) = sym(r->sun_libs[4], #f, err, err_len)
+    CORE(SUNDIALSGetVersionNumber); CORE(SUNContext_Create); CORE(SUNContext_Free);
+    CORE(SUNContext_ClearErrHandlers); CORE(SUNContext_PushErrHandler); CORE(N_VGetArrayPointer);
+    CORE(N_VDestroy); CORE(SUNMatDestroy); CORE(SUNLinSolFree);
+    NVEC(N_VNew_Serial);
+    MAT(SUNDenseMatrix);
+    LS(SUNLinSol_Dense);
+    CV(CVodeCreate); CV(CVodeInit); CV(CVodeReInit); CV(CVodeSVtolerances); CV(CVodeSetLinearSolver);
+    CV(CVodeSetMaxStep); CV(CVodeSetMaxNumSteps); CV(CVodeSetUserData); CV(CVodeRootInit);
+    CV(CVodeGetRootInfo); CV(CVodeSetNoInactiveRootWarn); CV(CVode); CV(CVodeFree);
+#undef CORE
+#undef NVEC
+#undef MAT
+#undef LS
+#undef CV
+    if (err[0]) return 1;
+    s->SUNDIALSGetVersionNumber(&major, &minor, &patch, label, (int)sizeof(label));
+    if (major != 7) {
+        snprintf(err, err_len, "SUNDIALS %d.%d.%d found; the runner is written for SUNDIALS 7", major, minor, patch);
+        return 1;
+    }
+    return 0;
+}
+
+static int load_fmu(Runner *r, const char *path, char *err, int err_len) {
+    Fmi2 *f = &r->fmi;
+    r->fmu_lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!r->fmu_lib) {
+        snprintf(err, err_len, "cannot load the FMU binary %s: %s", path, dlerror());
+        return 1;
+    }
+#define F(field, name) *(void **)(&f->field) = sym(r->fmu_lib, name, err, err_len)
+    F(instantiate, "fmi2Instantiate"); F(free_instance, "fmi2FreeInstance");
+    F(setup_experiment, "fmi2SetupExperiment"); F(enter_init, "fmi2EnterInitializationMode");
+    F(exit_init, "fmi2ExitInitializationMode"); F(reset, "fmi2Reset"); F(terminate, "fmi2Terminate");
+    F(set_real, "fmi2SetReal"); F(get_real, "fmi2GetReal"); F(get_integer, "fmi2GetInteger");
+    F(get_boolean, "fmi2GetBoolean"); F(set_time, "fmi2SetTime"); F(set_states, "fmi2SetContinuousStates");
+    F(get_states, "fmi2GetContinuousStates"); F(get_derivatives, "fmi2GetDerivatives");
+    F(get_event_indicators, "fmi2GetEventIndicators"); F(get_nominals, "fmi2GetNominalsOfContinuousStates");
+    F(enter_event_mode, "fmi2EnterEventMode"); F(new_discrete_states, "fmi2NewDiscreteStates");
+    F(enter_continuous, "fmi2EnterContinuousTimeMode"); F(completed_step, "fmi2CompletedIntegratorStep");
+#undef F
+    return err[0] != 0;
+}
+
+static int instantiate(Runner *r) {
+    r->c = r->fmi.instantiate(r->instance_name, fmi2ModelExchange, r->guid, r->resource_uri, &r->callbacks,
+                              fmi2False, fmi2False);
+    r->fresh = 1;
+    return r->c == NULL;
+}
+
+static char *copy(const char *s) {
+    size_t n = strlen(s ? s : "") + 1;
+    char *out = malloc(n);
+    if (out) memcpy(out, s ? s : "", n);
+    return out;
+}
+
+RC_EXPORT void rc_close(Runner *r);
+
+/* The FMU instantiated once and CVODE set up once; rc_run re-initialises both per set. */
+RC_EXPORT Runner *rc_open(const char *fmu_binary, const char *instance_name, const char *guid,
+                          const char *resource_uri, int n_states, int n_indicators, double rtol,
+                          const char *const sundials_paths[5], char *err, int err_len) {
+    Runner *r = calloc(1, sizeof(Runner));
+    int i;
+    double *tol;
+    double nominals[1024];
+    err[0] = 0;
+    if (!r) {
+        snprintf(err, err_len, "out of memory");
+        return NULL;
+    }
+    if (n_states > 1024) {
+        snprintf(err, err_len, "%d states; the runner handles up to 1024", n_states);
+        free(r);
+        return NULL;
+    }
+    r->n_states = n_states;
+    r->n_dim = n_states > 0 ? n_states : 1; /* CVODE needs one state; a stateless model gets a dummy */
+    r->n_indicators = n_indicators;
+    r->rtol = rtol;
+    r->instance_name = copy(instance_name);
+    r->guid = copy(guid);
+    r->resource_uri = copy(resource_uri);
+    r->callbacks.logger = fmu_logger;
+    r->callbacks.allocateMemory = calloc;
+    r->callbacks.freeMemory = free;
+    r->callbacks.componentEnvironment = r;
+    r->limit_row = -1;
+    if (load_sundials(r, sundials_paths, err, err_len) || load_fmu(r, fmu_binary, err, err_len)) goto fail;
+    if (instantiate(r)) {
+        snprintf(err, err_len, "fmi2Instantiate failed%s%s", r->fmu_log[0] ? ": " : "", r->fmu_log);
+        goto fail;
+    }
+    if (r->sun.SUNContext_Create(0, &r->ctx)) { snprintf(err, err_len, "SUNContext_Create failed"); goto fail; }
+    r->sun.SUNContext_ClearErrHandlers(r->ctx);
+    r->sun.SUNContext_PushErrHandler(r->ctx, sundials_error, r);
+    r->x = r->sun.N_VNew_Serial(r->n_dim, r->ctx);
+    r->abstol = r->sun.N_VNew_Serial(r->n_dim, r->ctx);
+    r->px = r->sun.N_VGetArrayPointer(r->x);
+    tol = r->sun.N_VGetArrayPointer(r->abstol);
+    for (i = 0; i < r->n_dim; i++) nominals[i] = 1.0;
+    if (n_states) r->fmi.get_nominals(r->c, nominals, (size_t)n_states);
+    for (i = 0; i < r->n_dim; i++) tol[i] = rtol * fabs(nominals[i]);
+    for (i = 0; i < r->n_dim; i++) r->px[i] = 0.0;
+    r->mem = r->sun.CVodeCreate(CV_BDF, r->ctx);
+    if (!r->mem || r->sun.CVodeInit(r->mem, rhs, 0.0, r->x) || r->sun.CVodeSVtolerances(r->mem, rtol, r->abstol)) {
+        snprintf(err, err_len, "setting up CVODE failed");
+        goto fail;
+    }
+    r->matrix = r->sun.SUNDenseMatrix(r->n_dim, r->n_dim, r->ctx);
+    r->solver = r->sun.SUNLinSol_Dense(r->x, r->matrix, r->ctx);
+    if (r->sun.CVodeSetLinearSolver(r->mem, r->solver, r->matrix) || r->sun.CVodeSetMaxNumSteps(r->mem, 5000)
+        || r->sun.CVodeSetUserData(r->mem, r)) {
+        snprintf(err, err_len, "setting up CVODE's linear solver failed");
+        goto fail;
+    }
+    if (n_indicators > 0) {
+        r->root_info = calloc((size_t)n_indicators, sizeof(int));
+        r->indicators = calloc((size_t)n_indicators, sizeof(double));
+        if (r->sun.CVodeRootInit(r->mem, n_indicators, roots)) {
+            snprintf(err, err_len, "CVodeRootInit failed");
+            goto fail;
+        }
+        r->sun.CVodeSetNoInactiveRootWarn(r->mem);
+    }
+    r->span[0] = r->span[1] = NAN;
+    return r;
+fail:
+    rc_close(r);
+    return NULL;
+}
+
+RC_EXPORT void rc_close(Runner *r) {
+    int i;
+    if (!r) return;
+    if (r->mem) r->sun.CVodeFree(&r->mem);
+    if (r->solver) r->sun.SUNLinSolFree(r->solver);
+    if (r->matrix) r->sun.SUNMatDestroy(r->matrix);
+    if (r->x) r->sun.N_VDestroy(r->x);
+    if (r->abstol) r->sun.N_VDestroy(r->abstol);
+    if (r->ctx) r->sun.SUNContext_Free(&r->ctx);
+    if (r->c) r->fmi.free_instance(r->c);
+    if (r->fmu_lib) dlclose(r->fmu_lib);
+    for (i = 0; i < 5; i++)
+        if (r->sun_libs[i]) dlclose(r->sun_libs[i]);
+    free(r->root_info);
+    free(r->indicators);
+    free(r->instance_name);
+    free(r->guid);
+    free(r->resource_uri);
+    free(r);
+}
+
+/* ---- one set ---- */
+
+#define FMI(call, what)                                                                  \
+    do {                                                                                 \
+        if ((call) >= fmi2Error) {                                                       \
+            set_message(r, "%s failed%s%s", what, r->fmu_log[0] ? ": " : "", r->fmu_log); \
+            return RC_FMI;                                                               \
+        }                                                                                \
+    } while (0)
+
+/* Event iteration (FMI 2.0, section 3.2.2): until no new discrete states are needed. */
+static int update_discrete(Runner *r, int *has_event, double *t_event) {
+    fmi2EventInfo info;
+    info.newDiscreteStatesNeeded = fmi2True;
+    info.terminateSimulation = fmi2False;
+    while (info.newDiscreteStatesNeeded) {
+        FMI(r->fmi.new_discrete_states(r->c, &info), "fmi2NewDiscreteStates");
+        if (info.terminateSimulation) {
+            set_message(r, "the model asked to terminate%s%s", r->fmu_log[0] ? ": " : "", r->fmu_log);
+            return RC_TERMINATED;
+        }
+    }
+    *has_event = info.nextEventTimeDefined != fmi2False;
+    *t_event = info.nextEventTime;
+    return RC_OK;
+}
+
+static int reinit(Runner *r, double t) {
+    if (r->n_states) FMI(r->fmi.get_states(r->c, r->px, (size_t)r->n_states), "fmi2GetContinuousStates");
+    else r->px[0] = 0.0;
+    if (r->sun.CVodeReInit(r->mem, t, r->x)) {
+        set_message(r, "CVodeReInit failed at t=%g", t);
+        return RC_SOLVER;
+    }
+    return RC_OK;
+}
+
+/* An event at the current time: event mode, iteration, back to continuous time. */
+static int handle_event(Runner *r, double t, int *has_event, double *t_event) {
+    int s;
+    FMI(r->fmi.enter_event_mode(r->c), "fmi2EnterEventMode");
+    if (set_inputs(r, t)) { set_message(r, "setting inputs failed at t=%g", t); return RC_FMI; }
+    if ((s = update_discrete(r, has_event, t_event))) return s;
+    FMI(r->fmi.enter_continuous(r->c), "fmi2EnterContinuousTimeMode");
+    return reinit(r, t);
+}
+
+/* The first row of the next input step strictly after t, or -1. */
+static int next_input_step(const Runner *r, double t) {
+    const Batch *b = r->b;
+    int i;
+    for (i = 0; i + 1 < b->n_rows; i++)
+        if (b->input_time[i] == b->input_time[i + 1] && b->input_time[i] > t) return i;
+    return -1;
+}
+
+/* Integrate to t_out; state events and step events met on the way are handled. */
+static int advance(Runner *r, double t_out, double *t, int *has_event, double *t_event) {
+    while (*t < t_out) {
+        double t_ret = *t;
+        int flag = r->sun.CVode(r->mem, t_out, r->x, &t_ret, CV_NORMAL), s;
+        fmi2Boolean enter = fmi2False, terminate = fmi2False;
+        if (flag < 0) {
+            if (r->timed_out) {
+                set_message(r, "over its %g s wall-clock budget at t=%g", r->b->timeout, t_ret);
+                return RC_TIMEOUT;
+            }
+            if (!r->message[0]) set_message(r, "CVODE failed (flag %d) near t=%g", flag, t_ret);
+            else {
+                char detail[MSG_LEN];
+                memcpy(detail, r->message, MSG_LEN);
+                set_message(r, "CVODE failed near t=%g: %s", t_ret, detail);
+            }
+            return RC_SOLVER;
+        }
+        if (r->n_states) FMI(r->fmi.set_states(r->c, r->px, (size_t)r->n_states), "fmi2SetContinuousStates");
+        FMI(r->fmi.set_time(r->c, t_ret), "fmi2SetTime");
+        *t = t_ret;
+        if (flag == CV_ROOT_RETURN) {
+            if (set_inputs(r, t_ret)) { set_message(r, "setting inputs failed at t=%g", t_ret); return RC_FMI; }
+            if ((s = handle_event(r, t_ret, has_event, t_event))) return s;
+            continue;
+        }
+        if (r->n_indicators) {
+            FMI(r->fmi.completed_step(r->c, fmi2True, &enter, &terminate), "fmi2CompletedIntegratorStep");
+            if (terminate) { set_message(r, "the model asked to terminate at t=%g", t_ret); return RC_TERMINATED; }
+            if (enter && (s = handle_event(r, t_ret, has_event, t_event))) return s;
+        }
+        break;
+    }
+    return RC_OK;
+}
+
+static int read_outputs(Runner *r, double *row) {
+    const Batch *b = r->b;
+    int j;
+    for (j = 0; j < b->n_out; j++) {
+        fmi2ValueReference vr = b->out_vrs[j];
+        if (b->out_types[j] == 0) {
+            FMI(r->fmi.get_real(r->c, &vr, 1, &row[j]), "fmi2GetReal");
+        } else if (b->out_types[j] == 1) {
+            fmi2Integer v;
+            FMI(r->fmi.get_integer(r->c, &vr, 1, &v), "fmi2GetInteger");
+            row[j] = (double)v;
+        } else {
+            fmi2Boolean v;
+            FMI(r->fmi.get_boolean(r->c, &vr, 1, &v), "fmi2GetBoolean");
+            row[j] = v ? 1.0 : 0.0;
+        }
+        if (!isfinite(row[j])) {
+            set_message(r, "output %d is %g", j, row[j]);
+            return RC_NONFINITE;
+        }
+    }
+    return RC_OK;
+}
+
+static int run_set(Runner *r, const double *params, double *out, double *t_reached) {
+    const Batch *b = r->b;
+    int has_event = 0, k, s, all_real = 1, step_row;
+    double t_event = 0.0, t = b->start_time, max_step;
+    for (k = 0; k < b->n_out; k++) all_real &= b->out_types[k] == 0;
+    *t_reached = t;
+    if (!r->fresh) FMI(r->fmi.reset(r->c), "fmi2Reset");
+    r->fresh = 0;
+    r->limit_row = -1;
+    FMI(r->fmi.setup_experiment(r->c, fmi2False, 0.0, b->start_time, fmi2False, 0.0), "fmi2SetupExperiment");
+    if (b->n_params) FMI(r->fmi.set_real(r->c, b->param_vrs, (size_t)b->n_params, params), "fmi2SetReal (parameters)");
+    if (set_inputs(r, t)) { set_message(r, "setting inputs failed at the start"); return RC_FMI; }
+    FMI(r->fmi.enter_init(r->c), "fmi2EnterInitializationMode");
+    FMI(r->fmi.exit_init(r->c), "fmi2ExitInitializationMode");
+    if ((s = update_discrete(r, &has_event, &t_event))) return s;
+    FMI(r->fmi.enter_continuous(r->c), "fmi2EnterContinuousTimeMode");
+    max_step = (b->times[b->n_times - 1] - b->start_time) / 50.0;
+    if (r->span[0] != b->start_time || r->span[1] != b->times[b->n_times - 1]) {
+        r->sun.CVodeSetMaxStep(r->mem, max_step);
+        r->span[0] = b->start_time;
+        r->span[1] = b->times[b->n_times - 1];
+    }
+    if ((s = reinit(r, t))) return s;
+    step_row = b->n_inputs ? next_input_step(r, t) : -1;
+    r->limit_row = step_row;
+    for (k = 0; k < b->n_times; k++) {
+        double tk = b->times[k], reach = tk + 1e-12 * fmax(1.0, fabs(tk));
+        for (;;) { /* time events up to tk: the FMU's and the input's steps, earliest first */
+            double ts = step_row >= 0 ? b->input_time[step_row] : INFINITY;
+            double te = has_event ? t_event : INFINITY;
+            double next = te < ts ? te : ts;
+            if (!(next <= reach)) break;
+            if (next > t && (s = advance(r, next, &t, &has_event, &t_event))) return s;
+            if (ts <= next) r->limit_row = step_row = next_input_step(r, ts); /* the step is taken now */
+            if ((s = handle_event(r, t, &has_event, &t_event))) return s;
+        }
+        if (tk > t && (s = advance(r, tk, &t, &has_event, &t_event))) return s;
+        *t_reached = t;
+        if (b->n_inputs && set_inputs(r, t)) { set_message(r, "setting inputs failed at t=%g", t); return RC_FMI; }
+        if (all_real) {
+            FMI(r->fmi.get_real(r->c, b->out_vrs, (size_t)b->n_out, out + (size_t)k * b->n_out), "fmi2GetReal");
+            for (s = 0; s < b->n_out; s++)
+                if (!isfinite(out[(size_t)k * b->n_out + s])) {
+                    set_message(r, "output %d is %g at t=%g", s, out[(size_t)k * b->n_out + s], t);
+                    return RC_NONFINITE;
+                }
+        } else if ((s = read_outputs(r, out + (size_t)k * b->n_out))) {
+            return s;
+        }
+        if (check_clock(r)) {
+            set_message(r, "over its %g s wall-clock budget at t=%g", b->timeout, t);
+            return RC_TIMEOUT;
+        }
+    }
+    r->fmi.terminate(r->c);
+    return RC_OK;
+}
+
+/* After a failure the instance may be in any state: reset it, or make a new one. */
+static void recover(Runner *r) {
+    if (r->fmi.reset(r->c) < fmi2Error) {
+        r->fresh = 1;
+        return;
+    }
+    r->fmi.free_instance(r->c);
+    r->c = NULL;
+    instantiate(r);
+}
+
+/* Run every set of the batch. out: n_sets x n_times x n_out (NaN after a failure);
+ * status and t_reached: one per set; messages: n_sets x MSG_LEN. Returns the number of
+ * failed sets, or -1 if the instance could not be re-created (the rest then fail). */
+RC_EXPORT int rc_run(Runner *r, const Batch *b, double *out, int *status, double *t_reached, char *messages) {
+    int i, failed = 0;
+    size_t per_set = (size_t)b->n_times * b->n_out, j;
+    r->b = b;
+    if (b->n_inputs > 64) return -2;
+    for (i = 0; i < b->n_sets; i++) {
+        double *o = out + per_set * i;
+        r->message[0] = 0;
+        r->fmu_log[0] = 0;
+        r->timed_out = 0;
+        if (!r->c) {
+            status[i] = RC_FMI;
+            snprintf(messages + (size_t)MSG_LEN * i, MSG_LEN, "the FMU could not be instantiated again");
+            for (j = 0; j < per_set; j++) o[j] = NAN;
+            failed++;
+            continue;
+        }
+        r->deadline = b->timeout > 0 ? now() + b->timeout : 0.0;
+        status[i] = run_set(r, b->param_values + (size_t)b->n_params * i, o, &t_reached[i]);
+        memcpy(messages + (size_t)MSG_LEN * i, r->message, MSG_LEN);
+        if (status[i] != RC_OK) {
+            for (j = 0; j < per_set; j++) o[j] = NAN;
+            failed++;
+            recover(r);
+        }
+    }
+    r->b = NULL;
+    return r->c ? failed : -1;
+}
+
+RC_EXPORT int rc_msg_len(void) { return MSG_LEN; }

@@ -1,0 +1,223 @@
+"""FMU -> trajectories: one simulator per FMU and process, single runs and batches.
+
+Two runners do the work: ``"compiled"`` (:mod:`.compiled`, the default: a whole batch in
+one C call) and ``"python"`` (:mod:`.reference`, the Python loop it is checked against,
+and what archives made before the compiled runner record). Both record outputs at given
+times (the measured samples, so no interpolation stands between model and data) or on a
+grid, with values at a time event being those after it.
+
+A failed set is never an exception inside a batch: it gets a status and a message (and
+NaN outputs), and the rest of the batch runs. :meth:`Simulator.simulate` runs one set
+and raises :class:`SimulationError` or :class:`SimulationTimeout` instead.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..errors import ParameterError, SimulationError, SimulationTimeout
+from . import compiled
+from .fmu import FmuRef, LoadedFmu, ParameterInfo, cache_key
+from .inputs import InputTable
+
+RUNNERS = ("compiled", "python")
+DEFAULT_RUNNER = "compiled"
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    time: np.ndarray
+    outputs: dict[str, np.ndarray]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.outputs[name]
+
+
+@dataclass(frozen=True, eq=False)
+class BatchResult:
+    """Outputs of many parameter sets on one time base: ``values`` is (sets, times, outputs)."""
+
+    time: np.ndarray
+    outputs: tuple[str, ...]
+    values: np.ndarray
+    status: np.ndarray  # runner status per set, 0 = ok (see compiled.STATUS_NAMES)
+    messages: tuple[str, ...]
+
+    @property
+    def ok(self) -> np.ndarray:
+        return self.status == compiled.OK
+
+    def trajectory(self, i: int = 0) -> Trajectory:
+        return Trajectory(self.time, {n: self.values[i, :, j] for j, n in enumerate(self.outputs)})
+
+
+def check_runner(runner: str) -> str:
+    if runner not in RUNNERS:
+        raise ParameterError(f"unknown runner {runner!r}; choose one of {', '.join(RUNNERS)}")
+    return runner
+
+
+def time_base(start_time: float, stop_time: float | None, output_interval: float | None,
+                 times: np.ndarray | None) -> np.ndarray:
+    """The given increasing ``times``, or the grid start + k * interval continued to the
+    first point at or after ``stop_time``."""
+    if times is not None:
+        t = np.asarray(times, dtype=float)
+        if t.ndim != 1 or t.size == 0 or np.any(np.diff(t) <= 0) or t[0] < start_time:
+            raise ParameterError("output_times must be increasing and start at or after start_time")
+        return t
+    if stop_time is None or output_interval is None or not output_interval > 0:
+        raise ParameterError("give stop_time and a positive output_interval, or output_times")
+    n_points = max(math.ceil((stop_time - start_time) / output_interval - 1e-9), 1)
+    return start_time + output_interval * np.arange(n_points + 1)
+
+
+class Simulator:
+    """A Model Exchange FMU ready to run many times with different parameters."""
+
+    def __init__(self, fmu: str | Path, *, timeout: float | None = None, relative_tolerance: float = 1e-6,
+                 runner: str = DEFAULT_RUNNER):
+        self.fmu = LoadedFmu(fmu)
+        self.path = self.fmu.path
+        self.timeout = timeout
+        self.relative_tolerance = relative_tolerance
+        self.runner = check_runner(runner)
+        self._runners: dict[str, object] = {}
+
+    # the FMU's declarations
+    name = property(lambda self: self.fmu.name)
+    model_description = property(lambda self: self.fmu.model_description)
+    parameters: dict[str, ParameterInfo] = property(lambda self: self.fmu.parameters)  # type: ignore[assignment]
+    outputs = property(lambda self: self.fmu.outputs)
+    inputs = property(lambda self: self.fmu.inputs)
+    variables = property(lambda self: self.fmu.variables)
+
+    def check_parameters(self, values: Mapping[str, float]) -> dict[str, float]:
+        return self.fmu.check_parameters(values)
+
+    def _runner(self, runner: str | None):
+        name = check_runner(runner or self.runner)
+        if name not in self._runners:
+            if name == "compiled":
+                self._runners[name] = compiled.CompiledRunner(self.fmu, self.relative_tolerance)
+            else:
+                from .reference import ReferenceLoop
+
+                self._runners[name] = ReferenceLoop(self.fmu, self.relative_tolerance)
+        return name, self._runners[name]
+
+    def _input_table(self, input_time, inputs) -> InputTable | None:
+        if isinstance(inputs, InputTable):
+            table = inputs
+        elif inputs:
+            table = InputTable.from_columns(input_time, inputs)
+        else:
+            table = None
+        if table is None:
+            if self.inputs:
+                raise ParameterError(f"{self.name} has inputs {', '.join(self.inputs)}; give them values")
+            return None
+        self.fmu.check_inputs(table.names)
+        return table
+
+    def simulate_batch(self, names: Sequence[str], values, *, output_times: np.ndarray | None = None,
+                       stop_time: float | None = None, output_interval: float | None = None,
+                       outputs: Sequence[str] | None = None, start_time: float = 0.0,
+                       input_time: np.ndarray | None = None, inputs: Mapping[str, np.ndarray] | InputTable | None = None,
+                       runner: str | None = None, check: bool = True) -> BatchResult:
+        """Run each row of ``values`` (sets x len(names)) from ``start_time``.
+
+        ``inputs`` (or an :class:`InputTable`) are sampled at ``input_time``, linear between
+        rows; a repeated time is a step. ``check`` validates every value against the
+        declared ranges (callers that checked their bounds once may skip it).
+        """
+        names = list(names)
+        values = np.asarray(values, dtype=float)
+        values = values.reshape(max(values.shape[0], 1) if values.ndim else 1, len(names))
+        if check:
+            for row in values:
+                self.check_parameters(dict(zip(names, row)))
+        record = list(outputs) if outputs is not None else list(self.outputs)
+        types = self.fmu.output_types(record)
+        times = time_base(start_time, stop_time, output_interval, output_times)
+        table = self._input_table(input_time, inputs)
+        kind, run = self._runner(runner)
+        if kind == "compiled":
+            out, status, _, messages = run.run(names, values, record, types, start_time, times, table, self.timeout)
+        else:
+            out, status, messages = self._run_reference(run, names, values, record, types, start_time, times,
+                                                        table)
+        described = tuple(m and f"{self.name} failed with {_describe(dict(zip(names, row)))}: {m}"
+                          for m, row in zip(messages, values))
+        return BatchResult(times, tuple(record), out, np.asarray(status), described)
+
+    def _run_reference(self, loop, names, values, record, types, start_time, times, table):
+        out = np.full((values.shape[0], times.size, len(record)), np.nan)
+        status = np.zeros(values.shape[0], dtype=np.int32)
+        messages = []
+        for i, row in enumerate(values):
+            try:
+                out[i] = loop.run(dict(zip(names, row.tolist())), record, types, start_time, times, table,
+                                  self.timeout)
+                if not np.all(np.isfinite(out[i])):
+                    status[i], out[i] = compiled.NONFINITE, np.nan
+                    messages.append("an output is not finite")
+                    continue
+                messages.append("")
+            except SimulationTimeout as e:
+                status[i] = compiled.TIMEOUT
+                messages.append(str(e))
+            except Exception as e:  # fmpy raises bare Exceptions for FMI errors and CVode failures
+                status[i] = compiled.SOLVER
+                messages.append(str(e))
+        return out, status, messages
+
+    def simulate(self, parameters: Mapping[str, float] | None = None, *, stop_time: float | None = None,
+                 output_interval: float | None = None, output_times: np.ndarray | None = None,
+                 outputs: Sequence[str] | None = None, start_time: float = 0.0,
+                 input_time: np.ndarray | None = None, inputs: Mapping[str, np.ndarray] | InputTable | None = None,
+                 check: bool = True, runner: str | None = None) -> Trajectory:
+        """One run; see :meth:`simulate_batch`. A failure raises :class:`SimulationError`
+        (:class:`SimulationTimeout` for the wall-clock budget)."""
+        params = self.check_parameters(parameters or {}) if check else dict(parameters or {})
+        result = self.simulate_batch(list(params), np.array([list(params.values())]), output_times=output_times,
+                                     stop_time=stop_time, output_interval=output_interval, outputs=outputs,
+                                     start_time=start_time, input_time=input_time, inputs=inputs, runner=runner,
+                                     check=False)
+        status = int(result.status[0])
+        if status == compiled.TIMEOUT:
+            raise SimulationTimeout(f"{result.messages[0]} (time-out {self.timeout} s)")
+        if status != compiled.OK:
+            raise SimulationError(result.messages[0])
+        return result.trajectory(0)
+
+    def close(self) -> None:
+        for r in self._runners.values():
+            r.close()
+        self._runners.clear()
+        self.fmu.close()
+
+
+def _describe(params: Mapping[str, float]) -> str:
+    return ", ".join(f"{k}={v:.6g}" for k, v in params.items()) or "default parameters"
+
+
+# The package's only global state: per process, the simulators of the FMUs it has loaded.
+_CACHE: dict[tuple, Simulator] = {}
+
+
+def get_simulator(fmu: str | Path | FmuRef, *, timeout: float | None = None) -> Simulator:
+    """The process's simulator for ``fmu``: loaded once, again only if the file changed."""
+    key, path = cache_key(fmu)
+    sim = _CACHE.get(key)
+    if sim is None:
+        for old in [k for k in _CACHE if k[0] == key[0] and k[0] != "sha256"]:
+            _CACHE.pop(old).close()
+        sim = _CACHE[key] = Simulator(path, timeout=timeout)
+    sim.timeout = timeout
+    return sim
