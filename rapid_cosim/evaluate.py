@@ -21,9 +21,9 @@ from typing import Mapping
 import joblib
 import numpy as np
 
-from .errors import RapidCosimError, SimulationError
+from .errors import RapidCosimError
 from .search import Evaluations
-from .experiment import Experiment, Problem, assign_parameters
+from .experiment import Experiment, Problem
 from .fitness import ExperimentFit, arssd, batch_rssd, experiment_fitness
 from .simulator import DEFAULT_RUNNER, FmuRef, Trajectory, check_runner, get_simulator
 
@@ -68,23 +68,33 @@ def simulate_experiment(exp: Experiment, fmu: FmuRef | str, params: Mapping[str,
                         outputs=list(exp.outputs), runner=runner)
 
 
-def simulate_batch(exp: Experiment, fmu: FmuRef | str, assignment, X: np.ndarray, runner: str | None = None):
-    """Every row of ``X`` (search points) simulated for ``exp`` in one runner call, at the
-    measured samples inside its fitness window."""
-    names = list(exp.fixed) + [name for name, _ in assignment]
-    values = np.empty((X.shape[0], len(names)))
-    values[:, :len(exp.fixed)] = list(exp.fixed.values())
-    for k, (_, j) in enumerate(assignment):
-        values[:, len(exp.fixed) + k] = X[:, j]
-    s = exp.simulation
-    sim = get_simulator(fmu, timeout=s.timeout)
-    return sim.simulate_batch(names, values, start_time=s.start_time, output_times=exp.windowed_data().time,
-                              outputs=list(exp.outputs), runner=runner, check=False)
+class ExperimentBatch:
+    """One experiment's simulations at the measured samples inside its fitness window,
+    prepared once: each call maps search points to parameter values and runs them."""
+
+    def __init__(self, exp: Experiment, fmu: FmuRef | str, assignment, runner: str | None = None):
+        self.exp = exp
+        self.fixed = np.array(list(exp.fixed.values()), dtype=float)
+        self.columns = [j for _, j in assignment]
+        s = exp.simulation
+        self.prepared = get_simulator(fmu, timeout=s.timeout).prepare(
+            list(exp.fixed) + [name for name, _ in assignment], start_time=s.start_time,
+            output_times=exp.windowed_data().time, outputs=list(exp.outputs), runner=runner)
+
+    def __call__(self, X: np.ndarray):
+        values = np.empty((X.shape[0], self.fixed.size + len(self.columns)))
+        values[:, :self.fixed.size] = self.fixed
+        values[:, self.fixed.size:] = X[:, self.columns]
+        return self.prepared.run(values)
 
 
-def _score_chunk(payload: Payload, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def _score_chunk(payload: Payload, X: np.ndarray, batches: list[ExperimentBatch] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Worker: (rssd (n, E), failed (n,), failure messages). A set that fails in one
-    experiment is not simulated in the next."""
+    experiment is not simulated in the next. ``batches`` are the prepared experiments
+    when the caller keeps them (in-process calls); a worker prepares its own."""
+    if batches is None:
+        batches = _prepare(payload)
     n, n_exp = X.shape[0], len(payload.experiments)
     rssd = np.full((n, n_exp), np.inf)
     failed = np.zeros(n, dtype=bool)
@@ -93,9 +103,12 @@ def _score_chunk(payload: Payload, X: np.ndarray) -> tuple[np.ndarray, np.ndarra
     for i, exp in enumerate(payload.experiments):
         if not alive.size:
             break
-        batch = simulate_batch(exp, payload.fmus[i], payload.assignments[i], X[alive], payload.runner)
+        batch = batches[i](X[alive])
         scores = batch_rssd(exp, batch.values)
         ok = batch.ok & np.isfinite(scores)
+        if ok.all():
+            rssd[alive, i] = scores
+            continue
         rssd[alive[ok], i] = scores[ok]
         for k in np.flatnonzero(~ok):
             messages.append(f"{exp.name}: {batch.messages[k] or 'the simulated output is not finite at scored samples'}")
@@ -103,6 +116,11 @@ def _score_chunk(payload: Payload, X: np.ndarray) -> tuple[np.ndarray, np.ndarra
         alive = alive[ok]
     rssd[failed] = np.inf
     return rssd, failed, messages
+
+
+def _prepare(payload: Payload) -> list[ExperimentBatch]:
+    return [ExperimentBatch(exp, payload.fmus[i], payload.assignments[i], payload.runner)
+            for i, exp in enumerate(payload.experiments)]
 
 
 class ProblemObjective:
@@ -124,6 +142,7 @@ class ProblemObjective:
         self.payload = Payload(problem.experiments, tuple(fmus[e.model] for e in problem.experiments),
                                problem.assignments, check_runner(runner))
         self.failures = FailureLog()
+        self._batches: list[ExperimentBatch] | None = None  # prepared once for in-process calls
         self.n_evaluations = 0
         self.simulation_seconds = 0.0  # wall time spent inside evaluation calls
 
@@ -141,7 +160,9 @@ class ProblemObjective:
     def _score(self, X: np.ndarray):
         workers = self._workers()
         if workers == 1 or X.shape[0] == 1 or self.backend == "sequential":
-            return _score_chunk(self.payload, X)
+            if self._batches is None:
+                self._batches = _prepare(self.payload)
+            return _score_chunk(self.payload, X, self._batches)
         chunks = [c for c in np.array_split(np.arange(X.shape[0]), min(workers, X.shape[0])) if c.size]
         with joblib.parallel_config(backend=self.backend, n_jobs=self.n_jobs):
             parts = joblib.Parallel()(joblib.delayed(_score_chunk)(self.payload, X[c]) for c in chunks)

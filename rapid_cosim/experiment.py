@@ -140,6 +140,13 @@ class ScoredSamples:
     valid: np.ndarray
     weights: np.ndarray
 
+    @functools.cached_property
+    def columns(self) -> tuple[tuple[int, np.ndarray, np.ndarray], ...]:
+        """Per output of positive weight: its column, the indices of its valid samples and
+        their measured values (what a batch is scored on)."""
+        return tuple((j, np.flatnonzero(self.valid[:, j]), self.measured[self.valid[:, j], j])
+                     for j in range(len(self.outputs)) if self.weights[j] > 0)
+
 
 @dataclass(frozen=True, eq=False)
 class Experiment:

@@ -112,16 +112,25 @@ def _batch_fit(y, yhat, ok, w, offset: bool, residuals: bool = False):
 def batch_rssd(exp: Experiment, simulated: np.ndarray) -> np.ndarray:
     """RSSD of each simulation of ``exp`` in a batch: ``simulated`` is (sets, samples,
     outputs) at the measured samples inside the window, outputs in ``exp.outputs``
-    order. A set with a non-finite value where it is scored gets ``inf``."""
+    order. A set with a non-finite value where it is scored gets ``inf``.
+
+    The same arithmetic as :func:`fit_outputs` (rows gathered contiguously, outputs
+    accumulated in order), so each set scores bit for bit as it would alone; written
+    out here because the estimators call it thousands of times with small batches.
+    """
     scored = exp.scored
     yhat = np.asarray(simulated, dtype=np.float64)
     if yhat.ndim != 3 or yhat.shape[1:] != scored.measured.shape:
         raise ValueError(f"{exp.name}: simulated {yhat.shape}, expected (sets, {scored.measured.shape[0]}, "
                          f"{scored.measured.shape[1]})")
-    bad = np.any(scored.valid[None] & ~np.isfinite(yhat), axis=(1, 2))
-    total = _batch_fit(scored.measured, np.where(bad[:, None, None], 0.0, yhat), scored.valid,
-                       _weights(scored.weights, len(scored.outputs)), exp.offset)[0]
-    total[bad] = np.inf
+    total = np.zeros(yhat.shape[0])
+    for j, index, y in scored.columns:
+        r = y - np.take(yhat[:, :, j], index, axis=1)
+        if exp.offset:
+            r -= r.mean(axis=1)[:, None]
+        total += scored.weights[j] * np.mean(r * r, axis=1)
+    total /= np.sum(scored.weights[scored.weights > 0])
+    total[~np.isfinite(total)] = np.inf
     return total
 
 

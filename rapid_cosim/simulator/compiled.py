@@ -145,36 +145,9 @@ class CompiledRunner:
             raise SimulationError(f"{fmu.name}: the compiled runner could not open the FMU: {err.value.decode()}")
         self._msg_len = lib.rc_msg_len()
 
-    def run(self, param_names: list[str], values: np.ndarray, names: list[str], types: list[int],
-            start_time: float, times: np.ndarray, inputs: InputTable | None, timeout: float | None):
-        """(outputs (sets, times, names), status (sets,), times reached, messages)."""
-        vr = self.fmu.value_references
-        values = np.ascontiguousarray(values, dtype=float)  # (sets, parameters)
-        n = values.shape[0]
-        times = np.ascontiguousarray(times, dtype=float)
-        param_vrs = np.array([vr[p] for p in param_names], dtype=np.uint32)
-        out_vrs = np.array([vr[o] for o in names], dtype=np.uint32)
-        out_types = np.array(types, dtype=np.int32)
-        batch = _Batch(n_sets=n, n_params=len(param_names), param_vrs=_ptr(param_vrs, c_uint),
-                       param_values=_ptr(values, c_double), n_times=times.size, times=_ptr(times, c_double),
-                       n_out=len(names), out_vrs=_ptr(out_vrs, c_uint), out_types=_ptr(out_types, c_int),
-                       start_time=start_time, timeout=timeout or 0.0)
-        if inputs is not None:
-            if len(inputs.names) > 64:
-                raise SimulationError(f"{self.fmu.name}: the runner drives at most 64 inputs")
-            input_vrs = np.array([vr[i] for i in inputs.names], dtype=np.uint32)
-            batch.n_inputs, batch.input_vrs, batch.n_rows = len(inputs.names), _ptr(input_vrs, c_uint), inputs.time.size
-            batch.input_time, batch.input_values = _ptr(inputs.time, c_double), _ptr(inputs.values, c_double)
-        out = np.empty((n, times.size, len(names)))
-        status = np.zeros(n, dtype=np.int32)
-        reached = np.zeros(n)
-        messages = ctypes.create_string_buffer(self._msg_len * max(n, 1))
-        self._lib.rc_run(self._handle, ctypes.byref(batch), _ptr(out, c_double), _ptr(status, c_int),
-                         _ptr(reached, c_double), messages)
-        raw = messages.raw
-        texts = [raw[i * self._msg_len:(i + 1) * self._msg_len].split(b"\0", 1)[0].decode(errors="replace")
-                 for i in range(n)]
-        return out, status, reached, texts
+    def prepare(self, param_names: list[str], names: list[str], types: list[int], start_time: float,
+                times: np.ndarray, inputs: InputTable | None, timeout: float | None) -> "PreparedRun":
+        return PreparedRun(self, param_names, names, types, start_time, times, inputs, timeout)
 
     def close(self) -> None:
         if self._handle:
@@ -186,3 +159,48 @@ class CompiledRunner:
             self.close()
         except Exception:
             pass
+
+
+class PreparedRun:
+    """A batch whose shape is fixed (parameters set, outputs, times, inputs): the C
+    structure is filled once, each call only points it at new values."""
+
+    def __init__(self, runner: CompiledRunner, param_names, names, types, start_time, times, inputs, timeout):
+        vr = runner.fmu.value_references
+        self.runner = runner
+        self._keep = [np.array([vr[p] for p in param_names], dtype=np.uint32),
+                      np.ascontiguousarray(times, dtype=float), np.array([vr[o] for o in names], dtype=np.uint32),
+                      np.array(types, dtype=np.int32)]
+        self.n_params, self.n_times, self.n_out = len(param_names), len(self._keep[1]), len(names)
+        b = self._batch = _Batch(n_params=self.n_params, param_vrs=_ptr(self._keep[0], c_uint), n_times=self.n_times,
+                                 times=_ptr(self._keep[1], c_double), n_out=self.n_out,
+                                 out_vrs=_ptr(self._keep[2], c_uint), out_types=_ptr(self._keep[3], c_int),
+                                 start_time=start_time, timeout=timeout or 0.0)
+        if inputs is not None:
+            if len(inputs.names) > 64:
+                raise SimulationError(f"{runner.fmu.name}: the runner drives at most 64 inputs")
+            input_vrs = np.array([vr[i] for i in inputs.names], dtype=np.uint32)
+            self._keep += [input_vrs, inputs]
+            b.n_inputs, b.input_vrs, b.n_rows = len(inputs.names), _ptr(input_vrs, c_uint), inputs.time.size
+            b.input_time, b.input_values = _ptr(inputs.time, c_double), _ptr(inputs.values, c_double)
+
+    def __call__(self, values: np.ndarray):
+        """(outputs (sets, times, outputs), status (sets,), messages) for the rows of ``values``."""
+        if not self.runner._handle:
+            raise SimulationError(f"{self.runner.fmu.name}: the runner was closed (the FMU was reloaded)")
+        values = np.ascontiguousarray(values, dtype=float)
+        n = values.shape[0]
+        b = self._batch
+        b.n_sets, b.param_values = n, _ptr(values, c_double)
+        out = np.empty((n, self.n_times, self.n_out))
+        status = np.zeros(n, dtype=np.int32)
+        reached = np.zeros(n)
+        size = self.runner._msg_len
+        messages = ctypes.create_string_buffer(size * max(n, 1))
+        failed = self.runner._lib.rc_run(self.runner._handle, ctypes.byref(b), _ptr(out, c_double),
+                                         _ptr(status, c_int), _ptr(reached, c_double), messages)
+        texts = [""] * n
+        if failed:
+            raw = messages.raw
+            texts = [raw[i * size:(i + 1) * size].split(b"\0", 1)[0].decode(errors="replace") for i in range(n)]
+        return out, status, texts

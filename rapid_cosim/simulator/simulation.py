@@ -125,36 +125,35 @@ class Simulator:
         self.fmu.check_inputs(table.names)
         return table
 
-    def simulate_batch(self, names: Sequence[str], values, *, output_times: np.ndarray | None = None,
-                       stop_time: float | None = None, output_interval: float | None = None,
-                       outputs: Sequence[str] | None = None, start_time: float = 0.0,
-                       input_time: np.ndarray | None = None, inputs: Mapping[str, np.ndarray] | InputTable | None = None,
-                       runner: str | None = None, check: bool = True) -> BatchResult:
-        """Run each row of ``values`` (sets x len(names)) from ``start_time``.
-
-        ``inputs`` (or an :class:`InputTable`) are sampled at ``input_time``, linear between
-        rows; a repeated time is a step. ``check`` validates every value against the
-        declared ranges (callers that checked their bounds once may skip it).
-        """
-        names = list(names)
-        values = np.asarray(values, dtype=float)
-        values = values.reshape(max(values.shape[0], 1) if values.ndim else 1, len(names))
-        if check:
-            for row in values:
-                self.check_parameters(dict(zip(names, row)))
+    def prepare(self, names: Sequence[str], *, output_times: np.ndarray | None = None,
+                stop_time: float | None = None, output_interval: float | None = None,
+                outputs: Sequence[str] | None = None, start_time: float = 0.0,
+                input_time: np.ndarray | None = None, inputs: Mapping[str, np.ndarray] | InputTable | None = None,
+                runner: str | None = None) -> "PreparedBatch":
+        """A batch whose parameters set, outputs, times and inputs are fixed, to be run
+        with many value tables (see :meth:`simulate_batch`)."""
         record = list(outputs) if outputs is not None else list(self.outputs)
         types = self.fmu.output_types(record)
         times = time_base(start_time, stop_time, output_interval, output_times)
         table = self._input_table(input_time, inputs)
         kind, run = self._runner(runner)
+        names = list(names)
         if kind == "compiled":
-            out, status, _, messages = run.run(names, values, record, types, start_time, times, table, self.timeout)
+            call = run.prepare(names, record, types, start_time, times, table, self.timeout)
         else:
-            out, status, messages = self._run_reference(run, names, values, record, types, start_time, times,
-                                                        table)
-        described = tuple(m and f"{self.name} failed with {_describe(dict(zip(names, row)))}: {m}"
-                          for m, row in zip(messages, values))
-        return BatchResult(times, tuple(record), out, np.asarray(status), described)
+            def call(values):
+                return self._run_reference(run, names, values, record, types, start_time, times, table)
+        return PreparedBatch(self, names, tuple(record), times, call)
+
+    def simulate_batch(self, names: Sequence[str], values, *, check: bool = True, **kwargs) -> BatchResult:
+        """Run each row of ``values`` (sets x len(names)) from ``start_time``; the keywords
+        are those of :meth:`prepare`.
+
+        ``inputs`` (or an :class:`InputTable`) are sampled at ``input_time``, linear between
+        rows; a repeated time is a step. ``check`` validates every value against the
+        declared ranges (callers that checked their bounds once may skip it).
+        """
+        return self.prepare(names, **kwargs).run(values, check=check)
 
     def _run_reference(self, loop, names, values, record, types, start_time, times, table):
         out = np.full((values.shape[0], times.size, len(record)), np.nan)
@@ -201,6 +200,24 @@ class Simulator:
             r.close()
         self._runners.clear()
         self.fmu.close()
+
+
+class PreparedBatch:
+    """What :meth:`Simulator.prepare` returns: call :meth:`run` with a value table."""
+
+    def __init__(self, sim: Simulator, names: list[str], outputs: tuple[str, ...], times: np.ndarray, call):
+        self.sim, self.names, self.outputs, self.time, self._call = sim, names, outputs, times, call
+
+    def run(self, values, check: bool = False) -> BatchResult:
+        values = np.asarray(values, dtype=float)
+        values = values.reshape(max(values.shape[0], 1) if values.ndim else 1, len(self.names))
+        if check:
+            for row in values:
+                self.sim.check_parameters(dict(zip(self.names, row)))
+        out, status, messages = self._call(values)
+        described = tuple(m and f"{self.sim.name} failed with {_describe(dict(zip(self.names, row)))}: {m}"
+                          for m, row in zip(messages, values))
+        return BatchResult(self.time, self.outputs, out, np.asarray(status), described)
 
 
 def _describe(params: Mapping[str, float]) -> str:
