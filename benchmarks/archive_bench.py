@@ -1,5 +1,5 @@
-"""Archive figures: the archive vs one HDF5 group per iteration (``bench_append`` in
-``rapid_cosim.archive.store``), and what a ``kill -9`` of the writer does to the file:
+"""Archive figures: the archive vs one HDF5 group per iteration (:func:`bench_append`),
+and what a ``kill -9`` of the writer does to the file:
 resizable datasets with plain flushes, the same in SWMR mode, and the archive.
 
     python benchmarks/archive_bench.py                      # a PSO-like and a simplex-like run
@@ -24,7 +24,83 @@ import h5py
 import numpy as np
 
 from rapid_cosim.archive import ArchiveWriter, RunArchive
-from rapid_cosim.archive.store import _bench_iterations, bench_append
+from rapid_cosim.archive.store import _LIBVER
+from rapid_cosim.estimators.base import EstimationResult, Iteration
+
+
+# ------------------------------------------------------------------ write and read
+
+def _bench_iterations(n_iter: int, n_particles: int, d: int, n_experiments: int):
+    """A synthetic PSO-like run as (Iteration, rssd) pairs, the same for the same arguments."""
+    rng = np.random.default_rng(0)
+    for i in range(n_iter):
+        x = rng.random((n_particles, d))
+        fitness = rng.random(n_particles)
+        k = int(np.argmin(fitness))
+        it = Iteration(
+            stage="pso", index=i, x=x, fitness=fitness,
+            weights=np.full(n_particles, 1 / n_particles),
+            failed=rng.random(n_particles) < 0.02, best_x=x[k], best_fitness=float(fitness[k]),
+            n_sims=n_particles, wall_time=1.0, rng_state=json.dumps(rng.bit_generator.state),
+            extras={"velocity": rng.standard_normal((n_particles, d))},
+        )
+        yield it, rng.random((n_particles, n_experiments))
+
+
+def bench_append(n_iter: int, n_particles: int, d: int, n_experiments: int = 3) -> dict[str, float]:
+    """Time and size of a synthetic run written to this archive (flushed every iteration,
+    then finished) and, for comparison, to one HDF5 group per iteration; and of reading
+    it back. The archive is larger while running, by its spare room.
+    """
+    names = [f"p{j}" for j in range(d)]
+    out: dict[str, float] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "archive.h5")
+        t0 = time.perf_counter()
+        with ArchiveWriter.create(
+            path, method="pso", seed=0, names=names, lower=np.zeros(d), upper=np.ones(d),
+            configs={}, options={}, fmus={}, data={}, n_experiments=n_experiments,
+        ) as w:
+            for it, rssd in _bench_iterations(n_iter, n_particles, d, n_experiments):
+                w.append(it, rssd)
+            live = os.path.getsize(path)
+            w.finish(EstimationResult("pso", tuple(names), it.best_x, it.best_fitness,
+                                      n_iter * n_particles, n_iter, 0.0, "budget", ()))
+        t1 = time.perf_counter()
+        with RunArchive(path) as a:
+            rows = sum(len(it.x) for it in a.iterations())
+        t2 = time.perf_counter()
+        assert rows == n_iter * n_particles
+        out["archive: write ms/iteration"] = 1e3 * (t1 - t0) / n_iter
+        out["archive: read s"] = t2 - t1
+        out["archive: file MB"] = os.path.getsize(path) / 1e6
+        out["archive: file MB while running"] = live / 1e6
+
+        path = os.path.join(tmp, "groups.h5")
+        t0 = time.perf_counter()
+        with h5py.File(path, "w", libver=_LIBVER) as f:
+            runs = f.create_group("iterations")
+            for it, rssd in _bench_iterations(n_iter, n_particles, d, n_experiments):
+                g = runs.create_group(f"{it.index:06d}")
+                for name in ("x", "fitness", "weights", "failed", "best_x"):
+                    g.create_dataset(name, data=getattr(it, name))
+                g.create_dataset("rssd", data=rssd)
+                for key, value in it.extras.items():
+                    g.create_dataset(f"extras/{key}", data=value)
+                g.attrs.update(stage=it.stage, index=it.index, best_fitness=it.best_fitness,
+                               n_sims=it.n_sims, wall_time=it.wall_time, rng_state=it.rng_state)
+                f.flush()
+        t1 = time.perf_counter()
+        with h5py.File(path, "r") as f:
+            rows = sum(len(g["x"][()]) for g in f["iterations"].values())
+        t2 = time.perf_counter()
+        assert rows == n_iter * n_particles
+        out["group per iteration: write ms/iteration"] = 1e3 * (t1 - t0) / n_iter
+        out["group per iteration: read s"] = t2 - t1
+        out["group per iteration: file MB"] = os.path.getsize(path) / 1e6
+    # x, velocity, rssd, fitness, weights (float64) and failed (1 byte)
+    out["payload MB"] = n_iter * n_particles * (8 * (2 * d + n_experiments + 2) + 1) / 1e6
+    return {key: float(f"{value:.4g}") for key, value in out.items()}
 
 
 # ------------------------------------------------------------------ kill -9 survey

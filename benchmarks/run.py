@@ -1,12 +1,22 @@
-"""Performance figures of rapid-cosim (``make bench``). Prints, asserts nothing.
+"""Performance figures (``make bench``): every figure old path against new, in one run.
 
-Sections (run all, or name some: ``python benchmarks/run.py simulation pf``):
-  simulation  simulations per second on a 60 s staged-test bench: a fresh
-              fmpy.simulate_fmu per run against the project's reused simulator
-  pf          one particle-filter iteration of 100 particles on staged test 1,
-              n_jobs = 1 against 2, and the share of wall time spent outside the simulator
-  archive     appending iterations to the HDF5 archive: appendable datasets against
-              one group per iteration (time and file size)
+    python benchmarks/run.py                 # all sections
+    python benchmarks/run.py simulation pf   # some of them
+
+Sections:
+
+simulation  one simulation of the base bench at staged test 1's measured samples (90 s,
+            900 samples): the Python reference loop, the compiled runner called once per
+            set, and the compiled runner over a batch of 200 sets (time per set).
+input       the FrequencyInput bench driven by a 110 s recorded frequency at 25 Hz:
+            fmpy's ``simulate_fmu`` (what models with inputs used before the compiled
+            runner), the Python reference loop, and the compiled runner in a batch.
+pf          one particle-filter iteration of 100 particles on staged test 1, one core,
+            with each runner; then batches of 100 to 4000 sets on one and two workers.
+archive     writing and reading a run's archive.
+
+Times are the best of a few repeats (the machine may be shared); ratios compare paths
+measured in the same run.
 """
 
 from __future__ import annotations
@@ -19,92 +29,124 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-BENCH = "iGrGen.TestBenches.StagedTest"
 
 
-def _fmu(model: str = BENCH) -> Path:
-    from rapid_cosim.build import build_models
+def _fmu(model: str) -> Path:
+    from rapid_cosim.build import ensure_fmu
 
-    return build_models([model], package=ROOT / "modelica" / "iGrGen", fmu_dir=ROOT / "fmus", log=lambda *_: None)[0].fmu
+    return ensure_fmu(model, package=ROOT / "modelica" / "iGrGen", fmu_dir=ROOT / "fmus")
 
 
-def _rate(fn, n: int) -> float:
-    fn(0)  # warm up (library load, first CVode allocation)
-    t0 = time.perf_counter()
-    for i in range(n):
-        fn(i)
-    return n / (time.perf_counter() - t0)
+def _best(fn, repeats: int = 5) -> float:
+    fn()  # warm up: library loads, first CVODE allocation
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def _test1():
+    from rapid_cosim.experiment import load_experiment
+
+    return load_experiment(ROOT / "experiments" / "test1" / "config.toml")
 
 
 def bench_simulation() -> None:
+    from rapid_cosim.simulator import Simulator
+
+    exp = _test1()
+    sim = Simulator(_fmu(exp.model))
+    t = exp.windowed_data().time
+    names = ["gov.R", "gov.Ts"]
+    values = np.column_stack([np.full(200, 0.05), np.linspace(0.5, 10.0, 200)])
+
+    def loop(runner, n):
+        def run():
+            for row in values[:n]:
+                sim.simulate(dict(zip(names, row)), output_times=t, runner=runner, check=False)
+        return run
+
+    python = _best(loop("python", 20), 3) / 20
+    single = _best(loop("compiled", 200), 3) / 200
+    prepared = sim.prepare(names, output_times=t, outputs=["pm"])
+    batch = _best(lambda: prepared.run(values), 5) / len(values)
+    print(f"simulation: base bench (TG Type I), staged test 1's {t.size} measured samples over 90 s, one core")
+    print(f"  Python reference loop, one set per call   {1e3 * python:8.3f} ms per simulation")
+    print(f"  compiled runner, one set per call         {1e3 * single:8.3f} ms   x{python / single:.0f}")
+    print(f"  compiled runner, batches of 200 sets      {1e3 * batch:8.3f} ms   x{python / batch:.0f}"
+          f"   (target <= 0.15 ms)")
+
+
+def bench_input() -> None:
     import fmpy
 
     from rapid_cosim.simulator import Simulator
 
-    fmu = str(_fmu())
-    params = lambda i: {"gov.Ts": 2.0 + 0.01 * i, "gov.R": 0.05, "src.t_step": 10.0}  # noqa: E731
-    fresh = _rate(lambda i: fmpy.simulate_fmu(fmu, stop_time=60.0, output_interval=0.05, start_values=params(i),
-                                              output=["pm"], record_events=False), 30)
+    fmu = _fmu("iGrGen.TestBenches.FrequencyInput")
+    rng = np.random.default_rng(0)
+    time_ = np.arange(0.0, 110.0, 0.04)  # 25 Hz
+    dt = np.clip(time_ - 10.0, 0.0, None)
+    f_dev = -0.15 * dt / 4.0 * np.exp(-dt / 8.0) + 0.002 * rng.standard_normal(time_.size)  # Hz, nadir and recovery
     sim = Simulator(fmu)
-    grid = _rate(lambda i: sim.simulate(params(i), stop_time=60.0, output_interval=0.05), 200)
-    samples = np.arange(0.0, 60.0, 0.1)
-    at_samples = _rate(lambda i: sim.simulate(params(i), output_times=samples), 200)
-    print("simulation: 60 s staged-test bench (TG Type I, step at 10 s), CVode rtol 1e-6")
-    print(f"  fresh fmpy.simulate_fmu per run, 0.05 s grid  {fresh:8.1f} sim/s  ({1e3 / fresh:.1f} ms)")
-    print(f"  reused Simulator, 0.05 s grid (1201 points)   {grid:8.1f} sim/s  ({1e3 / grid:.1f} ms)"
-          f"   x{grid / fresh:.1f}")
-    print(f"  reused Simulator at 10 Hz samples (600)       {at_samples:8.1f} sim/s  ({1e3 / at_samples:.1f} ms)"
-          f"   x{at_samples / fresh:.1f}")
+    table = np.zeros(time_.size, dtype=[("time", float), ("f_dev", float)])
+    table["time"], table["f_dev"] = time_, f_dev
+    instance = fmpy.instantiate_fmu(str(sim.fmu.dir), sim.model_description, fmi_type="ModelExchange")
+
+    def old():  # as the simulator ran models with inputs before the compiled runner
+        instance.reset()
+        fmpy.simulate_fmu(str(sim.fmu.dir), validate=False, stop_time=110.0, solver="CVode",
+                          relative_tolerance=1e-6, output_interval=0.04, record_events=False,
+                          start_values={"gov.Ts": 2.0}, input=table, output=["pm"],
+                          model_description=sim.model_description, fmu_instance=instance)
+
+    kw = dict(output_times=time_, input_time=time_, inputs={"f_dev": f_dev})
+    fresh = _best(old, 3)
+    python = _best(lambda: sim.simulate({"gov.Ts": 2.0}, runner="python", **kw), 3)
+    prepared = sim.prepare(["gov.Ts"], outputs=["pm"], **kw)
+    values = np.linspace(0.5, 10.0, 100)[:, None]
+    batch = _best(lambda: prepared.run(values), 5) / len(values)
+    print(f"input: FrequencyInput bench driven by a recorded frequency, 110 s at 25 Hz ({time_.size} samples)")
+    print(f"  fmpy.simulate_fmu (the path before)       {1e3 * fresh:8.3f} ms per simulation")
+    print(f"  Python reference loop                     {1e3 * python:8.3f} ms   x{fresh / python:.1f}")
+    print(f"  compiled runner, batches of 100 sets      {1e3 * batch:8.3f} ms   x{fresh / batch:.0f}"
+          f"   (target <= 0.3 ms)")
 
 
 def bench_pf() -> None:
-    from rapid_cosim import simulator as simulator_module
     from rapid_cosim.estimators import PFOptions, particle_filter
     from rapid_cosim.evaluate import ProblemObjective
-    from rapid_cosim.experiment import build_problem, load_experiment
+    from rapid_cosim.experiment import build_problem
     from rapid_cosim.simulator import FmuRef
 
-    exp = load_experiment(ROOT / "experiments" / "test1" / "config.toml")
+    exp = _test1()
     problem = build_problem([exp])
     refs = {exp.model: FmuRef.from_path(_fmu(exp.model))}
-    options = PFOptions(n_particles=100, max_iter=1)
-    times = {}
-    for n_jobs in (1, 2):
-        objective = ProblemObjective(problem, refs, n_jobs=n_jobs)
-        objective(problem.space.from_unit(np.full((max(n_jobs, 2), problem.space.dim), 0.5)))  # start workers
-        t0 = time.perf_counter()
-        particle_filter(objective, problem.space, options=options, rng=np.random.default_rng(0))
-        times[n_jobs] = time.perf_counter() - t0
 
-    # share outside the simulator, measured in-process (n_jobs = 1)
-    inside = [0.0]
-    original = simulator_module.Simulator.simulate
+    def iteration(objective):
+        return lambda: particle_filter(objective, problem.space, options=PFOptions(n_particles=100, max_iter=1),
+                                       rng=np.random.default_rng(0))
 
-    def timed(self, *args, **kwargs):
-        t = time.perf_counter()
-        try:
-            return original(self, *args, **kwargs)
-        finally:
-            inside[0] += time.perf_counter() - t
-
-    simulator_module.Simulator.simulate = timed
-    try:
-        objective = ProblemObjective(problem, refs, n_jobs=1)
-        t0 = time.perf_counter()
-        particle_filter(objective, problem.space, options=PFOptions(n_particles=100, max_iter=3),
-                        rng=np.random.default_rng(0))
-        total = time.perf_counter() - t0
-    finally:
-        simulator_module.Simulator.simulate = original
-    print(f"pf: one iteration of 100 particles on staged test 1 ({exp.data.time.size} samples, 90 s)")
-    print(f"  n_jobs=1  {times[1]:6.2f} s   ({100 / times[1]:.0f} sim/s)")
-    print(f"  n_jobs=2  {times[2]:6.2f} s   ({100 / times[2]:.0f} sim/s)   speed-up x{times[1] / times[2]:.2f}")
-    print(f"  3 iterations, n_jobs=1: {total:.2f} s, of which {100 * (1 - inside[0] / total):.1f} % outside "
-          f"Simulator.simulate (fitness, estimator, bookkeeping)")
+    one = {runner: _best(iteration(ProblemObjective(problem, refs, n_jobs=1, runner=runner)), 3)
+           for runner in ("python", "compiled")}
+    print(f"pf: one iteration of 100 particles on staged test 1 ({exp.data.time.size} samples), one core")
+    print(f"  Python reference loop                     {1e3 * one['python']:8.1f} ms")
+    print(f"  compiled runner                           {1e3 * one['compiled']:8.1f} ms   "
+          f"x{one['python'] / one['compiled']:.0f}   (target <= 25 ms)")
+    print("  batches over workers (compiled runner; loky processes, started before timing):")
+    rng = np.random.default_rng(1)
+    objectives = {n: ProblemObjective(problem, refs, n_jobs=n) for n in (1, 2)}
+    for n in (1, 2):
+        objectives[n](problem.space.from_unit(rng.uniform(size=(4, 2))))
+    for size in (100, 1000, 4000):
+        X = problem.space.from_unit(rng.uniform(size=(size, 2)))
+        t = {n: _best(lambda: objectives[n](X), 2) for n in (1, 2)}
+        print(f"    {size:5d} sets: 1 worker {t[1]:6.3f} s, 2 workers {t[2]:6.3f} s   x{t[1] / t[2]:.2f}")
 
 
 def bench_archive() -> None:
-    from rapid_cosim.archive.store import bench_append
+    from archive_bench import bench_append
 
     figures = bench_append(n_iter=100, n_particles=100, d=2)
     print("archive: 100 iterations x 100 particles, d = 2")
@@ -112,7 +154,7 @@ def bench_archive() -> None:
         print(f"  {key:40s} {value}")
 
 
-SECTIONS = {"simulation": bench_simulation, "pf": bench_pf, "archive": bench_archive}
+SECTIONS = {"simulation": bench_simulation, "input": bench_input, "pf": bench_pf, "archive": bench_archive}
 
 
 def main(argv: list[str]) -> int:
@@ -130,4 +172,5 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
+    sys.path.insert(0, str(Path(__file__).parent))
     sys.exit(main(sys.argv[1:]))

@@ -268,7 +268,7 @@ def _run_options(args, estimator_options):
     from .archive.runs import RunOptions
 
     return RunOptions(method=args.method, seed=args.seed, n_jobs=args.n_jobs, backend=args.joblib_backend,
-                      estimator_options=estimator_options)
+                      estimator_options=estimator_options, runner=args.runner)
 
 
 def cmd_estimate(args) -> int:
@@ -377,6 +377,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="estimator option, e.g. pf.n_particles=100 (repeatable)")
     p.add_argument("--joblib-backend", default="loky", choices=["loky", "multiprocessing", "threading", "dask"],
                    help="joblib backend; 'dask' needs a running dask.distributed Client (default %(default)s)")
+    p.add_argument("--runner", default="compiled", choices=["compiled", "python"],
+                   help="simulation runner: the compiled batch runner, or the Python reference loop "
+                        "(default %(default)s; the archive records it, and rerun/resume use it)")
     p.add_argument("--archive", help="HDF5 archive to write (default results/run-<time>.h5)")
     p.add_argument("--results", default="results")
     run_options(p)

@@ -3,13 +3,19 @@ only when the Modelica sources change)."""
 
 from __future__ import annotations
 
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).parent))  # the reference models are a test helper
+# A cache of built FMUs and of the runner library of the session's own, so that no test
+# depends on what earlier runs left in the user's cache (workers and CLI subprocesses
+# inherit it).
+os.environ["RAPID_COSIM_CACHE"] = tempfile.mkdtemp(prefix="rapid_cosim_test_cache_")
 
 
 @pytest.fixture(scope="session")

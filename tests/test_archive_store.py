@@ -79,6 +79,12 @@ def assert_same_iteration(got: Iteration, want: Iteration) -> None:
         assert same_array(got.extras[key], np.asarray(want.extras[key])), key
 
 
+@pytest.fixture(autouse=True)
+def commit_every_iteration(monkeypatch):
+    """These tests read what each append wrote; grouped commits have their own test."""
+    monkeypatch.setattr(store, "COMMIT_SECONDS", 0.0)
+
+
 def inputs() -> dict:
     g = np.random.default_rng(7)
     p_mw = g.random(300)
@@ -525,7 +531,7 @@ from test_archive_store import SMALL_ROOM, inputs, make_iteration
 from rapid_cosim.archive import ArchiveWriter, store
 store._INITIAL_ROOM = SMALL_ROOM  # enlargements (copy, rename) early and often
 path, sleep = sys.argv[1], float(sys.argv[2])
-w = ArchiveWriter.create(path, **inputs())
+w = ArchiveWriter.create(path, **inputs(), commit_seconds=0.0)  # each iteration its own commit
 i = 0
 while True:
     w.append(*make_iteration(i))
@@ -630,7 +636,10 @@ def test_size_and_speed_figures(tmp_path, capsys):
         ev = a.evaluations()
         assert same_array(ev.x, np.concatenate([it.x for it, _ in its]))
         assert same_array(ev.rssd, np.concatenate([r for _, r in its]))
-    bench = store.bench_append(20, 10, 4)
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from archive_bench import bench_append
+
+    bench = bench_append(20, 10, 4)
     assert bench["archive: file MB"] > 0 and bench["group per iteration: file MB"] > 0
     with capsys.disabled():
         size = os.path.getsize(path) / 1e6
@@ -638,3 +647,21 @@ def test_size_and_speed_figures(tmp_path, capsys):
               f"({live:.2f} MB while running), written and finished in {seconds:.2f} s "
               f"({1e3 * seconds / 100:.2f} ms per iteration, flushed)")
 
+
+
+def test_iterations_are_committed_in_groups_and_none_is_lost_on_close(tmp_path):
+    path = tmp_path / "grouped.h5"
+    written = [make_iteration(i) for i in range(6)]
+    with ArchiveWriter.create(path, **inputs(), commit_seconds=3600.0) as w:
+        for it, rssd in written:
+            w.append(it, rssd)
+        assert w.n_iterations == 6
+        with RunArchive(path) as live:  # the first is committed at once, the rest wait
+            assert live.n_iterations == 1
+        w.commit()
+        with RunArchive(path) as live:
+            assert live.n_iterations == 6
+        w.append(*make_iteration(6))
+    with RunArchive(path) as a:  # closing commits what was pending
+        assert a.status == "interrupted" and a.n_iterations == 7
+        check_prefix(a, 7)

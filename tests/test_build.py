@@ -28,7 +28,8 @@ def test_parameters_are_tunable_and_carry_their_range(fmus):
     assert md.fmiVersion == "2.0" and md.modelExchange is not None
 
 
-def test_manifest_and_rebuild_rules(tmp_path, repo):
+def test_manifest_and_rebuild_rules(tmp_path, repo, monkeypatch):
+    monkeypatch.setenv("RAPID_COSIM_CACHE", str(tmp_path / "cache"))
     pkg = tmp_path / "iGrGen"
     shutil.copytree(repo / "modelica" / "iGrGen", pkg)
     out = tmp_path / "fmus"
@@ -52,9 +53,30 @@ def test_manifest_and_rebuild_rules(tmp_path, repo):
     forced = build_models([model], package=pkg, fmu_dir=out, backend="embedded", force=True, log=lambda *_: None)[0]
     assert forced.rebuilt
 
-    fmu_path(model, out).write_bytes(b"corrupt")  # a tampered FMU is rebuilt too
-    assert build_models([model], package=pkg, fmu_dir=out, backend="embedded", log=lambda *_: None)[0].rebuilt
+    fmu_path(model, out).write_bytes(b"corrupt")  # a tampered FMU is replaced (from the cache)
+    fixed = build_models([model], package=pkg, fmu_dir=out, backend="embedded", log=lambda *_: None)[0]
+    assert not fixed.rebuilt
     assert read_manifest(fmu_path(model, out)).fmu_sha256 == edited.manifest.fmu_sha256
+
+
+def test_another_folder_takes_the_cached_build_and_new_models_rebuild_nothing_else(tmp_path, repo, monkeypatch):
+    monkeypatch.setenv("RAPID_COSIM_CACHE", str(tmp_path / "cache"))
+    pkg = tmp_path / "iGrGen"
+    shutil.copytree(repo / "modelica" / "iGrGen", pkg)
+    model = "iGrGen.TestBenches.StagedTest"
+    build = lambda folder: build_models([model], package=pkg, fmu_dir=tmp_path / folder,  # noqa: E731
+                                        backend="embedded", log=lambda *_: None)[0]
+    first = build("a")
+    assert first.rebuilt
+    second = build("b")  # a fresh work folder, as a diagnosis makes
+    assert not second.rebuilt
+    assert fmu_path(model, tmp_path / "b").read_bytes() == fmu_path(model, tmp_path / "a").read_bytes()
+    # another model in the package does not make this one stale
+    bench = pkg / "TestBenches" / "StagedTestCopy.mo"
+    bench.write_text((pkg / "TestBenches" / "StagedTest.mo").read_text().replace("StagedTest", "StagedTestCopy"))
+    (pkg / "TestBenches" / "package.order").write_text(
+        (pkg / "TestBenches" / "package.order").read_text() + "StagedTestCopy\n")
+    assert not build("a").rebuilt
 
 
 def test_auto_backend_follows_omc(monkeypatch):

@@ -9,7 +9,7 @@ import pytest
 from rapid_cosim.build import build_models
 from rapid_cosim.diagnose.candidates import CandidateFit, CandidateSpec, ExperimentResiduals
 from rapid_cosim.diagnose.catalogue import CATALOGUE, bench_name, bench_source
-from rapid_cosim.diagnose.selection import NoiseFloor, Ranked, bic, decide, prewhitened, score
+from rapid_cosim.diagnose.selection import NoiseFloor, Ranked, bic, decide, prewhitened
 from rapid_cosim.estimators.base import SearchSpace
 from rapid_cosim.estimators.laplace import laplace
 from rapid_cosim.simulator import Simulator

@@ -141,3 +141,33 @@ def test_cli_reports_bad_method_and_option_without_writing(config, tmp_path, cap
     err = capsys.readouterr().err
     assert "pf:x+nm" in err and "n_particles" in err
     assert not (tmp_path / "a.h5").exists()
+
+
+def test_the_archive_records_its_runner_and_a_rerun_uses_it(config, tmp_path):
+    results = {}
+    for runner in ("python", "compiled"):
+        archive = tmp_path / f"{runner}.h5"
+        results[runner] = start_run(inputs_from_configs([config]), RunOptions(method="pso:2+nm", seed=2,
+                                    runner=runner), archive, progress=False)
+        with RunArchive(archive) as a:
+            assert a.options["runner"] == runner
+        report = rerun(archive, progress=False)
+        assert report.identical, report.first_difference
+    # the two runners do the same arithmetic on the test benches, so the runs agree
+    assert np.array_equal(results["python"].x, results["compiled"].x)
+
+
+def test_an_archive_from_before_the_runner_option_reruns_with_the_python_loop(config, tmp_path):
+    import h5py
+
+    archive = tmp_path / "old.h5"
+    start_run(inputs_from_configs([config]), RunOptions(method="pso:2", seed=4, runner="python"), archive,
+              progress=False)
+    with h5py.File(archive, "r+") as f:  # as archives were written before the runner was recorded
+        options = json.loads(f["inputs/options"].asstr()[()])
+        del options["runner"]
+        del f["inputs/options"]
+        f["inputs"].create_dataset("options", data=json.dumps(options), dtype=h5py.string_dtype("utf-8"))
+    assert RunOptions.from_json(options).runner == "python"
+    report = rerun(archive, progress=False)
+    assert report.identical, report.first_difference

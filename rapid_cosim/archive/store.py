@@ -32,9 +32,11 @@ dataset is grown and flushed every iteration ("bad object header version number"
 rarely even in SWMR mode, made for exactly this, whose readers then wait forever on a
 chunk index the killed writer left half-written. So the writer never changes the
 structure of the live file. Every dataset is made with room to spare (contiguous, its
-file space allocated at once), and an iteration only writes bytes into that room: its
-evaluation rows, its rng/extras bytes and its table row, then a flush, then
-``/committed``, then another flush. A killed writer leaves HDF5's metadata as it was,
+file space allocated at once), and a commit only writes bytes into that room: the
+evaluation rows, rng/extras bytes and table rows of the iterations appended since the
+last commit, then a flush, then ``/committed``, then another flush. Commits come at most
+``COMMIT_SECONDS`` apart (and when the run finishes or stops), so a fast method's many
+small iterations cost one flush per group. A killed writer leaves HDF5's metadata as it was,
 plus rows that ``/committed`` either counts (they were flushed before it) or does not.
 (HDF5 also sets a "file open for writing" bit in the superblock while the writer has
 the file open; with the version 0 superblock used here it does not act on it, so a
@@ -83,6 +85,10 @@ STATUSES = ("running", "finished", "interrupted")
 
 _LIBVER = ("earliest", "v108")  # 1.8 objects (creation order); no superblock status flags
 _STAGE_BYTES = 64
+# Iterations are committed in groups, at most this many seconds apart (and when the run
+# finishes or stops): one flush per group, not per iteration. A killed writer loses at
+# most this much work, which a resume replays.
+COMMIT_SECONDS = 0.2
 _EVAL_COLUMNS = ("x", "fitness", "failed", "weights", "iteration", "rssd")
 _BLOBS = {"rng_state": "rng", "extras": "extras"}  # byte dataset -> its table fields
 # Room made for a new archive; each runs out after roughly 40 iterations of 100
@@ -349,11 +355,15 @@ class ArchiveWriter:
     'interrupted'. Only one writer per archive, across processes (see the lock above).
     """
 
-    def __init__(self, path: str, lock: _Lock):
-        """Internal: use :meth:`create` or :meth:`reopen`."""
+    def __init__(self, path: str, lock: _Lock, commit_seconds: float | None = None):
+        """Internal: use :meth:`create` or :meth:`reopen` (``commit_seconds``: see
+        ``COMMIT_SECONDS``)."""
         self.path = path
         self._lock = lock
         self._f: h5py.File | None = None
+        self.commit_seconds = COMMIT_SECONDS if commit_seconds is None else commit_seconds
+        self._clear_pending()
+        self._last_commit = float("-inf")  # the first iteration is committed at once
         weakref.finalize(self, lock.release)  # a writer dropped without close() frees the lock
         self._open()
 
@@ -396,6 +406,7 @@ class ArchiveWriter:
         fmus: Mapping[str, bytes],
         data: Mapping[str, Mapping[str, np.ndarray]],
         n_experiments: int,
+        commit_seconds: float | None = None,
     ) -> "ArchiveWriter":
         """Start the archive of a new run; refuses an existing file (resume it instead)."""
         path = os.fspath(path)
@@ -447,13 +458,13 @@ class ArchiveWriter:
                     os.unlink(tmp)
                 raise
             _replace(tmp, path)
-            return cls(path, lock)
+            return cls(path, lock, commit_seconds)
         except BaseException:
             lock.release()
             raise
 
     @classmethod
-    def reopen(cls, path: str | os.PathLike) -> "ArchiveWriter":
+    def reopen(cls, path: str | os.PathLike, commit_seconds: float | None = None) -> "ArchiveWriter":
         """Open an unfinished archive to append after its last complete iteration."""
         path = os.fspath(path)
         lock = _Lock(path)
@@ -472,7 +483,7 @@ class ArchiveWriter:
             except OSError as exc:
                 raise ArchiveError(f"{path}: not a readable archive ({exc})") from None
             try:
-                writer = cls(path, lock)
+                writer = cls(path, lock, commit_seconds)
             except OSError as exc:
                 if "already open for read" in str(exc):
                     raise ArchiveError(
@@ -494,11 +505,11 @@ class ArchiveWriter:
 
     @property
     def n_iterations(self) -> int:
-        return self._n_it
+        return self._n_it + len(self._pending)
 
     @property
     def n_evaluations(self) -> int:
-        return self._n_ev
+        return self._n_ev + self._pending_ev
 
     def append(self, it: Iteration, rssd: np.ndarray) -> int:
         """Archive one iteration and its evaluations; return its row (global) index."""
@@ -541,12 +552,8 @@ class ArchiveWriter:
             "extras": np.frombuffer(_encode_extras(it.extras), dtype="u1"),
         }
 
-        i, start = self._n_it, self._n_ev
-        need = {"evaluations": start + n, "table": i + 1}
-        need.update({b: self._ends[b] + blobs[b].size for b in _BLOBS})
-        if any(need[k] > self._room[k] for k in need):
-            self._enlarge(need)
-
+        # Offsets after what is on disk and what waits to be committed.
+        i, start = self._n_it + len(self._pending), self._n_ev + self._pending_ev
         row = np.zeros((), dtype=self._it["table"].dtype)
         row["stage"] = stage
         row["index"] = it.index
@@ -554,24 +561,52 @@ class ArchiveWriter:
         row["n_sims"] = it.n_sims
         row["wall_time"] = it.wall_time
         row["eval_offset"], row["eval_count"] = start, n
-        row["rng_offset"], row["rng_size"] = self._ends["rng_state"], blobs["rng_state"].size
-        row["extras_offset"], row["extras_size"] = self._ends["extras"], blobs["extras"].size
+        row["rng_offset"], row["rng_size"] = self._ends["rng_state"] + self._pending_blobs["rng_state"], \
+            blobs["rng_state"].size
+        row["extras_offset"], row["extras_size"] = self._ends["extras"] + self._pending_blobs["extras"], \
+            blobs["extras"].size
         row["best_x"] = best_x
-
         columns = {"x": x, "fitness": fitness, "failed": failed, "weights": weights,
                    "iteration": np.full(n, i, dtype="<i8"), "rssd": rssd}
-        for name in _EVAL_COLUMNS:
-            _put_rows(self._ev[name], start, columns[name])
+        self._pending.append((row, columns, blobs))
+        self._pending_ev += n
         for b in _BLOBS:
-            _put_rows(self._it[b], self._ends[b], blobs[b])
-        _put_rows(self._it["table"], i, row[None])
-        self._f.flush()
-        self._committed.write_direct(np.array([i + 1, start + n], dtype="<i8"))
-        self._f.flush()
-        self._n_it, self._n_ev = i + 1, start + n
-        for b in _BLOBS:
-            self._ends[b] += blobs[b].size
+            self._pending_blobs[b] += blobs[b].size
+        if time.monotonic() - self._last_commit >= self.commit_seconds:
+            self.commit()
         return i
+
+    def commit(self) -> None:
+        """Write the iterations appended since the last commit, then count them in
+        ``/committed`` (the order that makes a killed writer harmless, see above)."""
+        if not self._pending:
+            return
+        self._check_open()
+        n_it, n_ev = self._n_it + len(self._pending), self._n_ev + self._pending_ev
+        need = {"evaluations": n_ev, "table": n_it}
+        need.update({b: self._ends[b] + self._pending_blobs[b] for b in _BLOBS})
+        if any(need[k] > self._room[k] for k in need):
+            self._enlarge(need)
+        pending, n_ev0, ends0, n_it0 = self._pending, self._n_ev, dict(self._ends), self._n_it
+        self._clear_pending()  # a failed commit drops its iterations (a resume replays them)
+        rows = np.stack([p[0] for p in pending])
+        for name in _EVAL_COLUMNS:
+            _put_rows(self._ev[name], n_ev0, np.concatenate([p[1][name] for p in pending]))
+        for b in _BLOBS:
+            _put_rows(self._it[b], ends0[b], np.concatenate([p[2][b] for p in pending]))
+        _put_rows(self._it["table"], n_it0, rows)
+        self._f.flush()
+        self._committed.write_direct(np.array([n_it, n_ev], dtype="<i8"))
+        self._f.flush()
+        self._n_it, self._n_ev = n_it, n_ev
+        for b in _BLOBS:
+            self._ends[b] = need[b]
+
+    def _clear_pending(self) -> None:
+        self._pending: list = []
+        self._pending_ev = 0
+        self._pending_blobs = {b: 0 for b in _BLOBS}
+        self._last_commit = time.monotonic()
 
     def finish(self, result: EstimationResult) -> None:
         """Store the final result and mark the run 'finished'; this closes the writer.
@@ -589,6 +624,7 @@ class ArchiveWriter:
             raise ValueError(f"result x has shape {x.shape}, expected {(self.dim,)}")
         if result.posterior is not None:
             _check_posterior(result.posterior, self.names)
+        self.commit()
         self._f.close()
         self._f = None
         try:
@@ -607,6 +643,7 @@ class ArchiveWriter:
             return
         try:
             if not self._finished:
+                self.commit()
                 self._set_status("interrupted")
         finally:
             self._f.close()
@@ -984,81 +1021,3 @@ def _num(v) -> float | None:
     """A float for JSON: NaN and infinities (not valid JSON) become None."""
     v = float(v)
     return v if np.isfinite(v) else None
-
-
-# --------------------------------------------------------------------------- benchmark
-
-
-def _bench_iterations(n_iter: int, n_particles: int, d: int, n_experiments: int):
-    """A synthetic PSO-like run as (Iteration, rssd) pairs, the same for the same arguments."""
-    rng = np.random.default_rng(0)
-    for i in range(n_iter):
-        x = rng.random((n_particles, d))
-        fitness = rng.random(n_particles)
-        k = int(np.argmin(fitness))
-        it = Iteration(
-            stage="pso", index=i, x=x, fitness=fitness,
-            weights=np.full(n_particles, 1 / n_particles),
-            failed=rng.random(n_particles) < 0.02, best_x=x[k], best_fitness=float(fitness[k]),
-            n_sims=n_particles, wall_time=1.0, rng_state=json.dumps(rng.bit_generator.state),
-            extras={"velocity": rng.standard_normal((n_particles, d))},
-        )
-        yield it, rng.random((n_particles, n_experiments))
-
-
-def bench_append(n_iter: int, n_particles: int, d: int, n_experiments: int = 3) -> dict[str, float]:
-    """Time and size of a synthetic run written to this archive (flushed every iteration,
-    then finished) and, for comparison, to one HDF5 group per iteration; and of reading
-    it back. The archive is larger while running, by its spare room.
-    """
-    import tempfile
-
-    names = [f"p{j}" for j in range(d)]
-    out: dict[str, float] = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        path = os.path.join(tmp, "archive.h5")
-        t0 = time.perf_counter()
-        with ArchiveWriter.create(
-            path, method="pso", seed=0, names=names, lower=np.zeros(d), upper=np.ones(d),
-            configs={}, options={}, fmus={}, data={}, n_experiments=n_experiments,
-        ) as w:
-            for it, rssd in _bench_iterations(n_iter, n_particles, d, n_experiments):
-                w.append(it, rssd)
-            live = os.path.getsize(path)
-            w.finish(EstimationResult("pso", tuple(names), it.best_x, it.best_fitness,
-                                      n_iter * n_particles, n_iter, 0.0, "budget", ()))
-        t1 = time.perf_counter()
-        with RunArchive(path) as a:
-            rows = sum(len(it.x) for it in a.iterations())
-        t2 = time.perf_counter()
-        assert rows == n_iter * n_particles
-        out["archive: write ms/iteration"] = 1e3 * (t1 - t0) / n_iter
-        out["archive: read s"] = t2 - t1
-        out["archive: file MB"] = os.path.getsize(path) / 1e6
-        out["archive: file MB while running"] = live / 1e6
-
-        path = os.path.join(tmp, "groups.h5")
-        t0 = time.perf_counter()
-        with h5py.File(path, "w", libver=_LIBVER) as f:
-            runs = f.create_group("iterations")
-            for it, rssd in _bench_iterations(n_iter, n_particles, d, n_experiments):
-                g = runs.create_group(f"{it.index:06d}")
-                for name in ("x", "fitness", "weights", "failed", "best_x"):
-                    g.create_dataset(name, data=getattr(it, name))
-                g.create_dataset("rssd", data=rssd)
-                for key, value in it.extras.items():
-                    g.create_dataset(f"extras/{key}", data=value)
-                g.attrs.update(stage=it.stage, index=it.index, best_fitness=it.best_fitness,
-                               n_sims=it.n_sims, wall_time=it.wall_time, rng_state=it.rng_state)
-                f.flush()
-        t1 = time.perf_counter()
-        with h5py.File(path, "r") as f:
-            rows = sum(len(g["x"][()]) for g in f["iterations"].values())
-        t2 = time.perf_counter()
-        assert rows == n_iter * n_particles
-        out["group per iteration: write ms/iteration"] = 1e3 * (t1 - t0) / n_iter
-        out["group per iteration: read s"] = t2 - t1
-        out["group per iteration: file MB"] = os.path.getsize(path) / 1e6
-    # x, velocity, rssd, fitness, weights (float64) and failed (1 byte)
-    out["payload MB"] = n_iter * n_particles * (8 * (2 * d + n_experiments + 2) + 1) / 1e6
-    return {key: float(f"{value:.4g}") for key, value in out.items()}

@@ -1,8 +1,15 @@
 """Which FMUs to build, with which backend, and whether they need building at all.
 
 Each FMU gets a manifest beside it (``<model>.manifest.json``): the hash of the Modelica
-sources, the backend and an identity of its tool chain. An FMU is rebuilt only when one
-of those changes, so ``make fmus`` is cheap to call before every experiment.
+sources the model is built from (the classes it uses, see ``model_sha256``), the backend
+and an identity of its tool chain. An FMU is rebuilt only when one of those changes, so
+``make fmus`` is cheap to call before every experiment, and adding a model to the
+package rebuilds nothing else.
+
+Built FMUs are also kept in a cache shared by every FMU folder of the user
+(``<cache_dir>/fmus``), under the hash of model, sources and tool chain: a diagnosis
+that compiles its candidate benches into a fresh work folder, or a study that runs many
+of them, compiles each distinct model once.
 """
 
 from __future__ import annotations
@@ -11,6 +18,7 @@ import hashlib
 import importlib.metadata
 import json
 import os
+import shutil
 import subprocess
 import time
 from dataclasses import asdict, dataclass
@@ -19,8 +27,8 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import BuildError
-from .embedded import c_compiler
-from .modelica_source import PackageSource, class_index, load_package
+from .embedded import c_compiler, cache_dir
+from .modelica_source import PackageSource, class_index, load_package, model_sha256
 from .openmodelica import find_omc
 
 BACKENDS = ("auto", "openmodelica", "embedded")
@@ -137,16 +145,21 @@ def build_models(models: list[str] | None = None, *, package: str | Path = DEFAU
     unknown = [m for m in models if m not in known]
     if unknown:
         raise BuildError(f"unknown model(s) {', '.join(unknown)}; test benches: {', '.join(test_benches(source))}")
-    source_hash = source.sha256()
     backend_id, tools = _embedded_identity() if chosen == "embedded" else _openmodelica_identity()
     outcomes, omc_builder, tree = [], None, None
     try:
         for model in models:
+            source_hash = model_sha256(source, model, known)
             fmu = fmu_path(model, fmu_dir)
             old = read_manifest(fmu)
             if not force and _fresh(old, fmu, source_hash, chosen, backend_id):
                 outcomes.append(BuildOutcome(model, fmu, False, old))
                 log(f"  {model}: up to date ({chosen})")
+                continue
+            cached = None if force else _from_cache(model, fmu, source_hash, chosen, backend_id)
+            if cached is not None:
+                outcomes.append(BuildOutcome(model, fmu, False, cached))
+                log(f"  {model}: up to date ({chosen}, from the cache)")
                 continue
             t0 = time.perf_counter()
             if chosen == "embedded":
@@ -167,12 +180,44 @@ def build_models(models: list[str] | None = None, *, package: str | Path = DEFAU
                 fmu_sha256=_sha256(fmu), fmi_version="2.0", fmi_type="ModelExchange", tools=tools,
                 built=datetime.now(timezone.utc).isoformat(timespec="seconds"), build_seconds=round(seconds, 3))
             manifest_path(fmu).write_text(json.dumps(asdict(manifest), indent=2) + "\n")
+            _to_cache(fmu, manifest)
             outcomes.append(BuildOutcome(model, fmu, True, manifest))
             log(f"  {model}: built ({chosen}, {seconds:.2f} s)")
     finally:
         if omc_builder is not None:
             omc_builder.close()
     return outcomes
+
+
+def _cache_path(model: str, source_hash: str, backend: str, backend_id: str) -> Path:
+    key = hashlib.sha256(f"{model}|{source_hash}|{backend}|{backend_id}".encode()).hexdigest()[:24]
+    return cache_dir() / "fmus" / f"{model}-{key}.fmu"
+
+
+def _from_cache(model: str, fmu: Path, source_hash: str, backend: str, backend_id: str) -> Manifest | None:
+    """Copy a cached build of the same sources and tool chain into place, with its manifest."""
+    cached = _cache_path(model, source_hash, backend, backend_id)
+    manifest = read_manifest(cached)
+    if manifest is None or not cached.exists() or _sha256(cached) != manifest.fmu_sha256:
+        return None
+    fmu.parent.mkdir(parents=True, exist_ok=True)
+    part = fmu.with_name(f"{fmu.name}.{os.getpid()}.part")
+    shutil.copyfile(cached, part)
+    os.replace(part, fmu)
+    manifest_path(fmu).write_text(json.dumps(asdict(manifest), indent=2) + "\n")
+    return manifest
+
+
+def _to_cache(fmu: Path, manifest: Manifest) -> None:
+    cached = _cache_path(manifest.model, manifest.source_hash, manifest.backend, manifest.backend_id)
+    try:
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        part = cached.with_name(f"{cached.name}.{os.getpid()}.part")
+        shutil.copyfile(fmu, part)
+        manifest_path(cached).write_text(json.dumps(asdict(manifest), indent=2) + "\n")
+        os.replace(part, cached)  # the FMU last: a cached FMU always has its manifest
+    except OSError:  # a cache that cannot be written only costs later rebuilds
+        pass
 
 
 def _fresh(old: Manifest | None, fmu: Path, source_hash: str, backend: str, backend_id: str) -> bool:

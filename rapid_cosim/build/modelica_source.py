@@ -300,6 +300,34 @@ def used_classes(target: str, index: dict[str, ClassExtent]) -> set[str]:
     return seen
 
 
+def model_sha256(source: PackageSource, target: str, index: dict[str, ClassExtent] | None = None) -> str:
+    """Hash of what ``target`` is built from: the text of every class it uses and the
+    text of their enclosing packages outside their classes (where constants and
+    annotations live). Editing or adding another model leaves it unchanged, so only the
+    models whose sources changed are rebuilt."""
+    index = index if index is not None else class_index(source)
+    used = used_classes(target, index)
+    scopes = set(used)
+    for name in used:
+        parts = name.split(".")
+        scopes.update(".".join(parts[:k]) for k in range(1, len(parts)))
+    lines = source.text.splitlines(keepends=True)
+    h = hashlib.sha256(target.encode())
+    for name in sorted(scopes):
+        ext = index.get(name)
+        if ext is None:
+            continue
+        own = set(range(ext.first_line, ext.last_line + 1))
+        if ext.kind == "package":  # its children are hashed as classes, if used
+            for child, c in index.items():
+                if child.startswith(name + ".") and c.first_line > ext.first_line:
+                    own -= set(range(c.first_line, c.last_line + 1))
+        h.update(f"\0{name}\0".encode())
+        # blank lines between a package's classes change as classes come and go
+        h.update("\n".join(t for k in sorted(own) if k - 1 < len(lines) and (t := lines[k - 1].strip())).encode())
+    return h.hexdigest()
+
+
 def _models(index: dict[str, ClassExtent]) -> list[str]:
     return [n for n, e in index.items() if e.kind == "model"]
 

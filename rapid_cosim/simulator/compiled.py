@@ -4,7 +4,8 @@ The library is compiled with the system C compiler (``$CC``, default ``cc``, as 
 embedded FMUs are) against the FMI 2.0 headers that fmpy ships, and cached by the hash
 of its source, the compiler and the platform, under ``$RAPID_COSIM_CACHE`` (default
 ``~/.cache/rapid-cosim``, or the temporary folder where the home is not writable). It
-is built to a side file and renamed into place, so workers starting at once are safe.
+is built to a side file and renamed into place, so workers starting at once are safe
+(``rapid_cosim.build.embedded.cache_dir``).
 
 SUNDIALS: the runner uses the CVODE build that fmpy ships (SUNDIALS 7.5 in fmpy 0.3.32,
 pinned). That is the same binary the Python reference loop runs, so the two paths do the
@@ -23,7 +24,6 @@ import hashlib
 import os
 import platform
 import subprocess
-import tempfile
 from ctypes import POINTER, c_char_p, c_double, c_int, c_uint, c_void_p
 from pathlib import Path
 
@@ -52,18 +52,6 @@ class _Batch(ctypes.Structure):
     ]
 
 
-def cache_dir() -> Path:
-    configured = os.environ.get("RAPID_COSIM_CACHE")
-    if configured:
-        return Path(configured)
-    home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rapid-cosim"
-    try:
-        home.mkdir(parents=True, exist_ok=True)
-        return home
-    except OSError:
-        return Path(tempfile.gettempdir()) / "rapid-cosim"
-
-
 def sundials_libraries() -> list[str]:
     """fmpy's SUNDIALS libraries in dependency order (core, nvector, matrix, solver, cvode)."""
     from fmpy.sundials import libraries
@@ -76,7 +64,7 @@ def sundials_libraries() -> list[str]:
 
 def library_path() -> Path:
     """The runner library for this machine, compiled on first use."""
-    from ..build.embedded import c_compiler  # one place says which compiler builds C here
+    from ..build.embedded import c_compiler, cache_dir  # one place says which compiler builds C here
 
     cc = c_compiler()
     source = SOURCE.read_bytes()

@@ -156,6 +156,15 @@ def _check(flag: int, what: str) -> None:
         raise SimulationError(f"{what} failed with flag {flag}")
 
 
+def _input_setter(fmu, input_vrs, inputs: InputTable, limit: dict):
+    """Sets the inputs at t (returns 0, the right-hand side's "go on")."""
+    def set_inputs(t: float) -> int:
+        fmu.setReal(input_vrs, inputs.at(t, limit["row"]).tolist())
+        return 0
+
+    return set_inputs
+
+
 class ReferenceLoop:
     """One fmpy instance of an FMU and its integrator, re-initialised for every run."""
 
@@ -188,14 +197,8 @@ class ReferenceLoop:
         if params:
             fmu.setReal([vr[n] for n in params], list(params.values()))
         limit = {"row": -1}
-        set_inputs = None
-        if inputs is not None:
-            input_vrs = [vr[n] for n in inputs.names]
-
-            def set_inputs(t: float) -> int:
-                fmu.setReal(input_vrs, inputs.at(t, limit["row"]).tolist())
-                return 0
-
+        set_inputs = None if inputs is None else _input_setter(fmu, [vr[n] for n in inputs.names], inputs, limit)
+        if set_inputs is not None:
             set_inputs(start_time)
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
