@@ -61,17 +61,18 @@ def test_rerun_detects_a_different_archive(config, tmp_path):
     assert not report.identical and "fitness" in report.first_difference
 
 
+# The Python runner keeps the run slow enough (seconds) to be killed in the middle.
 WRITER = """
 import sys
 from rapid_cosim.archive.runs import RunOptions, inputs_from_configs, start_run
-start_run(inputs_from_configs([sys.argv[1]]), RunOptions(method="pf:30+nm", seed=11,
+start_run(inputs_from_configs([sys.argv[1]]), RunOptions(method="pf:30+nm", seed=11, runner="python",
           estimator_options={"pf": {"n_particles": 30}}), sys.argv[2], progress=False)
 """
 
 
 def test_resume_after_kill_9_gives_the_uninterrupted_result(config, tmp_path, repo):
     full = tmp_path / "full.h5"
-    expected = start_run(inputs_from_configs([config]), RunOptions(method="pf:30+nm", seed=11,
+    expected = start_run(inputs_from_configs([config]), RunOptions(method="pf:30+nm", seed=11, runner="python",
                          estimator_options={"pf": {"n_particles": 30}}), full, progress=False)
     killed = tmp_path / "killed.h5"
     proc = subprocess.Popen([sys.executable, "-c", WRITER, str(config), str(killed)], cwd=repo)
