@@ -14,12 +14,16 @@
  *     library's major version before using any of them.
  *
  * Per set (the sequence of the Python reference loop, rapid_cosim/simulator/reference.py,
- * so that both give the same numbers): reset, setupExperiment, parameters, inputs at the
- * start, initialisation, event iteration, continuous-time mode; then for each output
+ * so that both take the same solver steps): reset, setupExperiment, parameters, inputs at
+ * the start, initialisation, event iteration, continuous-time mode; then for each output
  * time: time events (the FMU's nextEventTime and steps of the input table) up to it,
- * CVODE (BDF, dense LU, CV_NORMAL) to it, outputs read. State events: CVODE root-finding
- * on the FMU's event indicators, then event iteration and re-initialisation as the FMI
- * 2.0 standard describes; a step event requested by fmi2CompletedIntegratorStep too.
+ * CVODE (BDF, dense LU) to it, outputs read. The states at an output time come from the
+ * interpolating polynomial of CVODE's step, evaluated here (advance_smooth): the values
+ * CVODE's own dense output gives, up to rounding, at a fraction of the cost.
+ * State events: CVODE root-finding on the FMU's event indicators (in CV_NORMAL mode, so
+ * roots are sought only up to each output time), then event iteration and
+ * re-initialisation as the FMI 2.0 standard describes; a step event requested by
+ * fmi2CompletedIntegratorStep too.
  *
  * Inputs: a table (rows of time and values, non-decreasing time) interpolated linearly;
  * a time written twice is a step, taken as a time event. While CVODE integrates towards
@@ -54,7 +58,10 @@ typedef void (*SUNErrHandlerFn)(int line, const char *func, const char *file, co
                                 void *err_user_data, SUNContext ctx);
 #define CV_BDF 2
 #define CV_NORMAL 1
+#define CV_ONE_STEP 2
 #define CV_ROOT_RETURN 2
+#define MAX_ORDER 5 /* BDF */
+#define MAX_STEPS 5000 /* per output interval, as CVODE's own mxstep in CV_NORMAL mode */
 
 typedef struct {
     int (*SUNDIALSGetVersionNumber)(int *, int *, int *, char *, int);
@@ -63,6 +70,7 @@ typedef struct {
     int (*SUNContext_ClearErrHandlers)(SUNContext);
     int (*SUNContext_PushErrHandler)(SUNContext, SUNErrHandlerFn, void *);
     N_Vector (*N_VNew_Serial)(long long, SUNContext);
+    int (*N_VEnableFusedOps_Serial)(N_Vector, int);
     double *(*N_VGetArrayPointer)(N_Vector);
     void (*N_VDestroy)(N_Vector);
     SUNMatrix (*SUNDenseMatrix)(long long, long long, SUNContext);
@@ -81,6 +89,9 @@ typedef struct {
     int (*CVodeGetRootInfo)(void *, int *);
     int (*CVodeSetNoInactiveRootWarn)(void *);
     int (*CVode)(void *, double, N_Vector, double *, int);
+    int (*CVodeGetDky)(void *, double, int, N_Vector);
+    int (*CVodeGetLastOrder)(void *, int *);
+    int (*CVodeGetLastStep)(void *, double *);
     void (*CVodeFree)(void **);
 } Sundials;
 
@@ -150,12 +161,19 @@ typedef struct {
     double *px;
     SUNMatrix matrix;
     SUNLinearSolver solver;
+    N_Vector dky;
     double span[2];
+    /* CVODE has integrated to tn; zn holds the interpolating polynomial of its last step
+     * (order q, step hu): y(t) = sum_j zn[j] ((t - tn) / hu)^j on [tn - hu, tn]. */
+    double tn, hu;
+    int q, has_step;
+    double *zn;
     int *root_info;
     double *indicators;
     /* the set being run */
     const Batch *b;
     int limit_row; /* first row of the next input step, -1 if none ahead */
+    int cursor;    /* last input row at or before the time of the latest lookup */
     double deadline;
     int timed_out;
     char message[MSG_LEN];
@@ -196,33 +214,30 @@ static void sundials_error(int line, const char *func, const char *file, const c
     if (r && !r->timed_out) set_message(r, "%s: %s (flag %d)", func ? func : "CVODE", msg ? msg : "", err_code);
 }
 
-/* Input values at t, honouring the clamp before the next step (see the file comment). */
-static void input_at(const Runner *r, double t, double *u) {
+/* Input values at t, honouring the clamp before the next step (see the file comment).
+ * The row is found by walking from the last one looked up: the solver's times move
+ * little between calls. */
+static void input_at(Runner *r, double t, double *u) {
     const Batch *b = r->b;
     const double *tt = b->input_time;
-    int n = b->n_rows, k = b->n_inputs, lo, hi, i, j;
+    int n = b->n_rows, k = b->n_inputs, i = r->cursor, j;
     if (r->limit_row >= 0 && t >= tt[r->limit_row]) {
         memcpy(u, b->input_values + (size_t)r->limit_row * k, k * sizeof(double));
         return;
     }
-    if (t <= tt[0]) {  /* at the first time: after a step written there, if any */
-        i = 0;
+    if (tt[i] <= t) {
         while (i + 1 < n && tt[i + 1] <= t) i++;
+    } else {
+        while (i > 0 && tt[i] > t) i--;
+    }
+    r->cursor = i; /* the last row with time <= t, or row 0 when t is before the table */
+    if (tt[i] > t || i == n - 1) {
         memcpy(u, b->input_values + (size_t)i * k, k * sizeof(double));
         return;
     }
-    if (t >= tt[n - 1]) {
-        memcpy(u, b->input_values + (size_t)(n - 1) * k, k * sizeof(double));
-        return;
-    }
-    lo = 0; hi = n - 1; /* last row with time <= t: tt[lo] <= t < tt[hi] */
-    while (hi - lo > 1) {
-        int mid = (lo + hi) / 2;
-        if (tt[mid] <= t) lo = mid; else hi = mid;
-    }
     {
-        double w = (t - tt[lo]) / (tt[hi] - tt[lo]);
-        const double *a = b->input_values + (size_t)lo * k, *c = b->input_values + (size_t)hi * k;
+        double w = (t - tt[i]) / (tt[i + 1] - tt[i]);
+        const double *a = b->input_values + (size_t)i * k, *c = b->input_values + (size_t)(i + 1) * k;
         for (j = 0; j < k; j++) u[j] = a[j] + w * (c[j] - a[j]);
     }
 }
@@ -291,12 +306,13 @@ static int load_sundials(Runner *r, const char *const paths[5], char *err, int e
     CORE(SUNDIALSGetVersionNumber); CORE(SUNContext_Create); CORE(SUNContext_Free);
     CORE(SUNContext_ClearErrHandlers); CORE(SUNContext_PushErrHandler); CORE(N_VGetArrayPointer);
     CORE(N_VDestroy); CORE(SUNMatDestroy); CORE(SUNLinSolFree);
-    NVEC(N_VNew_Serial);
+    NVEC(N_VNew_Serial); NVEC(N_VEnableFusedOps_Serial);
     MAT(SUNDenseMatrix);
     LS(SUNLinSol_Dense);
     CV(CVodeCreate); CV(CVodeInit); CV(CVodeReInit); CV(CVodeSVtolerances); CV(CVodeSetLinearSolver);
     CV(CVodeSetMaxStep); CV(CVodeSetMaxNumSteps); CV(CVodeSetUserData); CV(CVodeRootInit);
     CV(CVodeGetRootInfo); CV(CVodeSetNoInactiveRootWarn); CV(CVode); CV(CVodeFree);
+    CV(CVodeGetDky); CV(CVodeGetLastOrder); CV(CVodeGetLastStep);
 #undef CORE
 #undef NVEC
 #undef MAT
@@ -388,6 +404,15 @@ RC_EXPORT Runner *rc_open(const char *fmu_binary, const char *instance_name, con
     r->sun.SUNContext_PushErrHandler(r->ctx, sundials_error, r);
     r->x = r->sun.N_VNew_Serial(r->n_dim, r->ctx);
     r->abstol = r->sun.N_VNew_Serial(r->n_dim, r->ctx);
+    /* Fused vector operations: CVODE's vectors are cloned from x, so its interpolation at
+     * each output time is one loop instead of a chain of generic vector calls. */
+    r->sun.N_VEnableFusedOps_Serial(r->x, 1);
+    r->dky = r->sun.N_VNew_Serial(r->n_dim, r->ctx);
+    r->zn = calloc((size_t)(MAX_ORDER + 2) * r->n_dim, sizeof(double)); /* + one row: the value at t */
+    if (!r->x || !r->abstol || !r->dky || !r->zn) {
+        snprintf(err, err_len, "out of memory");
+        goto fail;
+    }
     r->px = r->sun.N_VGetArrayPointer(r->x);
     tol = r->sun.N_VGetArrayPointer(r->abstol);
     for (i = 0; i < r->n_dim; i++) nominals[i] = 1.0;
@@ -430,6 +455,8 @@ RC_EXPORT void rc_close(Runner *r) {
     if (r->matrix) r->sun.SUNMatDestroy(r->matrix);
     if (r->x) r->sun.N_VDestroy(r->x);
     if (r->abstol) r->sun.N_VDestroy(r->abstol);
+    if (r->dky) r->sun.N_VDestroy(r->dky);
+    free(r->zn);
     if (r->ctx) r->sun.SUNContext_Free(&r->ctx);
     if (r->c) r->fmi.free_instance(r->c);
     if (r->fmu_lib) dlclose(r->fmu_lib);
@@ -477,6 +504,8 @@ static int reinit(Runner *r, double t) {
         set_message(r, "CVodeReInit failed at t=%g", t);
         return RC_SOLVER;
     }
+    r->tn = t;
+    r->has_step = 0;
     return RC_OK;
 }
 
@@ -499,25 +528,75 @@ static int next_input_step(const Runner *r, double t) {
     return -1;
 }
 
-/* Integrate to t_out; state events and step events met on the way are handled. */
+static int solver_failure(Runner *r, int flag, double t_ret) {
+    if (r->timed_out) {
+        set_message(r, "over its %g s wall-clock budget at t=%g", r->b->timeout, t_ret);
+        return RC_TIMEOUT;
+    }
+    if (!r->message[0]) {
+        set_message(r, "CVODE failed (flag %d) near t=%g", flag, t_ret);
+    } else {
+        char detail[MSG_LEN];
+        memcpy(detail, r->message, MSG_LEN);
+        set_message(r, "CVODE failed near t=%g: %s", t_ret, detail);
+    }
+    return RC_SOLVER;
+}
+
+/* Without event indicators: CVODE steps (CV_ONE_STEP) until it passes t_out, and the
+ * interpolating polynomial of its last step, taken once per step, gives the states at
+ * t_out. It is the polynomial CVODE's own dense output (CV_NORMAL) evaluates, so the
+ * steps and the values are those of the reference loop up to rounding; the cost per
+ * output time is a few multiplications instead of a solver call. */
+static int advance_smooth(Runner *r, double t_out, double *t) {
+    int n = r->n_dim, steps = 0, j, i, flag;
+    double *y = r->zn + (size_t)(MAX_ORDER + 1) * n, t_ret, scale, s;
+    while (r->tn < t_out) {
+        flag = r->sun.CVode(r->mem, t_out, r->x, &t_ret, CV_ONE_STEP);
+        if (flag < 0) return solver_failure(r, flag, t_ret);
+        if (++steps > MAX_STEPS) {
+            set_message(r, "more than %d solver steps between output times near t=%g", MAX_STEPS, t_ret);
+            return RC_SOLVER;
+        }
+        r->tn = t_ret;
+        r->sun.CVodeGetLastOrder(r->mem, &r->q);
+        r->sun.CVodeGetLastStep(r->mem, &r->hu);
+        memcpy(r->zn, r->px, n * sizeof(double));
+        scale = 1.0;
+        for (j = 1; j <= r->q; j++) { /* the j-th derivative at tn times hu^j / j! */
+            const double *d;
+            r->sun.CVodeGetDky(r->mem, t_ret, j, r->dky);
+            d = r->sun.N_VGetArrayPointer(r->dky);
+            scale *= r->hu / j;
+            for (i = 0; i < n; i++) r->zn[(size_t)j * n + i] = d[i] * scale;
+        }
+        r->has_step = 1;
+    }
+    if (r->has_step && t_out != r->tn) {
+        s = (t_out - r->tn) / r->hu;
+        for (i = 0; i < n; i++) {
+            double v = r->zn[(size_t)r->q * n + i];
+            for (j = r->q - 1; j >= 0; j--) v = v * s + r->zn[(size_t)j * n + i];
+            y[i] = v;
+        }
+    } else {
+        memcpy(y, r->has_step ? r->zn : r->px, n * sizeof(double));
+    }
+    if (r->n_states) FMI(r->fmi.set_states(r->c, y, (size_t)r->n_states), "fmi2SetContinuousStates");
+    FMI(r->fmi.set_time(r->c, t_out), "fmi2SetTime");
+    *t = t_out;
+    return RC_OK;
+}
+
+/* With event indicators: CV_NORMAL to t_out, so that CVODE looks for roots only up to
+ * t_out; state events and step events met on the way are handled. */
 static int advance(Runner *r, double t_out, double *t, int *has_event, double *t_event) {
+    if (!r->n_indicators) return advance_smooth(r, t_out, t);
     while (*t < t_out) {
         double t_ret = *t;
         int flag = r->sun.CVode(r->mem, t_out, r->x, &t_ret, CV_NORMAL), s;
         fmi2Boolean enter = fmi2False, terminate = fmi2False;
-        if (flag < 0) {
-            if (r->timed_out) {
-                set_message(r, "over its %g s wall-clock budget at t=%g", r->b->timeout, t_ret);
-                return RC_TIMEOUT;
-            }
-            if (!r->message[0]) set_message(r, "CVODE failed (flag %d) near t=%g", flag, t_ret);
-            else {
-                char detail[MSG_LEN];
-                memcpy(detail, r->message, MSG_LEN);
-                set_message(r, "CVODE failed near t=%g: %s", t_ret, detail);
-            }
-            return RC_SOLVER;
-        }
+        if (flag < 0) return solver_failure(r, flag, t_ret);
         if (r->n_states) FMI(r->fmi.set_states(r->c, r->px, (size_t)r->n_states), "fmi2SetContinuousStates");
         FMI(r->fmi.set_time(r->c, t_ret), "fmi2SetTime");
         *t = t_ret;
@@ -526,11 +605,9 @@ static int advance(Runner *r, double t_out, double *t, int *has_event, double *t
             if ((s = handle_event(r, t_ret, has_event, t_event))) return s;
             continue;
         }
-        if (r->n_indicators) {
-            FMI(r->fmi.completed_step(r->c, fmi2True, &enter, &terminate), "fmi2CompletedIntegratorStep");
-            if (terminate) { set_message(r, "the model asked to terminate at t=%g", t_ret); return RC_TERMINATED; }
-            if (enter && (s = handle_event(r, t_ret, has_event, t_event))) return s;
-        }
+        FMI(r->fmi.completed_step(r->c, fmi2True, &enter, &terminate), "fmi2CompletedIntegratorStep");
+        if (terminate) { set_message(r, "the model asked to terminate at t=%g", t_ret); return RC_TERMINATED; }
+        if (enter && (s = handle_event(r, t_ret, has_event, t_event))) return s;
         break;
     }
     return RC_OK;
@@ -569,6 +646,7 @@ static int run_set(Runner *r, const double *params, double *out, double *t_reach
     if (!r->fresh) FMI(r->fmi.reset(r->c), "fmi2Reset");
     r->fresh = 0;
     r->limit_row = -1;
+    r->cursor = 0;
     FMI(r->fmi.setup_experiment(r->c, fmi2False, 0.0, b->start_time, fmi2False, 0.0), "fmi2SetupExperiment");
     if (b->n_params) FMI(r->fmi.set_real(r->c, b->param_vrs, (size_t)b->n_params, params), "fmi2SetReal (parameters)");
     if (set_inputs(r, t)) { set_message(r, "setting inputs failed at the start"); return RC_FMI; }
