@@ -31,7 +31,7 @@ def _seeds(spec: str) -> list[int]:
 
 
 def main(argv: list[str]) -> int:
-    from rapid_cosim.build import build_models
+    from rapid_cosim.compiler import build_models
     from rapid_cosim.diagnose.catalogue import BASE_BENCH, CATALOGUE
     from rapid_cosim.diagnose.study import SINGLE_SIZE, confusion_text, draw_case, run_case
     from rapid_cosim.diagnose.workflow import DiagnoseOptions

@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _fmu(model: str) -> Path:
-    from rapid_cosim.build import ensure_fmu
+    from rapid_cosim.compiler import ensure_fmu
 
     return ensure_fmu(model, package=ROOT / "modelica" / "iGrGen", fmu_dir=ROOT / "fmus")
 

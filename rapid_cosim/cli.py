@@ -25,18 +25,18 @@ def _assignments(items: list[str]) -> dict[str, float]:
 
 
 def cmd_build(args) -> int:
-    from .build import build_models
+    from .compiler import build_models
 
-    print(f"building into {args.fmus} (backend {args.backend})")
-    build_models(args.models or None, package=args.package, fmu_dir=args.fmus, backend=args.backend, force=args.force)
+    print(f"building into {args.fmus} (compiler {args.compiler})")
+    build_models(args.models or None, package=args.package, fmu_dir=args.fmus, compiler=args.compiler, force=args.force)
     return 0
 
 
 def cmd_simulate(args) -> int:
-    from .build import ensure_fmu
+    from .compiler import ensure_fmu
     from .simulator import Simulator
 
-    fmu = ensure_fmu(args.model, package=args.package, fmu_dir=args.fmus, backend=args.backend)
+    fmu = ensure_fmu(args.model, package=args.package, fmu_dir=args.fmus, compiler=args.compiler)
     sim = Simulator(fmu, timeout=args.timeout)
     outputs = args.outputs.split(",") if args.outputs else None
     traj = sim.simulate(_assignments(args.set), stop_time=args.stop_time, output_interval=args.output_interval,
@@ -56,12 +56,12 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_benches(args) -> int:
-    from .build import build_models
+    from .compiler import build_models
     from .report.figures import plot_step_responses
     from .simulator import Simulator
 
     print("1/2 building the iGrGen test benches")
-    outcomes = build_models(package=args.package, fmu_dir=args.fmus, backend=args.backend)
+    outcomes = build_models(package=args.package, fmu_dir=args.fmus, compiler=args.compiler)
     print("2/2 simulating a staged test (MCR 60 %, df = -200 mHz at 10 s, back at 60 s) on every bench")
     responses = {}
     for o in outcomes:
@@ -88,7 +88,7 @@ def _staged_tests(args, experiments) -> list[str]:
     for config in experiments:
         t0 = time.perf_counter()
         runs = run_staged_test(config, results=args.results, seed=args.seed, n_jobs=args.n_jobs,
-                               progress=not args.quiet, fmu_dir=args.fmus, package=args.package, backend=args.backend)
+                               progress=not args.quiet, fmu_dir=args.fmus, package=args.package, compiler=args.compiler)
         test = runs[0].test
         rows = [table1.read_row(r.test, r.method.label, r.archive) for r in runs]
         fig = plot_test_fit({r.method.label: r.archive for r in runs}, Path(args.results) / test / f"{test}.png")
@@ -125,11 +125,11 @@ def cmd_table1(args) -> int:
 def cmd_demo(args) -> int:
     import time
 
-    from .build import build_models
+    from .compiler import build_models
 
     t0 = time.perf_counter()
     print("1/3 building the iGrGen test benches (only what changed)")
-    build_models(package=args.package, fmu_dir=args.fmus, backend=args.backend)
+    build_models(package=args.package, fmu_dir=args.fmus, compiler=args.compiler)
     config = Path(args.experiments) / args.test
     print(f"2/3 calibrating {config} with PSO10+NM and PF10+NM (seed {args.seed}, {args.n_jobs} workers)")
     test = _staged_tests(args, [config])[0]
@@ -198,7 +198,7 @@ def cmd_joint(args) -> int:
     options = parse_option_overrides(args.option) if args.option else None
     path, result, action = run_joint(configs, results=args.results, seed=args.seed, n_jobs=args.n_jobs,
                                      options=options, progress=not args.quiet, fmu_dir=args.fmus, package=args.package,
-                                     backend=args.backend)
+                                     compiler=args.compiler)
     print(f"{path}: {action}, {result.nfev} evaluations, {result.wall_time:.0f} s")
     print("Laplace approximations at each test's optimum")
     ensure_laplace(per_test, laplace_cache(args.results), n_jobs=args.n_jobs)
@@ -276,7 +276,7 @@ def cmd_estimate(args) -> int:
 
     from .archive.runs import inputs_from_configs, parse_option_overrides, start_run
 
-    inputs = inputs_from_configs(args.configs, package=args.package, fmu_dir=args.fmus, backend=args.backend)
+    inputs = inputs_from_configs(args.configs, package=args.package, fmu_dir=args.fmus, compiler=args.compiler)
     options = _run_options(args, parse_option_overrides(args.option))
     archive = args.archive or str(Path(args.results) / f"run-{datetime.now():%Y%m%d-%H%M%S}.h5")
     names = ", ".join(e.name for e in inputs.experiments)
@@ -344,8 +344,8 @@ def build_parser() -> argparse.ArgumentParser:
     def model_options(p):
         p.add_argument("--package", default="modelica/iGrGen", help="Modelica package directory (default %(default)s)")
         p.add_argument("--fmus", default="fmus", help="FMU directory (default %(default)s)")
-        p.add_argument("--backend", default="auto", choices=["auto", "openmodelica", "embedded"],
-                       help="Modelica-to-FMU backend; auto = OpenModelica where omc exists (default %(default)s)")
+        p.add_argument("--compiler", default="auto", choices=["auto", "openmodelica", "embedded"],
+                       help="Modelica-to-FMU compiler; auto = OpenModelica where omc exists (default %(default)s)")
 
     p = sub.add_parser("build", help="compile test benches into FMUs (only what changed)")
     p.add_argument("models", nargs="*", help="class names; default: every model in <package>.TestBenches")

@@ -127,10 +127,10 @@ class StagedRun:
 def run_staged_test(config: str | Path, *, results: str | Path = "results", seed: int = 1, n_jobs: int = 2,
                     methods: Sequence[Method] = METHODS, progress: bool = True,
                     fmu_dir: str | Path = "fmus", package: str | Path = "modelica/iGrGen",
-                    backend: str = "auto") -> list[StagedRun]:
+                    compiler: str = "auto") -> list[StagedRun]:
     """Both chains on one staged test, make-like (a finished archive of the same run is
     reused, an interrupted one resumed)."""
-    inputs = inputs_from_configs([config], package=package, fmu_dir=fmu_dir, backend=backend)
+    inputs = inputs_from_configs([config], package=package, fmu_dir=fmu_dir, compiler=compiler)
     test = inputs.experiments[0].name
     runs = []
     for m in methods:
@@ -150,11 +150,11 @@ def run_staged_test(config: str | Path, *, results: str | Path = "results", seed
 def run_joint(configs: Sequence[str | Path], *, results: str | Path = "results", seed: int = 1, n_jobs: int = 2,
               options: dict[str, dict[str, Any]] | None = None, progress: bool = True,
               fmu_dir: str | Path = "fmus", package: str | Path = "modelica/iGrGen",
-              backend: str = "auto") -> tuple[Path, EstimationResult, str]:
+              compiler: str = "auto") -> tuple[Path, EstimationResult, str]:
     """One SMC fit of shared R, Ts over the given tests (offsets profiled per test),
     archived (make-like) in ``<results>/joint/smc.h5``; ``options`` override
     :data:`JOINT_OPTIONS` key by key."""
-    inputs = inputs_from_configs(configs, package=package, fmu_dir=fmu_dir, backend=backend)
+    inputs = inputs_from_configs(configs, package=package, fmu_dir=fmu_dir, compiler=compiler)
     merged = {m: dict(kw) for m, kw in JOINT_OPTIONS.items()}
     for m, kw in (options or {}).items():
         if m != JOINT_METHOD:

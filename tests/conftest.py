@@ -26,7 +26,7 @@ def repo() -> Path:
 @pytest.fixture(scope="session")
 def fmus(repo) -> dict[str, Path]:
     """Short bench name -> FMU path, e.g. fmus['StagedTest']."""
-    from rapid_cosim.build import build_models
+    from rapid_cosim.compiler import build_models
 
     outcomes = build_models(package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus", log=lambda *_: None)
     return {o.model.rsplit(".", 1)[-1]: o.fmu for o in outcomes}

@@ -7,8 +7,8 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from rapid_cosim.build import build_models, fmu_path, read_manifest, resolve_backend
-from rapid_cosim.build.openmodelica import find_omc
+from rapid_cosim.compiler import build_models, fmu_path, read_manifest, resolve_compiler
+from rapid_cosim.compiler.openmodelica import find_omc
 from rapid_cosim.errors import BuildError
 
 
@@ -34,27 +34,27 @@ def test_manifest_and_rebuild_rules(tmp_path, repo, monkeypatch):
     shutil.copytree(repo / "modelica" / "iGrGen", pkg)
     out = tmp_path / "fmus"
     model = "iGrGen.TestBenches.StagedTest"
-    first = build_models([model], package=pkg, fmu_dir=out, backend="embedded", log=lambda *_: None)[0]
+    first = build_models([model], package=pkg, fmu_dir=out, compiler="embedded", log=lambda *_: None)[0]
     assert first.rebuilt
     manifest = json.loads((out / f"{model}.manifest.json").read_text())
-    assert manifest["backend"] == "embedded" and manifest["fmi_version"] == "2.0"
+    assert manifest["compiler"] == "embedded" and manifest["fmi_version"] == "2.0"
     assert set(manifest["tools"]) >= {"pymoca", "casadi", "compiler"}
     assert len(manifest["source_hash"]) == 64
 
-    again = build_models([model], package=pkg, fmu_dir=out, backend="embedded", log=lambda *_: None)[0]
+    again = build_models([model], package=pkg, fmu_dir=out, compiler="embedded", log=lambda *_: None)[0]
     assert not again.rebuilt
 
     f = pkg / "Governors" / "TGTypeI.mo"
     f.write_text(f.read_text().replace("// (3)", "// (3) edited"))
-    edited = build_models([model], package=pkg, fmu_dir=out, backend="embedded", log=lambda *_: None)[0]
+    edited = build_models([model], package=pkg, fmu_dir=out, compiler="embedded", log=lambda *_: None)[0]
     assert edited.rebuilt
     assert edited.manifest.source_hash != first.manifest.source_hash
 
-    forced = build_models([model], package=pkg, fmu_dir=out, backend="embedded", force=True, log=lambda *_: None)[0]
+    forced = build_models([model], package=pkg, fmu_dir=out, compiler="embedded", force=True, log=lambda *_: None)[0]
     assert forced.rebuilt
 
     fmu_path(model, out).write_bytes(b"corrupt")  # a tampered FMU is replaced (from the cache)
-    fixed = build_models([model], package=pkg, fmu_dir=out, backend="embedded", log=lambda *_: None)[0]
+    fixed = build_models([model], package=pkg, fmu_dir=out, compiler="embedded", log=lambda *_: None)[0]
     assert not fixed.rebuilt
     assert read_manifest(fmu_path(model, out)).fmu_sha256 == edited.manifest.fmu_sha256
 
@@ -65,7 +65,7 @@ def test_another_folder_takes_the_cached_build_and_new_models_rebuild_nothing_el
     shutil.copytree(repo / "modelica" / "iGrGen", pkg)
     model = "iGrGen.TestBenches.StagedTest"
     build = lambda folder: build_models([model], package=pkg, fmu_dir=tmp_path / folder,  # noqa: E731
-                                        backend="embedded", log=lambda *_: None)[0]
+                                        compiler="embedded", log=lambda *_: None)[0]
     first = build("a")
     assert first.rebuilt
     second = build("b")  # a fresh work folder, as a diagnosis makes
@@ -79,10 +79,10 @@ def test_another_folder_takes_the_cached_build_and_new_models_rebuild_nothing_el
     assert not build("a").rebuilt
 
 
-def test_auto_backend_follows_omc(monkeypatch):
-    assert resolve_backend("auto") == ("openmodelica" if find_omc() else "embedded")
-    with pytest.raises(BuildError, match="unknown backend"):
-        resolve_backend("dymola")
+def test_auto_compiler_follows_omc(monkeypatch):
+    assert resolve_compiler("auto") == ("openmodelica" if find_omc() else "embedded")
+    with pytest.raises(BuildError, match="unknown compiler"):
+        resolve_compiler("dymola")
 
 
 @pytest.mark.openmodelica
@@ -94,9 +94,9 @@ def test_openmodelica_build_matches_embedded(tmp_path, repo, fmus):
 
     out = tmp_path / "omc"
     model = "iGrGen.TestBenches.StagedTest"
-    outcome = build_models([model], package=repo / "modelica" / "iGrGen", fmu_dir=out, backend="openmodelica",
+    outcome = build_models([model], package=repo / "modelica" / "iGrGen", fmu_dir=out, compiler="openmodelica",
                            log=lambda *_: None)[0]
-    assert outcome.manifest.backend == "openmodelica"
+    assert outcome.manifest.compiler == "openmodelica"
     assert validate_fmu(str(outcome.fmu)) == []
     params = {"gov.Ts": 3.0, "gov.p_ref": 0.8, "src.t_return": 40.0}
     a = Simulator(outcome.fmu).simulate(params, stop_time=60, output_interval=0.05)
@@ -105,9 +105,9 @@ def test_openmodelica_build_matches_embedded(tmp_path, repo, fmus):
 
 
 @pytest.mark.openmodelica
-def test_openmodelica_backend_without_omc_says_how_to_fix(monkeypatch, tmp_path, repo):
+def test_openmodelica_compiler_without_omc_says_how_to_fix(monkeypatch, tmp_path, repo):
     monkeypatch.setenv("OPENMODELICAHOME", str(tmp_path / "nowhere"))
     monkeypatch.setenv("PATH", str(tmp_path))
     with pytest.raises(BuildError, match="omc not found"):
         build_models(["iGrGen.TestBenches.StagedTest"], package=repo / "modelica" / "iGrGen",
-                     fmu_dir=tmp_path / "f", backend="openmodelica", force=True, log=lambda *_: None)
+                     fmu_dir=tmp_path / "f", compiler="openmodelica", force=True, log=lambda *_: None)

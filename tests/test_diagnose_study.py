@@ -13,7 +13,7 @@ import shutil
 import joblib
 import pytest
 
-from rapid_cosim.build import build_models
+from rapid_cosim.compiler import build_models
 from rapid_cosim.cli import main
 from rapid_cosim.diagnose.catalogue import BASE_BENCH, CATALOGUE
 from rapid_cosim.diagnose.study import SINGLE_SIZE, confusion_text, draw_case, run_case, write_campaign
@@ -88,7 +88,7 @@ def test_named_effect_is_written_compiled_recalibrated_through_the_cli(study, tm
     verdict = tmp_path / "verdict.json"
     assert main(["diagnose", *map(str, configs), "--holdout", "step3", "--results", str(tmp_path / "diagnosis"),
                  "--json", str(verdict), "--max-effects", "1", "--package", str(own),
-                 "--fmus", str(tmp_path / "fmus"), "--backend", "embedded"]) == 0
+                 "--fmus", str(tmp_path / "fmus"), "--compiler", "embedded"]) == 0
     record = json.loads(verdict.read_text())
     assert {"effect", "ranking", "gap_before", "gap_after"} <= set(record)
     assert record["effect"] == "backlash"

@@ -6,7 +6,7 @@ import shutil
 import numpy as np
 import pytest
 
-from rapid_cosim.build import build_models
+from rapid_cosim.compiler import build_models
 from rapid_cosim.diagnose.candidates import CandidateFit, CandidateSpec, ExperimentResiduals
 from rapid_cosim.diagnose.catalogue import CATALOGUE, bench_name, bench_source
 from rapid_cosim.diagnose.selection import NoiseFloor, Ranked, bic, decide, prewhitened

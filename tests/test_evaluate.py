@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rapid_cosim.build import build_models
+from rapid_cosim.compiler import build_models
 from rapid_cosim.evaluate import PENALTY, ProblemObjective, evaluate_in_detail
 from rapid_cosim.experiment import build_problem, load_experiment
 from rapid_cosim.simulator import FmuRef
@@ -73,7 +73,7 @@ end Bad;
 def test_failed_simulations_get_the_penalty_and_the_run_goes_on(tmp_path):
     (tmp_path / "Bad.mo").write_text(BLOWUP)
     fmu = build_models(["Bad.Blowup"], package=tmp_path / "Bad.mo", fmu_dir=tmp_path / "fmus",
-                       backend="embedded", log=lambda *_: None)[0].fmu
+                       compiler="embedded", log=lambda *_: None)[0].fmu
     t = np.linspace(0, 2, 21)
     exp = load_experiment(write_experiment(tmp_path / "bad", model="Bad.Blowup", time=t, values=1 / (1 - 0.1 * t),
                                            fixed={}, estimate={"a": {"min": 0.01, "max": 2.0}},

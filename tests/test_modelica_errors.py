@@ -5,9 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from rapid_cosim.build import build_models
-from rapid_cosim.build.embedded.frontend import parse, translate
-from rapid_cosim.build.modelica_source import load_package
+from rapid_cosim.compiler import build_models
+from rapid_cosim.compiler.embedded.frontend import parse, translate
+from rapid_cosim.compiler.modelica_source import load_package
 from rapid_cosim.errors import ModelicaError, ModelicaSyntaxError, UnsupportedConstruct
 
 

@@ -9,7 +9,7 @@ from c_fmus import build_c_fmu
 from reference_models import EFFECT_DEFAULTS, Reference
 from test_reference import CASES, EFFECT_ACTIVE
 
-from rapid_cosim.build import build_models
+from rapid_cosim.compiler import build_models
 from rapid_cosim.errors import FmuError, SimulationError, SimulationTimeout
 from rapid_cosim.simulator import InputTable, Simulator
 from rapid_cosim.simulator.compiled import TIMEOUT
@@ -141,7 +141,7 @@ end Bad;
 def blowup(tmp_path_factory):
     root = tmp_path_factory.mktemp("bad")
     (root / "Bad.mo").write_text(BLOWUP)
-    out = build_models(["Bad.Blowup"], package=root / "Bad.mo", fmu_dir=root / "fmus", backend="embedded",
+    out = build_models(["Bad.Blowup"], package=root / "Bad.mo", fmu_dir=root / "fmus", compiler="embedded",
                        log=lambda *_: None)
     return Simulator(out[0].fmu)
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rapid_cosim.build import build_models
+from rapid_cosim.compiler import build_models
 from rapid_cosim.errors import ParameterError, SimulationError, SimulationTimeout
 from rapid_cosim.simulator import Simulator, get_simulator
 
@@ -56,7 +56,7 @@ def test_trajectory_covers_a_stop_time_off_the_grid(staged):
 def blowup(tmp_path_factory):
     root = tmp_path_factory.mktemp("bad")
     (root / "Bad.mo").write_text(BLOWUP)
-    out = build_models(["Bad.Blowup"], package=root / "Bad.mo", fmu_dir=root / "fmus", backend="embedded",
+    out = build_models(["Bad.Blowup"], package=root / "Bad.mo", fmu_dir=root / "fmus", compiler="embedded",
                        log=lambda *_: None)
     return Simulator(out[0].fmu)
 

@@ -20,7 +20,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from .. import __version__
-from ..build import ensure_fmu
+from ..compiler import ensure_fmu
 from ..data import MeasuredData
 from ..errors import ArchiveError, ConfigError, RapidCosimError
 from ..estimators import parse_method, run_chain
@@ -110,7 +110,7 @@ class RunInputs:
 
 
 def inputs_from_configs(paths: Sequence[str | Path], *, package: str | Path = "modelica/iGrGen",
-                        fmu_dir: str | Path = "fmus", backend: str = "auto") -> RunInputs:
+                        fmu_dir: str | Path = "fmus", compiler: str = "auto") -> RunInputs:
     """Experiments from config files; their FMUs built if needed and checked against the
     configs (unknown parameters, values outside the declared ranges)."""
     if not paths:
@@ -120,7 +120,7 @@ def inputs_from_configs(paths: Sequence[str | Path], *, package: str | Path = "m
     for exp in experiments:
         if exp.model not in fmus:
             fmus[exp.model] = FmuRef.from_path(ensure_fmu(exp.model, package=package, fmu_dir=fmu_dir,
-                                                          backend=backend), exp.model)
+                                                          compiler=compiler), exp.model)
     return RunInputs(_checked_problem(experiments, fmus), fmus)
 
 

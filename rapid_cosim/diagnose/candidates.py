@@ -150,7 +150,7 @@ def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdi
     of the two stands."""
     start = dict(start or {})
     paths = write_configs(workdir / "candidates" / spec.slug, experiments, spec, start)
-    inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, backend="auto")
+    inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, compiler="auto")
     archive = workdir / "candidates" / f"{spec.slug}.h5"
     result, _ = ensure_run(inputs, options, archive, progress=progress)
     if spec.effects and all(n in start for n in inputs.problem.names):
@@ -158,7 +158,7 @@ def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdi
         if ProblemObjective(inputs.problem, inputs.fmus)(nested[None]).fitness[0] < result.fun:
             polish = f"{spec.slug}-from-base"
             paths = write_configs(workdir / "candidates" / polish, experiments, spec, start, polish_from=start)
-            polished_inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, backend="auto")
+            polished_inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, compiler="auto")
             polished, _ = ensure_run(polished_inputs, replace(options, method="nm"),
                                      workdir / "candidates" / f"{polish}.h5", progress=progress)
             if polished.fun < result.fun:

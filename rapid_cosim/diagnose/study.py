@@ -17,7 +17,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..build import ensure_fmu
+from ..compiler import ensure_fmu
 from ..experiment import load_experiment
 from ..simulator import get_simulator
 from ..synthetic import NoiseModel, synthesize, write_experiment

@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 
 from ..archive.runs import RunOptions, ensure_run, inputs_from_configs, log_likelihood_for
-from ..build import build_models
+from ..compiler import build_models
 from ..data import ar1_inflation
 from ..errors import RapidCosimError
 from ..estimators.laplace import laplace

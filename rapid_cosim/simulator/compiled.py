@@ -5,7 +5,7 @@ embedded FMUs are) against the FMI 2.0 headers that fmpy ships, and cached by th
 of its source, the compiler and the platform, under ``$RAPID_COSIM_CACHE`` (default
 ``~/.cache/rapid-cosim``, or the temporary folder where the home is not writable). It
 is built to a side file and renamed into place, so workers starting at once are safe
-(``rapid_cosim.build.embedded.cache_dir``).
+(``rapid_cosim.compiler.embedded.cache_dir``).
 
 SUNDIALS: the runner uses the CVODE build that fmpy ships (SUNDIALS 7.5 in fmpy 0.3.32,
 pinned). That is the same binary the Python reference loop runs, so the two paths do the
@@ -64,7 +64,7 @@ def sundials_libraries() -> list[str]:
 
 def library_path() -> Path:
     """The runner library for this machine, compiled on first use."""
-    from ..build.embedded import c_compiler, cache_dir  # one place says which compiler builds C here
+    from ..compiler.embedded import c_compiler, cache_dir  # one place says which compiler builds C here
 
     cc = c_compiler()
     source = SOURCE.read_bytes()

@@ -356,7 +356,7 @@ def check_supported(source: PackageSource, target: str) -> None:
         more = f" ({len(problems) - 1} more)" if len(problems) > 1 else ""
         raise source.error(
             f"{what} in {owner} is not supported by the embedded compiler{more}; "
-            "use the OpenModelica backend or rewrite it", line, UnsupportedConstruct)
+            "use the OpenModelica compiler or rewrite it", line, UnsupportedConstruct)
 
 
 def _innermost(line: int, index: dict[str, ClassExtent]) -> ClassExtent | None:

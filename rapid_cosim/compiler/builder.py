@@ -1,7 +1,7 @@
-"""Which FMUs to build, with which backend, and whether they need building at all.
+"""Which FMUs to build, with which compiler, and whether they need building at all.
 
 Each FMU gets a manifest beside it (``<model>.manifest.json``): the hash of the Modelica
-sources the model is built from (the classes it uses, see ``model_sha256``), the backend
+sources the model is built from (the classes it uses, see ``model_sha256``), the compiler
 and an identity of its tool chain. An FMU is rebuilt only when one of those changes, so
 ``make fmus`` is cheap to call before every experiment, and adding a model to the
 package rebuilds nothing else.
@@ -31,7 +31,7 @@ from .embedded import c_compiler, cache_dir
 from .modelica_source import PackageSource, class_index, load_package, model_sha256
 from .openmodelica import find_omc
 
-BACKENDS = ("auto", "openmodelica", "embedded")
+COMPILERS = ("auto", "openmodelica", "embedded")
 DEFAULT_PACKAGE = Path(os.environ.get("RAPID_COSIM_PACKAGE", "modelica/iGrGen"))
 DEFAULT_FMU_DIR = Path(os.environ.get("RAPID_COSIM_FMUS", "fmus"))
 
@@ -40,8 +40,8 @@ DEFAULT_FMU_DIR = Path(os.environ.get("RAPID_COSIM_FMUS", "fmus"))
 class Manifest:
     model: str
     fmu: str
-    backend: str
-    backend_id: str
+    compiler: str
+    compiler_id: str
     source_hash: str
     fmu_sha256: str
     fmi_version: str
@@ -59,12 +59,12 @@ class BuildOutcome:
     manifest: Manifest
 
 
-def resolve_backend(backend: str) -> str:
-    if backend not in BACKENDS:
-        raise BuildError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
-    if backend == "auto":
+def resolve_compiler(compiler: str) -> str:
+    if compiler not in COMPILERS:
+        raise BuildError(f"unknown compiler {compiler!r}; choose one of {', '.join(COMPILERS)}")
+    if compiler == "auto":
         return "openmodelica" if find_omc() else "embedded"
-    return backend
+    return compiler
 
 
 def fmu_path(model: str, fmu_dir: str | Path = DEFAULT_FMU_DIR) -> Path:
@@ -135,28 +135,28 @@ def read_manifest(fmu: Path) -> Manifest | None:
 
 
 def build_models(models: list[str] | None = None, *, package: str | Path = DEFAULT_PACKAGE,
-                 fmu_dir: str | Path = DEFAULT_FMU_DIR, backend: str = "auto", force: bool = False,
+                 fmu_dir: str | Path = DEFAULT_FMU_DIR, compiler: str = "auto", force: bool = False,
                  log=print) -> list[BuildOutcome]:
     """Build (or confirm up to date) the FMUs of ``models``; default: every test bench."""
     source = load_package(package)
-    chosen = resolve_backend(backend)
+    chosen = resolve_compiler(compiler)
     models = models or test_benches(source)
     known = class_index(source)
     unknown = [m for m in models if m not in known]
     if unknown:
         raise BuildError(f"unknown model(s) {', '.join(unknown)}; test benches: {', '.join(test_benches(source))}")
-    backend_id, tools = _embedded_identity() if chosen == "embedded" else _openmodelica_identity()
+    compiler_id, tools = _embedded_identity() if chosen == "embedded" else _openmodelica_identity()
     outcomes, omc_builder, tree = [], None, None
     try:
         for model in models:
             source_hash = model_sha256(source, model, known)
             fmu = fmu_path(model, fmu_dir)
             old = read_manifest(fmu)
-            if not force and _fresh(old, fmu, source_hash, chosen, backend_id):
+            if not force and _fresh(old, fmu, source_hash, chosen, compiler_id):
                 outcomes.append(BuildOutcome(model, fmu, False, old))
                 log(f"  {model}: up to date ({chosen})")
                 continue
-            cached = None if force else _from_cache(model, fmu, source_hash, chosen, backend_id)
+            cached = None if force else _from_cache(model, fmu, source_hash, chosen, compiler_id)
             if cached is not None:
                 outcomes.append(BuildOutcome(model, fmu, False, cached))
                 log(f"  {model}: up to date ({chosen}, from the cache)")
@@ -176,7 +176,7 @@ def build_models(models: list[str] | None = None, *, package: str | Path = DEFAU
                 omc_builder.build(model, fmu)
             seconds = time.perf_counter() - t0
             manifest = Manifest(
-                model=model, fmu=fmu.name, backend=chosen, backend_id=backend_id, source_hash=source_hash,
+                model=model, fmu=fmu.name, compiler=chosen, compiler_id=compiler_id, source_hash=source_hash,
                 fmu_sha256=_sha256(fmu), fmi_version="2.0", fmi_type="ModelExchange", tools=tools,
                 built=datetime.now(timezone.utc).isoformat(timespec="seconds"), build_seconds=round(seconds, 3))
             manifest_path(fmu).write_text(json.dumps(asdict(manifest), indent=2) + "\n")
@@ -189,14 +189,14 @@ def build_models(models: list[str] | None = None, *, package: str | Path = DEFAU
     return outcomes
 
 
-def _cache_path(model: str, source_hash: str, backend: str, backend_id: str) -> Path:
-    key = hashlib.sha256(f"{model}|{source_hash}|{backend}|{backend_id}".encode()).hexdigest()[:24]
+def _cache_path(model: str, source_hash: str, compiler: str, compiler_id: str) -> Path:
+    key = hashlib.sha256(f"{model}|{source_hash}|{compiler}|{compiler_id}".encode()).hexdigest()[:24]
     return cache_dir() / "fmus" / f"{model}-{key}.fmu"
 
 
-def _from_cache(model: str, fmu: Path, source_hash: str, backend: str, backend_id: str) -> Manifest | None:
+def _from_cache(model: str, fmu: Path, source_hash: str, compiler: str, compiler_id: str) -> Manifest | None:
     """Copy a cached build of the same sources and tool chain into place, with its manifest."""
-    cached = _cache_path(model, source_hash, backend, backend_id)
+    cached = _cache_path(model, source_hash, compiler, compiler_id)
     manifest = read_manifest(cached)
     if manifest is None or not cached.exists() or _sha256(cached) != manifest.fmu_sha256:
         return None
@@ -209,7 +209,7 @@ def _from_cache(model: str, fmu: Path, source_hash: str, backend: str, backend_i
 
 
 def _to_cache(fmu: Path, manifest: Manifest) -> None:
-    cached = _cache_path(manifest.model, manifest.source_hash, manifest.backend, manifest.backend_id)
+    cached = _cache_path(manifest.model, manifest.source_hash, manifest.compiler, manifest.compiler_id)
     try:
         cached.parent.mkdir(parents=True, exist_ok=True)
         part = cached.with_name(f"{cached.name}.{os.getpid()}.part")
@@ -220,15 +220,15 @@ def _to_cache(fmu: Path, manifest: Manifest) -> None:
         pass
 
 
-def _fresh(old: Manifest | None, fmu: Path, source_hash: str, backend: str, backend_id: str) -> bool:
+def _fresh(old: Manifest | None, fmu: Path, source_hash: str, compiler: str, compiler_id: str) -> bool:
     if old is None or not fmu.exists():
         return False
-    same = (old.source_hash, old.backend, old.backend_id) == (source_hash, backend, backend_id)
+    same = (old.source_hash, old.compiler, old.compiler_id) == (source_hash, compiler, compiler_id)
     return same and old.fmu_sha256 == _sha256(fmu)
 
 
 def ensure_fmu(model: str, *, package: str | Path = DEFAULT_PACKAGE, fmu_dir: str | Path = DEFAULT_FMU_DIR,
-               backend: str = "auto") -> Path:
+               compiler: str = "auto") -> Path:
     """Path of an up-to-date FMU for ``model`` (a class name or a path to an .fmu)."""
     if model.endswith(".fmu"):
         path = Path(model)
@@ -240,4 +240,4 @@ def ensure_fmu(model: str, *, package: str | Path = DEFAULT_PACKAGE, fmu_dir: st
         if fmu.exists():
             return fmu
         raise BuildError(f"no FMU {fmu} and no Modelica package at {package} to build it from")
-    return build_models([model], package=package, fmu_dir=fmu_dir, backend=backend, log=lambda *_: None)[0].fmu
+    return build_models([model], package=package, fmu_dir=fmu_dir, compiler=compiler, log=lambda *_: None)[0].fmu

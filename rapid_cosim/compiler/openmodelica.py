@@ -35,7 +35,7 @@ class OpenModelicaBuilder:
     def __init__(self, package_mo: str | Path):
         omc = find_omc()
         if omc is None:
-            raise BuildError("omc not found: set OPENMODELICAHOME or put omc on PATH, or use --backend embedded")
+            raise BuildError("omc not found: set OPENMODELICAHOME or put omc on PATH, or use --compiler embedded")
         from OMPython import OMCSessionLocal  # imported late: it starts nothing until used
 
         self.session = OMCSessionLocal(omhome=omc_home(omc))
