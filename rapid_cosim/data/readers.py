@@ -1,0 +1,246 @@
+"""Recordings from files: :func:`load_measurements` reads one into a
+:class:`~rapid_cosim.data.measured.MeasuredData` and warns
+(:class:`~rapid_cosim.data.measured.MaskedSamplesWarning`) when it has masked samples.
+
+Formats, chosen by the file suffix:
+
+``.csv``
+    A header row of column names, then one sample per row, comma separated. An empty
+    cell or ``nan`` is a missing sample (so is ``inf``: a recorder overflow is no
+    reading). Any other text that is not a number is a :class:`DataError`.
+``.mat``
+    As RaPId stores them: a ``time`` vector and a ``signal`` array, one column per
+    output. A 1-D ``signal`` (or one column) becomes column ``signal``; k columns become
+    ``signal_0`` .. ``signal_<k-1>``. Any other numeric variable of the same length is
+    a column too, named the same way. MAT v7.3 files are HDF5 and are read with h5py
+    (MATLAB stores arrays transposed there; the orientation is found from the length of
+    ``time``).
+``.h5`` / ``.hdf5`` / ``.hdf``
+    A ``time`` dataset and one dataset per column (a 2-D (N, k) dataset is split like
+    ``signal``), in the root group or in the group named after a colon:
+    ``run.h5:/tests/test1``.
+
+Rows in error messages are counted as a spreadsheet shows them: the header is row 1,
+the first sample row 2. For MAT and HDF5 files, errors name the 1-based sample number.
+
+Time must be finite and strictly increasing; a bad time stamp is rejected at its row.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+import warnings
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from ..errors import DataError
+from .measured import MaskedSamplesWarning, MeasuredData, MissingColumn, bad_time_reason, first_bad_time
+
+CSV_SUFFIXES = (".csv",)
+MAT_SUFFIXES = (".mat",)
+HDF5_SUFFIXES = (".h5", ".hdf5", ".hdf")
+
+
+def split_hdf5_path(path: str | Path) -> tuple[Path, str]:
+    """``'run.h5:/a/b'`` -> ``(Path('run.h5'), '/a/b')``; no group -> ``'/'``."""
+    text = str(path)
+    m = re.match(r"^(.*\.(?:h5|hdf5|hdf|mat)):(/.*)$", text, flags=re.IGNORECASE)
+    if m:
+        return Path(m.group(1)), m.group(2)
+    return Path(text), "/"
+
+
+def load_measurements(path: str | Path, time_column: str = "time",
+                      columns: Mapping[str, str] | None = None,
+                      warn: bool = True) -> MeasuredData:
+    """Read a recording (CSV, MAT or HDF5, by suffix) into a :class:`MeasuredData`.
+
+    ``columns`` maps the names wanted to the names in the file (``{"pm": "signal_0"}``);
+    when given, only those columns are kept, and a missing one is a
+    :class:`MissingColumn` error listing what the file has. With ``warn`` a
+    :class:`MaskedSamplesWarning` reports masked samples.
+    """
+    file, group = split_hdf5_path(path)
+    suffix = file.suffix.lower()
+    if group != "/" and suffix not in HDF5_SUFFIXES:
+        raise DataError(f"a group ({group}) can only be given for HDF5 files", str(path))
+    if not file.is_file():
+        raise DataError(f"file not found: {file.resolve()}", str(file))
+    source = str(path)
+    if suffix in CSV_SUFFIXES:
+        data = _read_csv(file, source, time_column)
+        skipped: dict[str, str] = {}
+    elif suffix in MAT_SUFFIXES:
+        data, skipped = _read_mat(file, source, time_column)
+    elif suffix in HDF5_SUFFIXES:
+        data, skipped = _read_hdf5(file, group, source, time_column)
+    else:
+        supported = ", ".join(CSV_SUFFIXES + MAT_SUFFIXES + HDF5_SUFFIXES)
+        raise DataError(f"unknown file type '{file.suffix}'; supported: {supported}", source)
+    if columns is not None:
+        for stored in columns.values():
+            if stored not in data.columns:
+                raise MissingColumn(stored, list(data.names), source, skipped)
+        data = MeasuredData(source, data.time,
+                            {new: data.columns[old] for new, old in columns.items()},
+                            {new: data.valid[old] for new, old in columns.items()}, data.rows)
+    if warn and data.gaps():
+        warnings.warn(data.gap_report(), MaskedSamplesWarning, stacklevel=2)
+    return data
+
+
+def _read_csv(file: Path, source: str, time_column: str) -> MeasuredData:
+    with open(file, newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        while header == []:  # leading blank lines
+            header = next(reader, None)
+        if header is None:
+            raise DataError("the file is empty", source)
+        names = [h.strip() for h in header]
+        header_row = reader.line_num
+        for k, name in enumerate(names):
+            if not name:
+                raise DataError(f"column {k + 1} of the header has no name", source, header_row)
+        dupes = sorted({n for n in names if names.count(n) > 1})
+        if dupes:
+            raise DataError(f"repeated column name(s) in the header: {', '.join(dupes)}",
+                            source, header_row)
+        if time_column not in names:
+            raise MissingColumn(time_column, [n for n in names if n != time_column], source)
+        values: list[list[float]] = []
+        rows: list[int] = []
+        for record in reader:
+            if not record or all(not c.strip() for c in record) and len(record) == 1:
+                continue  # a blank line carries no sample
+            row = reader.line_num
+            if len(record) != len(names):
+                raise DataError(f"expected {len(names)} fields ({', '.join(names)}), "
+                                f"found {len(record)}: {','.join(record)!r}", source, row)
+            parsed = []
+            for name, cell in zip(names, record):
+                text = cell.strip()
+                if not text:
+                    parsed.append(np.nan)
+                    continue
+                try:
+                    parsed.append(float(text))
+                except ValueError:
+                    raise DataError(f"column '{name}': '{text}' is not a number "
+                                    f"(leave the cell empty or write nan for a missing sample)",
+                                    source, row) from None
+            values.append(parsed)
+            rows.append(row)
+    if not values:
+        raise DataError("the file has a header but no samples", source)
+    table = np.array(values, dtype=np.float64)
+    t_index = names.index(time_column)
+    time = table[:, t_index]
+    bad = first_bad_time(time)
+    if bad is not None:
+        raise DataError(f"column '{time_column}': {bad_time_reason(time, bad)}", source, rows[bad])
+    cols, valid = {}, {}
+    for k, name in enumerate(names):
+        if k == t_index:
+            continue
+        v = table[:, k].copy()
+        ok = np.isfinite(v)
+        v[~ok] = np.nan
+        cols[name], valid[name] = v, ok
+    return MeasuredData(source, time, cols, valid, np.asarray(rows))
+
+
+def _read_mat(file: Path, source: str, time_column: str) -> tuple[MeasuredData, dict[str, str]]:
+    import h5py
+
+    if h5py.is_hdf5(file):  # MAT v7.3
+        with h5py.File(file, "r") as f:
+            arrays = {k: np.asarray(f[k]) for k, obj in f.items()
+                      if isinstance(obj, h5py.Dataset) and not k.startswith("#")
+                      and _attr_str(obj.attrs.get("MATLAB_class")) not in ("char", "cell", "struct")}
+        return _from_arrays(arrays, source, time_column, transposed=True)
+    import scipy.io
+
+    try:
+        raw = scipy.io.loadmat(str(file))
+    except (ValueError, TypeError, NotImplementedError) as e:
+        raise DataError(f"cannot read MAT file: {e}", source) from None
+    arrays = {k: v for k, v in raw.items() if not k.startswith("__") and isinstance(v, np.ndarray)}
+    return _from_arrays(arrays, source, time_column, transposed=False)
+
+
+def _read_hdf5(file: Path, group: str, source: str,
+               time_column: str) -> tuple[MeasuredData, dict[str, str]]:
+    import h5py
+
+    with h5py.File(file, "r") as f:
+        if group not in f or not isinstance(f[group], h5py.Group):
+            groups: list[str] = []
+            f.visititems(lambda name, obj: groups.append("/" + name)
+                         if isinstance(obj, h5py.Group) else None)
+            raise DataError(f"no group '{group}'; groups present: {', '.join(['/'] + groups)}", source)
+        g = f[group]
+        arrays = {k: np.asarray(obj) for k, obj in g.items() if isinstance(obj, h5py.Dataset)}
+    return _from_arrays(arrays, source, time_column, transposed=False)
+
+
+def _from_arrays(arrays: dict[str, np.ndarray], source: str, time_column: str,
+                 transposed: bool) -> tuple[MeasuredData, dict[str, str]]:
+    """Columns from named arrays that share the length of ``time``; the rest are skipped
+    with a reason (so that asking for one of them says why it is not there)."""
+    numeric = {k: v for k, v in arrays.items()
+               if v.dtype.kind in "biuf" and v.size > 0}
+    if time_column not in numeric:
+        raise MissingColumn(time_column, sorted(k for k in arrays if k != time_column), source)
+    time = numeric[time_column]
+    if time.ndim > 2 or (time.ndim == 2 and min(time.shape) != 1):
+        raise DataError(f"'{time_column}' must be a vector, it has shape {time.shape}", source)
+    time = time.astype(np.float64).ravel()
+    bad = first_bad_time(time)
+    if bad is not None:
+        raise DataError(f"'{time_column}', sample {bad + 1}: {bad_time_reason(time, bad)}", source)
+    n = time.size
+    cols: dict[str, np.ndarray] = {}
+    skipped = {k: f"not numeric ({v.dtype})" for k, v in arrays.items()
+               if k not in numeric and k != time_column}
+    for name, a in numeric.items():
+        if name == time_column:
+            continue
+        if a.ndim == 1 or (a.ndim == 2 and 1 in a.shape and a.size == n):
+            if a.size != n:
+                skipped[name] = f"{a.size} samples, time has {n}"
+                continue
+            cols[name] = a.ravel()
+            continue
+        if a.ndim != 2:
+            skipped[name] = f"shape {a.shape} is not a vector or a matrix"
+            continue
+        # Samples along the axis whose length is that of time; MATLAB's HDF5 layout is
+        # transposed, so there prefer the first axis as the column index when square.
+        if a.shape[0] == n and not (transposed and a.shape[1] == n):
+            a2 = a
+        elif a.shape[1] == n:
+            a2 = a.T
+        elif a.shape[0] == n:
+            a2 = a
+        else:
+            skipped[name] = f"shape {a.shape}, time has {n} samples"
+            continue
+        for k in range(a2.shape[1]):
+            cols[f"{name}_{k}"] = a2[:, k]
+    values, valid = {}, {}
+    for name, v in cols.items():
+        v = v.astype(np.float64)
+        ok = np.isfinite(v)
+        v[~ok] = np.nan
+        values[name], valid[name] = v, ok
+    return MeasuredData(source, time, values, valid), skipped
+
+
+def _attr_str(value) -> str | None:
+    if isinstance(value, bytes):
+        return value.decode(errors="replace")
+    return None if value is None else str(value)
