@@ -124,7 +124,7 @@ def bench_input() -> None:
 def bench_pf() -> None:
     from rapid_cosim.estimators import PFOptions, particle_filter
     from rapid_cosim.evaluate import ProblemObjective
-    from rapid_cosim.experiment import build_problem
+    from rapid_cosim.problem import build_problem
     from rapid_cosim.simulator import FmuRef
 
     exp = _test1()

@@ -23,7 +23,8 @@ import numpy as np
 
 from .errors import RapidCosimError
 from .search import Evaluations
-from .experiment import Experiment, Problem
+from .experiment import Experiment
+from .problem import Problem
 from .fitness import ExperimentFit, arssd, batch_rssd, experiment_fitness
 from .simulator import DEFAULT_RUNNER, FmuRef, Trajectory, check_runner, get_simulator
 

@@ -5,7 +5,8 @@ import pytest
 
 from rapid_cosim.compiler import build_models
 from rapid_cosim.evaluate import PENALTY, ProblemObjective, evaluate_in_detail
-from rapid_cosim.experiment import build_problem, load_experiment
+from rapid_cosim.experiment import load_experiment
+from rapid_cosim.problem import build_problem
 from rapid_cosim.simulator import FmuRef
 from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
 

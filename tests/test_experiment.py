@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from rapid_cosim.errors import ConfigError, DataError
-from rapid_cosim.experiment import ParameterInfo, build_problem, load_experiment
+from rapid_cosim.experiment import load_experiment
+from rapid_cosim.problem import build_problem
+from rapid_cosim.simulator import ParameterInfo
 
 GOOD = """\
 [experiment]
@@ -43,7 +45,7 @@ output_interval = 0.02
 timeout = 10.0
 """
 
-INFO = {n: ParameterInfo(n, lo, hi, s) for n, lo, hi, s in [
+INFO = {n: ParameterInfo(n, min=lo, max=hi, start=s) for n, lo, hi, s in [
     ("gov.R", 0.001, 1.0, 0.05), ("gov.Ts", 0.01, 100.0, 1.0), ("gov.p_ref", 0.0, 1.0, 0.5),
     ("src.df", None, None, 0.0), ("src.t_step", 0.0, None, 1.0), ("meas.offset", -1.0, 1.0, 0.0),
 ]}

@@ -27,8 +27,8 @@ from ..estimators import parse_method, run_chain
 from ..estimators.base import Evaluations, EstimationResult, Iteration
 from ..estimators.chain import REGISTRY
 from ..evaluate import PENALTY, ProblemObjective
-from ..experiment import (Experiment, ParameterInfo, Problem, build_problem, check_parameters,
-                          load_experiment, parse_experiment)
+from ..experiment import Experiment, load_experiment, parse_experiment
+from ..problem import Problem, build_problem, check_parameters
 from ..fitness import gaussian_log_likelihood
 from ..simulator import DEFAULT_RUNNER, FmuRef, get_simulator
 from .store import ArchiveWriter, RunArchive, data_sha256
@@ -128,7 +128,7 @@ def _checked_problem(experiments: Sequence[Experiment], fmus: Mapping[str, FmuRe
     infos = {}
     for model, ref in fmus.items():
         sim = get_simulator(ref)
-        infos[model] = {n: ParameterInfo(n, p.min, p.max, p.start) for n, p in sim.parameters.items() if p.settable}
+        infos[model] = {n: p for n, p in sim.parameters.items() if p.settable}
     for exp in experiments:
         check_parameters(exp, infos[exp.model])
     return build_problem(experiments)

@@ -1,9 +1,9 @@
-"""Config file -> problem: what is estimated, within which bounds, against which data.
+"""Config file -> experiment: the TOML schema and its reader.
 
 One TOML file per experiment, ``experiments/<name>/config.toml``; relative data paths are
 taken from the config file's folder. :func:`load_experiment` reads one file into an
-:class:`Experiment` (with its measurements loaded); :func:`build_problem` joins one or
-more experiments into a :class:`Problem` whose search space the estimators explore.
+:class:`Experiment` (with its measurements loaded); :func:`rapid_cosim.problem.build_problem`
+joins one or more experiments into the problem the estimators explore.
 
 Schema (keys not shown here are rejected, with a suggestion when one is close)::
 
@@ -66,25 +66,20 @@ unreadable measurements stay :class:`DataError` naming the data file and row.
 
 from __future__ import annotations
 
-import functools
 import math
 import re
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
-from rapid_cosim.data import (MeasuredData, MissingColumn, close_matches, describe_missing,
-                              load_measurements, noise_level, split_hdf5_path)
-from rapid_cosim.errors import ConfigError, DataError
-from rapid_cosim.search import SearchSpace
-
-CONFIG_NAME = "config.toml"
-DEFAULT_TIMEOUT = 30.0
-SCALES = ("linear", "log")
-NOISE_PRE_STEP = "pre-step"
+from ..data import MeasuredData, MissingColumn, close_matches, describe_missing, load_measurements, noise_level
+from ..data import split_hdf5_path
+from ..errors import ConfigError, DataError
+from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, EstimateSpec, Experiment,
+                         SimulationSettings)
+from .toml_writer import BARE_KEY_RE
 
 _SECTIONS: dict[str, frozenset[str] | None] = {
     "experiment": frozenset({"name", "model", "description"}),
@@ -97,105 +92,7 @@ _SECTIONS: dict[str, frozenset[str] | None] = {
 _REQUIRED_SECTIONS = ("experiment", "data")
 _SPEC_KEYS = frozenset({"min", "max", "label", "scale", "start", "per_experiment"})
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
-_BARE_KEY_RE = re.compile(r"^[A-Za-z0-9_\-]+$")
 
-
-@dataclass(frozen=True)
-class ParameterInfo:
-    """A parameter as the FMU's model description declares it (None: not declared)."""
-
-    name: str
-    min: float | None = None
-    max: float | None = None
-    start: float | None = None
-
-
-@dataclass(frozen=True)
-class EstimateSpec:
-    """One ``[estimate]`` entry."""
-
-    name: str
-    min: float
-    max: float
-    label: str
-    per_experiment: bool = False
-    scale: str = "linear"
-    start: float | None = None
-
-
-@dataclass(frozen=True)
-class SimulationSettings:
-    start_time: float
-    stop_time: float
-    output_interval: float
-    timeout: float
-
-
-@dataclass(frozen=True, eq=False)
-class ScoredSamples:
-    """Measured values, validity masks and weights, (samples, outputs), in ``outputs`` order."""
-
-    outputs: tuple[str, ...]
-    measured: np.ndarray
-    valid: np.ndarray
-    weights: np.ndarray
-
-    @functools.cached_property
-    def columns(self) -> tuple[tuple[int, np.ndarray, np.ndarray], ...]:
-        """Per output of positive weight: its column, the indices of its valid samples and
-        their measured values (what a batch is scored on)."""
-        return tuple((j, np.flatnonzero(self.valid[:, j]), self.measured[self.valid[:, j], j])
-                     for j in range(len(self.outputs)) if self.weights[j] > 0)
-
-
-@dataclass(frozen=True, eq=False)
-class Experiment:
-    """One staged test: its config (verbatim and parsed) and its measurements.
-
-    ``noise`` is the noise setting as configured (None, ``"pre-step"``, a number or a
-    table); ``noise_sigma`` is its value per output, resolved at load time (None when no
-    noise is configured).
-    """
-
-    name: str
-    config_path: Path
-    config_text: str
-    model: str
-    description: str
-    data: MeasuredData
-    outputs: dict[str, str]
-    fixed: dict[str, float]
-    estimate: tuple[EstimateSpec, ...]
-    weights: dict[str, float]
-    window: tuple[float, float]
-    offset: bool
-    noise: str | float | dict[str, float] | None
-    noise_sigma: dict[str, float] | None
-    pre_step_end: float | None
-    simulation: SimulationSettings
-    time_column: str = "time"  # as the data file names it (archives store the data under it)
-
-    def windowed_data(self) -> MeasuredData:
-        """The measurements inside the fitness window (made once: every simulation asks)."""
-        return self._windowed
-
-    @functools.cached_property
-    def _windowed(self) -> MeasuredData:
-        return self.data.window(*self.window)
-
-    @functools.cached_property
-    def scored(self) -> ScoredSamples:
-        """The windowed measurements as the fitness reads them, one column per output
-        (made once: every simulation is scored against them)."""
-        data, outputs = self.windowed_data(), tuple(self.outputs)
-        return ScoredSamples(
-            outputs=outputs,
-            measured=np.column_stack([data.columns[self.outputs[o]] for o in outputs]),
-            valid=np.column_stack([data.valid[self.outputs[o]] for o in outputs]),
-            weights=np.array([self.weights[o] for o in outputs]))
-
-
-# --------------------------------------------------------------------------- loading
 
 def load_experiment(path: str | Path) -> Experiment:
     """Read ``config.toml`` (or a folder holding one) and the data it names."""
@@ -463,156 +360,6 @@ def _read_simulation(s: dict, inside: MeasuredData, cfg: "_Reader") -> Simulatio
     return SimulationSettings(start, stop, interval, timeout)
 
 
-# --------------------------------------------------------------------------- problem
-
-@dataclass(frozen=True, eq=False)
-class Problem:
-    """One or more experiments fitted together.
-
-    ``space.names`` are FMU parameter names for shared parameters and
-    ``"<param>@<experiment>"`` for per-experiment ones; ``labels`` follow the same order.
-    ``assignments[i]`` pairs each estimated FMU parameter of experiment ``i`` with its
-    index in a search vector.
-    """
-
-    experiments: tuple[Experiment, ...]
-    space: SearchSpace
-    labels: tuple[str, ...]
-    x0: np.ndarray
-    assignments: tuple[tuple[tuple[str, int], ...], ...]
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        return self.space.names
-
-    def experiment_index(self, name: str) -> int:
-        for i, e in enumerate(self.experiments):
-            if e.name == name:
-                return i
-        raise KeyError(f"no experiment {name!r}; experiments: "
-                       f"{', '.join(e.name for e in self.experiments)}")
-
-    def parameters_for(self, x, i: int | str) -> dict[str, float]:
-        """FMU parameter values (fixed and estimated) of experiment ``i`` at search point ``x``."""
-        if isinstance(i, str):
-            i = self.experiment_index(i)
-        x = np.asarray(x, dtype=float)
-        if x.shape != (self.space.dim,):
-            raise ValueError(f"x has shape {x.shape}; the search space has {self.space.dim} "
-                             f"dimensions ({', '.join(self.names)})")
-        return assign_parameters(self.experiments[i], self.assignments[i], x)
-
-
-def assign_parameters(experiment: Experiment, assignment: Sequence[tuple[str, int]], x) -> dict[str, float]:
-    """The experiment's fixed values plus ``x[j]`` for each ``(name, j)`` of its assignment;
-    unchecked, as workers call it once per simulation."""
-    values = dict(experiment.fixed)
-    values.update({name: float(x[j]) for name, j in assignment})
-    return values
-
-
-def check_parameters(experiment: Experiment, parameter_info: Mapping[str, ParameterInfo]) -> None:
-    """Every name in ``[fixed]``/``[estimate]`` must exist in the model, and values and
-    bounds must lie within the declared min/max. ``build_problem`` calls this; call it
-    per experiment when experiments use different models."""
-    file = str(experiment.config_path)
-    known = list(parameter_info)
-    checks = [(n, config_key("fixed", n), [v]) for n, v in experiment.fixed.items()]
-    checks += [(s.name, config_key("estimate", s.name), [s.min, s.max]) for s in experiment.estimate]
-    for name, key, values in checks:
-        info = parameter_info.get(name)
-        if info is None:
-            close = close_matches(name, known, n=5)
-            tail = name.rsplit(".", 1)[-1].lower()
-            close += [k for k in known if k.rsplit(".", 1)[-1].lower() == tail and k not in close]
-            hint = (f"; close matches: {', '.join(close)}" if close
-                    else f"; no close match among the {len(known)} parameters of the model")
-            raise ConfigError(f"model {experiment.model} has no parameter '{name}'{hint}", file, key)
-        lo = -math.inf if info.min is None else info.min
-        hi = math.inf if info.max is None else info.max
-        for v in values:
-            if not lo <= v <= hi:
-                raise ConfigError(f"{v:g} is outside the range the model declares for '{name}': "
-                                  f"[{lo:g}, {hi:g}]", file, key)
-
-
-def build_problem(experiments: Sequence[Experiment],
-                  parameter_info: Mapping[str, ParameterInfo] | None = None) -> Problem:
-    """Join experiments into one search problem (see the module docstring for the rules)."""
-    experiments = tuple(experiments)
-    if not experiments:
-        raise ValueError("build_problem needs at least one experiment")
-    seen: dict[str, Experiment] = {}
-    for e in experiments:
-        if e.name in seen:
-            raise ConfigError(f"experiment name '{e.name}' is also used by "
-                              f"{seen[e.name].config_path}; names must be unique in a joint fit",
-                              str(e.config_path), "experiment.name")
-        seen[e.name] = e
-    if parameter_info is not None:
-        for e in experiments:
-            check_parameters(e, parameter_info)
-
-    shared: dict[str, tuple[EstimateSpec, Experiment]] = {}
-    for e in experiments:
-        for s in e.estimate:
-            if s.name not in shared:
-                shared[s.name] = (s, e)
-                continue
-            first, where = shared[s.name]
-            if first.per_experiment and s.per_experiment:
-                continue
-            diff = [f for f in ("per_experiment", "min", "max", "label", "scale", "start")
-                    if getattr(first, f) != getattr(s, f)]
-            if diff:
-                shown = ", ".join(f"{f} = {getattr(s, f)!r} here but {getattr(first, f)!r} in "
-                                  f"{where.config_path}" for f in diff)
-                raise ConfigError(f"'{s.name}' is estimated by both {where.name} and {e.name} and "
-                                  f"must be declared identically: {shown}",
-                                  str(e.config_path), config_key("estimate", s.name))
-    for name, (spec, where) in shared.items():
-        if spec.per_experiment:
-            continue
-        for e in experiments:
-            if all(s.name != name for s in e.estimate):
-                how = "fixed" if name in e.fixed else "not estimated"
-                raise ConfigError(f"'{name}' is estimated in {where.name} ({where.config_path}) "
-                                  f"but {how} in {e.name}; a shared parameter is estimated in "
-                                  f"every experiment of a joint fit (or set per_experiment = true)",
-                                  str(e.config_path), config_key("estimate", name))
-
-    names: list[str] = []
-    labels: list[str] = []
-    lower: list[float] = []
-    upper: list[float] = []
-    log: list[bool] = []
-    x0: list[float] = []
-    index: dict[str, int] = {}
-    assignments = []
-    for e in experiments:
-        pairs = []
-        for s in e.estimate:
-            dim = f"{s.name}@{e.name}" if s.per_experiment else s.name
-            if dim not in index:
-                index[dim] = len(names)
-                names.append(dim)
-                labels.append(f"{s.label}@{e.name}" if s.per_experiment else s.label)
-                lower.append(s.min)
-                upper.append(s.max)
-                log.append(s.scale == "log")
-                midpoint = np.sqrt(s.min * s.max) if s.scale == "log" else 0.5 * (s.min + s.max)
-                x0.append(s.start if s.start is not None else midpoint)
-            pairs.append((s.name, index[dim]))
-        assignments.append(tuple(pairs))
-    if not names:
-        raise ConfigError("nothing to estimate: no [estimate] entries in any experiment",
-                          str(experiments[0].config_path), "estimate")
-    return Problem(experiments, SearchSpace(tuple(names), np.array(lower), np.array(upper), tuple(log)),
-                   tuple(labels), np.array(x0), tuple(assignments))
-
-
-# --------------------------------------------------------------------------- helpers
-
 class _Reader:
     """Typed access to parsed TOML that raises ConfigError naming file and key."""
 
@@ -681,7 +428,7 @@ def _flatten(table: dict, is_leaf, prefix: str = ""):
 
 def config_key(where: str, k: str) -> str:
     """`where.k` in TOML dotted-key form, quoting `k` when it is not a bare key."""
-    part = k if _BARE_KEY_RE.match(k) else f'"{k}"'
+    part = k if BARE_KEY_RE.match(k) else f'"{k}"'
     return f"{where}.{part}" if where else part
 
 
@@ -701,40 +448,3 @@ def _toml_message(e: tomllib.TOMLDecodeError, text: str) -> str:
     return message
 
 
-# --------------------------------------------------------------------------- writing
-
-def render_config(sections: Mapping[str, Mapping[str, Any]]) -> str:
-    """TOML text of a config given as ``{section: {key: value}}``, for configs that
-    programs write (synthetic studies, the discrepancy workflow's re-calibration).
-
-    Values may be strings, booleans, numbers, lists of numbers, or tables of those
-    (written inline); keys with dots are quoted.
-    """
-    lines: list[str] = []
-    for section, table in sections.items():
-        lines.append(f"[{section}]")
-        for key, value in table.items():
-            lines.append(f"{_toml_key(key)} = {_toml_value(value)}")
-        lines.append("")
-    return "\n".join(lines)
-
-
-def _toml_key(key: str) -> str:
-    return key if _BARE_KEY_RE.match(key) else '"' + key.replace('"', '\\"') + '"'
-
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float, np.floating, np.integer)):
-        v = float(value)
-        if not math.isfinite(v):
-            raise ValueError(f"cannot write non-finite number {v} to a config")
-        return repr(int(value)) if isinstance(value, (int, np.integer)) else repr(v)
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, Mapping):
-        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
-    raise ValueError(f"cannot write {type(value).__name__} to a config")

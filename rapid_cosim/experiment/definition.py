@@ -1,0 +1,164 @@
+"""An experiment: one test's measurements, its model and what is estimated from it.
+
+An :class:`Experiment` is made from a TOML config file (:meth:`Experiment.from_toml`,
+schema in :mod:`rapid_cosim.experiment.config`) or in code from arrays or a pandas
+DataFrame (:meth:`Experiment.from_arrays`, :meth:`Experiment.from_frame`). Either way it
+carries the text of its config, so that an archive can keep it and re-run it alone.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..data import MeasuredData
+
+CONFIG_NAME = "config.toml"
+DEFAULT_TIMEOUT = 30.0
+SCALES = ("linear", "log")
+NOISE_PRE_STEP = "pre-step"
+IN_MEMORY = "(in memory)"  # the data file of an experiment made in code
+
+
+@dataclass(frozen=True)
+class EstimateSpec:
+    """One ``[estimate]`` entry."""
+
+    name: str
+    min: float
+    max: float
+    label: str
+    per_experiment: bool = False
+    scale: str = "linear"
+    start: float | None = None
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    start_time: float
+    stop_time: float
+    output_interval: float
+    timeout: float
+
+
+@dataclass(frozen=True, eq=False)
+class ScoredSamples:
+    """Measured values, validity masks and weights, (samples, outputs), in ``outputs`` order."""
+
+    outputs: tuple[str, ...]
+    measured: np.ndarray
+    valid: np.ndarray
+    weights: np.ndarray
+
+    @functools.cached_property
+    def columns(self) -> tuple[tuple[int, np.ndarray, np.ndarray], ...]:
+        """Per output of positive weight: its column, the indices of its valid samples and
+        their measured values (what a batch is scored on)."""
+        return tuple((j, np.flatnonzero(self.valid[:, j]), self.measured[self.valid[:, j], j])
+                     for j in range(len(self.outputs)) if self.weights[j] > 0)
+
+
+@dataclass(frozen=True, eq=False)
+class Experiment:
+    """One staged test: its config (verbatim and parsed) and its measurements.
+
+    ``noise`` is the noise setting as configured (None, ``"pre-step"``, a number or a
+    table); ``noise_sigma`` is its value per output, resolved at load time (None when no
+    noise is configured).
+    """
+
+    name: str
+    config_path: Path
+    config_text: str
+    model: str
+    description: str
+    data: MeasuredData
+    outputs: dict[str, str]
+    fixed: dict[str, float]
+    estimate: tuple[EstimateSpec, ...]
+    weights: dict[str, float]
+    window: tuple[float, float]
+    offset: bool
+    noise: str | float | dict[str, float] | None
+    noise_sigma: dict[str, float] | None
+    pre_step_end: float | None
+    simulation: SimulationSettings
+    time_column: str = "time"  # as the data file names it (archives store the data under it)
+
+    def windowed_data(self) -> MeasuredData:
+        """The measurements inside the fitness window (made once: every simulation asks)."""
+        return self._windowed
+
+    @functools.cached_property
+    def _windowed(self) -> MeasuredData:
+        return self.data.window(*self.window)
+
+    @functools.cached_property
+    def scored(self) -> ScoredSamples:
+        """The windowed measurements as the fitness reads them, one column per output
+        (made once: every simulation is scored against them)."""
+        data, outputs = self.windowed_data(), tuple(self.outputs)
+        return ScoredSamples(
+            outputs=outputs,
+            measured=np.column_stack([data.columns[self.outputs[o]] for o in outputs]),
+            valid=np.column_stack([data.valid[self.outputs[o]] for o in outputs]),
+            weights=np.array([self.weights[o] for o in outputs]))
+
+    # ---- ways to make one
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> "Experiment":
+        """Read ``config.toml`` (or a folder holding one) and the data it names."""
+        from .config import load_experiment
+
+        return load_experiment(path)
+
+    @classmethod
+    def from_arrays(cls, name: str, model: str, time, outputs: Mapping[str, Any], *,
+                    fixed: Mapping[str, float] | None = None,
+                    estimate: Mapping[str, Any] | None = None, description: str = "",
+                    fitness: Mapping[str, Any] | None = None,
+                    simulation: Mapping[str, Any] | None = None) -> "Experiment":
+        """An experiment built in code: ``outputs`` maps each model output to its measured
+        values on ``time`` (NaN where missing). ``estimate`` maps parameters to
+        ``(min, max)`` or to a table as in a config (``{"min": 0.02, "max": 0.12,
+        "label": "R"}``); ``fitness`` and ``simulation`` take the keys of those config
+        sections (``{"offset": True, "noise": "pre-step", "pre_step_end": 10.0}``).
+
+        It is checked exactly as a config file is, and carries the config text it
+        stands for, so archives of its runs re-run from the archive alone.
+        """
+        from .config import parse_experiment
+        from .toml_writer import render_config
+
+        data = MeasuredData.from_arrays(time, {out: np.asarray(v, dtype=float) for out, v in outputs.items()},
+                                        source=f"{name} (arrays)")
+        specs = {p: ({"min": float(v[0]), "max": float(v[1])} if isinstance(v, (tuple, list)) else dict(v))
+                 for p, v in (estimate or {}).items()}
+        sections: dict[str, Any] = {
+            "experiment": {"name": name, "model": model, "description": description},
+            "data": {"file": IN_MEMORY, "time": "time", "outputs": {out: out for out in outputs}},
+            "fixed": dict(fixed or {}), "estimate": specs, "fitness": dict(fitness or {}),
+            "simulation": dict(simulation or {})}
+        text = render_config({k: v for k, v in sections.items() if v or k in ("experiment", "data")})
+        return parse_experiment(text, Path(IN_MEMORY) / name / CONFIG_NAME, data=data)
+
+    @classmethod
+    def from_frame(cls, name: str, model: str, frame, *, time: str = "time",
+                   outputs: Mapping[str, str] | None = None, **kwargs) -> "Experiment":
+        """As :meth:`from_arrays`, from a pandas DataFrame: ``time`` names its time column
+        and ``outputs`` maps model outputs to columns (default: every other column, by
+        its own name)."""
+        if time not in frame.columns:
+            raise ValueError(f"the frame has no time column {time!r}; columns: {', '.join(map(str, frame.columns))}")
+        outputs = dict(outputs) if outputs is not None else {str(c): str(c) for c in frame.columns if c != time}
+        missing = [c for c in outputs.values() if c not in frame.columns]
+        if missing:
+            raise ValueError(f"the frame has no column(s) {', '.join(missing)}; columns: "
+                             f"{', '.join(map(str, frame.columns))}")
+        return cls.from_arrays(name, model, frame[time].to_numpy(dtype=float),
+                               {out: frame[col].to_numpy(dtype=float) for out, col in outputs.items()}, **kwargs)
