@@ -24,7 +24,7 @@ import h5py
 import numpy as np
 
 from rapid_cosim.archive import ArchiveWriter, RunArchive
-from rapid_cosim.archive.store import _LIBVER
+from rapid_cosim.archive.format import LIBVER as _LIBVER
 from rapid_cosim.estimators.base import EstimationResult, Iteration
 
 
@@ -118,9 +118,9 @@ def _survey_writer(path: str, mode: str, sleep: float) -> None:
     that it also gets killed while enlarging.
     """
     if mode == "archive":
-        from rapid_cosim.archive import store
+        from rapid_cosim.archive import format as store_format
 
-        store._INITIAL_ROOM = _SURVEY_ROOM
+        store_format.INITIAL_ROOM = _SURVEY_ROOM
         _write_appendable_forever(path, sleep)
         return
     f = h5py.File(path, "w", libver="earliest" if mode == "plain" else ("v110", "v110"))

@@ -193,7 +193,7 @@ def cmd_joint(args) -> int:
                               f"{', '.join(missing)}")
     method(args.per_test_method)
     print(f"joint SMC fit of R and Ts over {', '.join(tests)} (seed {args.seed}, {args.n_jobs} workers)")
-    from .archive.runs import parse_option_overrides
+    from .calibration import parse_option_overrides
 
     options = parse_option_overrides(args.option) if args.option else None
     path, result, action = run_joint(configs, results=args.results, seed=args.seed, n_jobs=args.n_jobs,
@@ -265,7 +265,7 @@ def _result_table(result, labels=None) -> str:
 
 
 def _run_options(args, estimator_options):
-    from .archive.runs import RunOptions
+    from .calibration import RunOptions
 
     return RunOptions(method=args.method, seed=args.seed, n_jobs=args.n_jobs, backend=args.joblib_backend,
                       estimator_options=estimator_options, runner=args.runner)
@@ -274,7 +274,7 @@ def _run_options(args, estimator_options):
 def cmd_estimate(args) -> int:
     from datetime import datetime
 
-    from .archive.runs import inputs_from_configs, parse_option_overrides, start_run
+    from .calibration import inputs_from_configs, parse_option_overrides, start_run
 
     inputs = inputs_from_configs(args.configs, package=args.package, fmu_dir=args.fmus, compiler=args.compiler)
     options = _run_options(args, parse_option_overrides(args.option))
@@ -289,7 +289,7 @@ def cmd_estimate(args) -> int:
 
 
 def cmd_resume(args) -> int:
-    from .archive.runs import resume_run
+    from .calibration import resume_run
 
     result = resume_run(args.archive, n_jobs=args.n_jobs, progress=not args.quiet)
     print(_result_table(result))
@@ -297,7 +297,7 @@ def cmd_resume(args) -> int:
 
 
 def cmd_rerun(args) -> int:
-    from .archive.runs import rerun
+    from .calibration import rerun
 
     report = rerun(args.archive, n_jobs=args.n_jobs, progress=not args.quiet)
     print(_result_table(report.result))
@@ -312,7 +312,7 @@ def cmd_rerun(args) -> int:
 def cmd_show(args) -> int:
     import json
 
-    from .archive.runs import summary_json
+    from .calibration import summary_json
 
     summary = summary_json(args.archive)
     if args.json:

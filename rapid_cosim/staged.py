@@ -23,14 +23,15 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .archive.runs import (RunOptions, ensure_run, inputs_from_archive, inputs_from_configs,
+from .calibration import (RunOptions, ensure_run, inputs_from_archive, inputs_from_configs,
                            log_likelihood_for)
-from .archive.store import RunArchive
+from .archive import RunArchive
 from .data import ar1_inflation, noise_level
 from .errors import RapidCosimError
 from .estimators.base import EstimationResult
 from .estimators.laplace import laplace
-from .evaluate import ProblemObjective
+from .engine import make_engine
+from .objective import ProblemObjective
 
 
 @dataclass(frozen=True)
@@ -230,7 +231,7 @@ def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float 
     loglik = log_likelihood_for(problem)
     if loglik is None:
         raise RapidCosimError(f"{archive}: {exp.name} has no noise level ([fitness] noise)")
-    objective = ProblemObjective(problem, inputs.fmus, n_jobs=n_jobs)
+    objective = ProblemObjective(problem, inputs.fmus, engine=make_engine(n_jobs))
 
     def neg_log_likelihood(X):
         ev = objective(X)

@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from rapid_cosim.archive import ArchiveWriter, RunArchive, data_sha256
-from rapid_cosim.archive import store
+from rapid_cosim.archive import format as store_format
+from rapid_cosim.archive import writer as store_writer
 from rapid_cosim.errors import ArchiveError, ArchiveLocked
 from rapid_cosim.estimators.base import EstimationResult, Iteration, Posterior
 
@@ -82,7 +83,7 @@ def assert_same_iteration(got: Iteration, want: Iteration) -> None:
 @pytest.fixture(autouse=True)
 def commit_every_iteration(monkeypatch):
     """These tests read what each append wrote; grouped commits have their own test."""
-    monkeypatch.setattr(store, "COMMIT_SECONDS", 0.0)
+    monkeypatch.setattr(store_writer, "COMMIT_SECONDS", 0.0)
 
 
 def inputs() -> dict:
@@ -298,17 +299,17 @@ def test_rows_past_the_last_complete_iteration_are_ignored_then_overwritten(tmp_
     w = ArchiveWriter.create(path, **inputs())
     for i in range(3):
         w.append(*make_iteration(i))
-    real_put = store._put_rows
+    real_put = store_format.put_rows
 
     def failing_put(ds, start, values):  # the table row is written last: fail there
         if ds.name == "/iterations/table":
             raise OSError("disk full")
         real_put(ds, start, values)
 
-    monkeypatch.setattr(store, "_put_rows", failing_put)
+    monkeypatch.setattr(store_format, "put_rows", failing_put)
     with pytest.raises(OSError, match="disk full"):
         w.append(*make_iteration(3))
-    monkeypatch.setattr(store, "_put_rows", real_put)
+    monkeypatch.setattr(store_format, "put_rows", real_put)
     w.close()
     with h5py.File(path, "r") as f:  # the half-written iteration's rows are in the file
         n = sum(SIZES[:3])
@@ -351,7 +352,7 @@ def _changed_outside(before: bytes, after: bytes, ranges) -> list[int]:
 
 def test_appending_changes_no_byte_of_the_file_structure(tmp_path, monkeypatch):
     """The crash-safety invariant: in place, only dataset contents are ever written."""
-    monkeypatch.setattr(store, "_INITIAL_ROOM", SMALL_ROOM)
+    monkeypatch.setattr(store_format, "INITIAL_ROOM", SMALL_ROOM)
     path = tmp_path / "run.h5"
     snapshots = 0
     with ArchiveWriter.create(path, **inputs()) as w:
@@ -371,7 +372,7 @@ def test_appending_changes_no_byte_of_the_file_structure(tmp_path, monkeypatch):
 
 
 def test_enlargements_keep_everything(tmp_path, monkeypatch):
-    monkeypatch.setattr(store, "_INITIAL_ROOM", SMALL_ROOM)
+    monkeypatch.setattr(store_format, "INITIAL_ROOM", SMALL_ROOM)
     path = tmp_path / "run.h5"
     write_run(path, 40)
     with RunArchive(path) as a:
@@ -407,7 +408,7 @@ def test_a_failed_finish_leaves_the_run_resumable(tmp_path, monkeypatch):
     def no_space(f, result):
         raise OSError("disk full")
 
-    monkeypatch.setattr(store, "_write_result", no_space)
+    monkeypatch.setattr(store_format, "write_result", no_space)
     with ArchiveWriter.create(path, **inputs()) as w:
         w.append(*make_iteration(0))
         with pytest.raises(OSError, match="disk full"):
@@ -528,8 +529,8 @@ WRITER = """
 import sys, time
 sys.path.insert(0, {tests!r})
 from test_archive_store import SMALL_ROOM, inputs, make_iteration
-from rapid_cosim.archive import ArchiveWriter, store
-store._INITIAL_ROOM = SMALL_ROOM  # enlargements (copy, rename) early and often
+from rapid_cosim.archive import ArchiveWriter, format as store_format
+store_format.INITIAL_ROOM = SMALL_ROOM  # enlargements (copy, rename) early and often
 path, sleep = sys.argv[1], float(sys.argv[2])
 w = ArchiveWriter.create(path, **inputs(), commit_seconds=0.0)  # each iteration its own commit
 i = 0

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from rapid_cosim.compiler import build_models
-from rapid_cosim.evaluate import PENALTY, ProblemObjective, evaluate_in_detail
+from rapid_cosim.engine import make_engine
+from rapid_cosim.objective import PENALTY, ProblemObjective, evaluate_in_detail
 from rapid_cosim.experiment import load_experiment
 from rapid_cosim.problem import build_problem
 from rapid_cosim.simulator import FmuRef
@@ -33,8 +34,8 @@ def _cloud(problem, n=12, seed=0):
 def test_n_jobs_one_and_two_give_equal_results(problem):
     prob, refs = problem
     X = _cloud(prob)
-    one = ProblemObjective(prob, refs, n_jobs=1)(X)
-    two = ProblemObjective(prob, refs, n_jobs=2)(X)
+    one = ProblemObjective(prob, refs, engine=make_engine(1))(X)
+    two = ProblemObjective(prob, refs, engine=make_engine(2))(X)
     assert np.array_equal(one.fitness, two.fitness)
     assert np.array_equal(one.rssd, two.rssd)
     assert not one.failed.any()
@@ -44,10 +45,10 @@ def test_dask_backend_gives_equal_results(problem):
     distributed = pytest.importorskip("distributed")
     prob, refs = problem
     X = _cloud(prob, n=6, seed=1)
-    local = ProblemObjective(prob, refs, n_jobs=1)(X)
+    local = ProblemObjective(prob, refs, engine=make_engine(1))(X)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster, distributed.Client(cluster):
-        remote = ProblemObjective(prob, refs, n_jobs=2, backend="dask")(X)
+        remote = ProblemObjective(prob, refs, engine=make_engine(2, "dask"))(X)
     assert np.array_equal(local.fitness, remote.fitness)
 
 

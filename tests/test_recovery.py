@@ -8,9 +8,10 @@ least 8 of 10 seeded runs (records kept short and particles few, to stay quick).
 import numpy as np
 import pytest
 
-from rapid_cosim.archive.runs import inputs_from_configs, log_likelihood_for
+from rapid_cosim.calibration import inputs_from_configs, log_likelihood_for
 from rapid_cosim.estimators import PFOptions, PSOOptions, SMCOptions, run_chain
-from rapid_cosim.evaluate import ProblemObjective
+from rapid_cosim.engine import make_engine
+from rapid_cosim.objective import ProblemObjective
 from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
 
 TRUTH = np.array([0.055, 3.0])  # R, Ts
@@ -54,7 +55,7 @@ def test_bayesian_interval_covers_the_truth_at_its_level(fmus, tmp_path):
                                   fixed=FIXED, estimate=ESTIMATE,
                                   fitness={"offset": True, "noise": "pre-step", "pre_step_end": 5.0})
         inputs = inputs_from_configs([config])
-        result = run_chain(ProblemObjective(inputs.problem, inputs.fmus, n_jobs=2), inputs.problem.space, "smc",
+        result = run_chain(ProblemObjective(inputs.problem, inputs.fmus, engine=make_engine(2)), inputs.problem.space, "smc",
                            options={"smc": SMCOptions(n_particles=80, n_mcmc_steps=3)},
                            rng=np.random.default_rng(seed), log_likelihood=log_likelihood_for(inputs.problem))
         interval = result.posterior.interval

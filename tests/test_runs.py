@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rapid_cosim.archive import RunArchive
-from rapid_cosim.archive.runs import RunOptions, inputs_from_configs, rerun, resume_run, start_run
+from rapid_cosim.calibration import RunOptions, inputs_from_configs, rerun, resume_run, start_run
 from rapid_cosim.cli import main
 from rapid_cosim.errors import ArchiveLocked
 from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
@@ -64,7 +64,7 @@ def test_rerun_detects_a_different_archive(config, tmp_path):
 # The Python runner keeps the run slow enough (seconds) to be killed in the middle.
 WRITER = """
 import sys
-from rapid_cosim.archive.runs import RunOptions, inputs_from_configs, start_run
+from rapid_cosim.calibration import RunOptions, inputs_from_configs, start_run
 start_run(inputs_from_configs([sys.argv[1]]), RunOptions(method="pf:30+nm", seed=11, runner="python",
           estimator_options={"pf": {"n_particles": 30}}), sys.argv[2], progress=False)
 """
@@ -119,7 +119,7 @@ def test_an_archive_held_by_a_live_run_is_refused(config, tmp_path):
 
 
 def _process_start_time(pid):
-    from rapid_cosim.archive.store import _process_start
+    from rapid_cosim.archive.lock import _process_start
 
     return _process_start(pid)
 

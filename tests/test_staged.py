@@ -76,7 +76,7 @@ def test_an_interrupted_run_is_resumed_to_the_uninterrupted_result(experiments, 
                                                                   monkeypatch, capsys):
     _, folders = experiments
     res, _ = results
-    from rapid_cosim.evaluate import ProblemObjective
+    from rapid_cosim.objective import ProblemObjective
 
     calls = {"n": 0}
     real = ProblemObjective.__call__

@@ -16,8 +16,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..archive.runs import RunOptions, ensure_run, inputs_from_configs
-from ..evaluate import ProblemObjective, evaluate_in_detail
+from ..calibration import RunOptions, ensure_run, inputs_from_configs
+from ..objective import ProblemObjective, evaluate_in_detail
 from ..experiment import Experiment, render_config
 from .catalogue import CATALOGUE, NONE, bench_name, effect_parameters
 

@@ -19,12 +19,13 @@ from typing import Callable, Sequence
 import h5py
 import numpy as np
 
-from ..archive.runs import RunOptions, ensure_run, inputs_from_configs, log_likelihood_for
+from ..calibration import RunOptions, ensure_run, inputs_from_configs, log_likelihood_for
 from ..compiler import build_models
 from ..data import ar1_inflation
 from ..errors import RapidCosimError
 from ..estimators.laplace import laplace
-from ..evaluate import ProblemObjective
+from ..engine import make_engine
+from ..objective import ProblemObjective
 from ..experiment import Experiment
 from .candidates import CandidateFit, CandidateSpec, default_start, fit_candidate, residuals_at, write_configs
 from .catalogue import CATALOGUE, NONE, bench_name, camel, write_bench
@@ -355,7 +356,7 @@ def _intervals(ctx: _Context, fit: CandidateFit, level: float = 0.9) -> dict[str
     log_likelihood = log_likelihood_for(problem)
     if log_likelihood is None:
         return {}
-    objective = ProblemObjective(problem, fit.inputs.fmus, n_jobs=ctx.options.n_jobs)
+    objective = ProblemObjective(problem, fit.inputs.fmus, engine=make_engine(ctx.options.n_jobs))
     x = np.array([fit.parameters[n] for n in problem.names])
     try:
         approx = laplace(lambda X: -log_likelihood(objective(X)), problem.space, x, level=level)

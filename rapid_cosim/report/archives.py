@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..archive.runs import RunInputs, inputs_from_archive
-from ..archive.store import RunArchive
+from ..calibration import RunInputs, inputs_from_archive
+from ..archive import RunArchive
 from ..errors import ArchiveError
 from ..estimators.base import EstimationResult
-from ..evaluate import ExperimentResult, evaluate_in_detail, simulate_experiment
+from ..objective import ExperimentResult, evaluate_in_detail, simulate_experiment
 from ..experiment import Experiment
 from ..simulator import Trajectory
 

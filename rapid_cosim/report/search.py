@@ -10,7 +10,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from matplotlib import cm, colors
 
-from ..archive.store import RunArchive
+from ..archive import RunArchive
 from ..estimators.base import Iteration
 from .archives import ArchivedRun
 from .figures import plt, save

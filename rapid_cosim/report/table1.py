@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-from ..archive.store import RunArchive
+from ..archive import RunArchive
 from ..errors import ArchiveError
 
 

@@ -1,12 +1,10 @@
-"""Parallel evaluation of many parameter sets: the objective every estimator calls.
+"""The objective every estimator calls: many parameter sets scored against a problem.
 
 Each row of ``X`` is simulated for every experiment of the problem and scored (RSSD per
-experiment, ARSSD overall). Rows are split into one chunk per worker and sent with
-joblib, so any joblib backend works: ``loky`` processes on this machine, or ``dask`` on
-a dask.distributed cluster (a ``Client`` must be active). Each worker keeps its own
-simulators (:func:`rapid_cosim.simulator.get_simulator`), so no FMU is loaded per
-particle. Every evaluation is deterministic and independent, so results do not depend on
-``n_jobs``, the backend or the chunking.
+experiment, ARSSD overall). The rows go to the :mod:`engine <rapid_cosim.engine>` the
+objective was given, in one chunk per worker; each worker keeps its own simulators
+(:func:`rapid_cosim.simulator.get_simulator`), so no FMU is loaded per particle, and
+simulates its chunk as one batch per experiment.
 
 A simulation that fails (solver error, time-out, a non-finite output) gives the row a
 fixed penalty fitness and ``failed=True``; the run goes on.
@@ -18,10 +16,9 @@ import time
 from dataclasses import dataclass, field
 from typing import Mapping
 
-import joblib
 import numpy as np
 
-from .errors import RapidCosimError
+from .engine import Engine, SequentialEngine
 from .search import Evaluations
 from .experiment import Experiment
 from .problem import Problem
@@ -29,7 +26,6 @@ from .fitness import ExperimentFit, arssd, batch_rssd, experiment_fitness
 from .simulator import DEFAULT_RUNNER, FmuRef, Trajectory, check_runner, get_simulator
 
 PENALTY = 1.0  # pu^2: ~10^4 times a poor fit of a 0.08 pu step, finite for every method
-BACKENDS = ("loky", "multiprocessing", "threading", "sequential", "dask")
 
 
 @dataclass(frozen=True)
@@ -125,20 +121,16 @@ def _prepare(payload: Payload) -> list[ExperimentBatch]:
 
 
 class ProblemObjective:
-    """The :class:`~rapid_cosim.estimators.base.Objective` of a :class:`Problem`."""
+    """The :class:`~rapid_cosim.estimators.base.Objective` of a :class:`Problem`: it scores,
+    and its ``engine`` decides where."""
 
-    def __init__(self, problem: Problem, fmus: Mapping[str, FmuRef], *, n_jobs: int = 1,
-                 backend: str = "loky", penalty: float = PENALTY, runner: str = DEFAULT_RUNNER):
-        if backend not in BACKENDS:
-            raise RapidCosimError(f"unknown joblib backend {backend!r}; choose one of {', '.join(BACKENDS)}")
-        if n_jobs == 0 or n_jobs < -1:
-            raise RapidCosimError(f"n_jobs must be a positive number of workers or -1 (all cores), got {n_jobs}")
+    def __init__(self, problem: Problem, fmus: Mapping[str, FmuRef], *, engine: Engine | None = None,
+                 penalty: float = PENALTY, runner: str = DEFAULT_RUNNER):
         missing = [e.model for e in problem.experiments if e.model not in fmus]
         if missing:
-            raise RapidCosimError(f"no FMU given for model(s) {', '.join(sorted(set(missing)))}")
+            raise ValueError(f"no FMU given for model(s) {', '.join(sorted(set(missing)))}")
         self.problem = problem
-        self.n_jobs = n_jobs
-        self.backend = backend
+        self.engine = engine if engine is not None else SequentialEngine()
         self.penalty = float(penalty)
         self.payload = Payload(problem.experiments, tuple(fmus[e.model] for e in problem.experiments),
                                problem.assignments, check_runner(runner))
@@ -159,27 +151,15 @@ class ProblemObjective:
         return Evaluations(fitness, rssd, failed)
 
     def _score(self, X: np.ndarray):
-        workers = self._workers()
-        if workers == 1 or X.shape[0] == 1 or self.backend == "sequential":
+        workers = 1 if X.shape[0] == 1 else self.engine.workers
+        if workers == 1:
             if self._batches is None:
                 self._batches = _prepare(self.payload)
             return _score_chunk(self.payload, X, self._batches)
         chunks = [c for c in np.array_split(np.arange(X.shape[0]), min(workers, X.shape[0])) if c.size]
-        with joblib.parallel_config(backend=self.backend, n_jobs=self.n_jobs):
-            parts = joblib.Parallel()(joblib.delayed(_score_chunk)(self.payload, X[c]) for c in chunks)
+        parts = self.engine.map(_score_chunk, self.payload, [X[c] for c in chunks])
         return (np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
                 [m for p in parts for m in p[2]])
-
-    def _workers(self) -> int:
-        if self.backend == "dask":
-            return max(self.n_jobs, 1) if self.n_jobs > 0 else _dask_workers()
-        return joblib.cpu_count() if self.n_jobs == -1 else self.n_jobs
-
-
-def _dask_workers() -> int:
-    from distributed import get_client
-
-    return max(len(get_client().scheduler_info()["workers"]), 1)
 
 
 @dataclass(frozen=True)

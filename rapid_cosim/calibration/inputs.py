@@ -1,0 +1,101 @@
+"""The inputs of a run: its problem and its FMUs by content, from config files, from
+experiments made in code, or from an archive alone."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..archive import RunArchive
+from ..compiler import ensure_fmu
+from ..data import MeasuredData
+from ..errors import ConfigError
+from ..experiment import Experiment, load_experiment, parse_experiment
+from ..fitness import gaussian_log_likelihood
+from ..problem import Problem, build_problem, check_parameters
+from ..search import Evaluations
+from ..simulator import FmuRef, get_simulator
+
+
+@dataclass(frozen=True)
+class RunInputs:
+    """A problem with its FMUs by content: everything an objective needs."""
+
+    problem: Problem
+    fmus: dict[str, FmuRef]
+
+    @property
+    def experiments(self) -> tuple[Experiment, ...]:
+        return self.problem.experiments
+
+
+def inputs_from_configs(paths: Sequence[str | Path], *, package: str | Path = "modelica/iGrGen",
+                        fmu_dir: str | Path = "fmus", compiler: str = "auto") -> RunInputs:
+    """Experiments from config files; see :func:`inputs_from_experiments`."""
+    if not paths:
+        raise ConfigError("give at least one experiment config")
+    return inputs_from_experiments([load_experiment(p) for p in paths], package=package, fmu_dir=fmu_dir,
+                                   compiler=compiler)
+
+
+def inputs_from_experiments(experiments: Sequence[Experiment], *, package: str | Path = "modelica/iGrGen",
+                            fmu_dir: str | Path = "fmus", compiler: str = "auto",
+                            fmus: Mapping[str, FmuRef] | None = None) -> RunInputs:
+    """A run's inputs from experiments in memory: their FMUs built if needed (or taken
+    from ``fmus``, by model name) and checked against the experiments (unknown
+    parameters, values outside the declared ranges)."""
+    if not experiments:
+        raise ConfigError("give at least one experiment")
+    refs = dict(fmus or {})
+    for exp in experiments:
+        if exp.model not in refs:
+            refs[exp.model] = FmuRef.from_path(ensure_fmu(exp.model, package=package, fmu_dir=fmu_dir,
+                                                          compiler=compiler), exp.model)
+    return RunInputs(_checked_problem(experiments, refs), {m: refs[m] for m in {e.model for e in experiments}})
+
+
+def _checked_problem(experiments: Sequence[Experiment], fmus: Mapping[str, FmuRef]) -> Problem:
+    infos = {}
+    for model, ref in fmus.items():
+        sim = get_simulator(ref)
+        infos[model] = {n: p for n, p in sim.parameters.items() if p.settable}
+    for exp in experiments:
+        check_parameters(exp, infos[exp.model])
+    return build_problem(experiments)
+
+
+def inputs_from_archive(archive: RunArchive) -> RunInputs:
+    """The run's problem and FMUs rebuilt from the archive alone (no file is read)."""
+    configs, data, blobs, hashes = archive.configs, archive.data, archive.fmus, archive.hashes["fmus"]
+    meta = archive.options.get("experiments", {})
+    experiments = []
+    for name, text in configs.items():
+        info = meta.get(name, {})
+        columns = dict(data[name])
+        time_column = info.get("time_column", "time")
+        measured = MeasuredData.from_arrays(columns.pop(time_column), columns,
+                                            source=f"{archive.path}:/inputs/data/{name}")
+        experiments.append(parse_experiment(text, info.get("config_path", f"{archive.path}:{name}"), data=measured))
+    fmus = {model: FmuRef(model, hashes[model], raw) for model, raw in blobs.items()}  # archive.fmus checked them
+    return RunInputs(_checked_problem(experiments, fmus), fmus)
+
+
+def log_likelihood_for(problem: Problem) -> Callable[[Evaluations], np.ndarray] | None:
+    """Gaussian likelihood with each experiment's configured noise level, or None if an
+    experiment has none (then the Bayesian method cannot run)."""
+    sigma, counts = [], []
+    for exp in problem.experiments:
+        if not exp.noise_sigma:
+            return None
+        weighted = [o for o in exp.outputs if exp.weights[o] > 0]
+        if len(weighted) != 1:
+            raise ConfigError("the Bayesian fit needs exactly one output of positive weight per experiment",
+                              str(exp.config_path), "data.outputs")
+        out = weighted[0]
+        sigma.append(exp.noise_sigma[out])
+        counts.append(exp.windowed_data().n_valid(exp.outputs[out]))
+    sigma_arr, counts_arr = np.array(sigma), np.array(counts, dtype=float)
+    return lambda ev: gaussian_log_likelihood(ev.rssd, counts_arr, sigma_arr)

@@ -1,0 +1,77 @@
+"""How a run is made beyond its experiments (method, seed, workers, runner, estimator
+options), kept in its archive; and the ``METHOD.NAME=VALUE`` overrides of the CLI."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any, Mapping, Sequence
+
+from ..engine import Engine, make_engine
+from ..errors import RapidCosimError
+from ..estimators.chain import REGISTRY
+from ..objective import PENALTY
+from ..simulator import DEFAULT_RUNNER
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How a run is made, beyond its configs: kept in the archive."""
+
+    method: str = "pf:10+nm"
+    seed: int = 1
+    n_jobs: int = 1
+    backend: str = "loky"
+    penalty: float = PENALTY
+    estimator_options: dict[str, dict[str, Any]] = field(default_factory=dict)  # {"pf": {"n_particles": 50}}
+    runner: str = DEFAULT_RUNNER  # which simulator runner produced the run (see rapid_cosim.simulator)
+    scheduler: str | None = None  # a dask scheduler's address, with backend "dask"
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+    def engine(self) -> Engine:
+        return make_engine(self.n_jobs, self.backend, self.scheduler)
+
+    @classmethod
+    def from_json(cls, data: Mapping) -> "RunOptions":
+        known = {f.name for f in fields(cls)}
+        values = {k: v for k, v in data.items() if k in known}
+        values.setdefault("runner", "python")  # archives from before the compiled runner
+        return cls(**values)
+
+
+def parse_option_overrides(items: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """``["pf.n_particles=50", "nm.max_fev=200"]`` -> nested dict, checked against the
+    methods' option classes so that a typo fails before any simulation."""
+    out: dict[str, dict[str, Any]] = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        method, dot, name = key.strip().partition(".")
+        if not sep or not dot:
+            raise RapidCosimError(f"--option expects METHOD.NAME=VALUE (e.g. pf.n_particles=50), got {item!r}")
+        if method not in REGISTRY:
+            raise RapidCosimError(f"--option {key}: unknown method {method!r}; methods: {', '.join(REGISTRY)}")
+        options_cls = REGISTRY[method][1]
+        allowed = [f.name for f in fields(options_cls)]
+        if name not in allowed:
+            raise RapidCosimError(f"--option {key}: {method} has no option {name!r}; options: {', '.join(allowed)}")
+        out.setdefault(method, {})[name] = _parse_value(raw.strip())
+    return out
+
+
+def _parse_value(raw: str):
+    lowered = raw.lower()
+    if lowered in ("none", "null"):
+        return None
+    if lowered in ("true", "false"):
+        return lowered == "true"
+    for kind in (int, float):
+        try:
+            return kind(raw)
+        except ValueError:
+            pass
+    return raw
+
+
+def stage_options(options: RunOptions) -> dict:
+    return {m: REGISTRY[m][1](**kw) for m, kw in options.estimator_options.items()}
