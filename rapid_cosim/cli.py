@@ -201,8 +201,8 @@ def cmd_joint(args) -> int:
                                      compiler=args.compiler)
     print(f"{path}: {action}, {result.nfev} evaluations, {result.wall_time:.0f} s")
     print("Laplace approximations at each test's optimum")
-    ensure_laplace(per_test, laplace_cache(args.results), n_jobs=args.n_jobs)
-    summary, md, js, png = write_joint_report(path, laplace_cache(args.results), Path(args.results) / "joint")
+    laplace = ensure_laplace(per_test, laplace_cache(args.results), n_jobs=args.n_jobs)
+    summary, md, js, png = write_joint_report(path, laplace, Path(args.results) / "joint")
     print()
     print(markdown(summary))
     print(f"written: {md}, {js}, {png}")
@@ -253,7 +253,7 @@ def _result_table(result, labels=None) -> str:
     lines = [f"method {result.method}: best fitness {result.fun:.6g} after {result.nfev} simulations, "
              f"{result.nit} iterations, {result.wall_time:.1f} s ({result.n_failed} failed)",
              f"stop: {result.stop_reason}", "", f"  {'parameter':24s} {'estimate':>12s}"]
-    post = result.posterior
+    post = result.uncertainty
     if post is not None:
         lines[-1] += f"  {'posterior mean':>14s}  {int(round(100 * post.level))} % credible interval"
     for k, name in enumerate(result.names):

@@ -30,6 +30,7 @@ from .data import ar1_inflation, noise_level
 from .errors import RapidCosimError
 from .estimators.base import EstimationResult
 from .estimators.laplace import laplace
+from .estimators.uncertainty import Uncertainty
 from .engine import make_engine
 from .objective import ProblemObjective
 
@@ -174,45 +175,36 @@ def run_joint(configs: Sequence[str | Path], *, results: str | Path = "results",
 class Laplace:
     """Gaussian approximation of one test's likelihood at its archived optimum.
 
-    ``hessian`` is that of the negative log-likelihood ``0.5 * M * RSSD / sigma**2``
-    (white noise of the pre-step level ``sigma``), by central differences;
-    ``cov`` its inverse. ``phi`` is the pre-step lag-1 autocorrelation and
+    ``uncertainty`` is built from the Hessian of the negative log-likelihood
+    ``0.5 * M * RSSD / sigma**2`` (white noise of the pre-step level ``sigma``), by
+    central differences. ``phi`` is the pre-step lag-1 autocorrelation and
     ``inflation = (1 + phi) / (1 - phi)`` the factor by which AR(1) noise of that
     coefficient inflates the variance of a mean (and, roughly, of a least-squares
-    estimate driven by slow residual components): ``cov_inflated = inflation * cov``.
+    estimate driven by slow residual components): :attr:`inflated` scales by it.
     """
 
     test: str
     archive: str
-    names: tuple[str, ...]
-    x: np.ndarray
     fitness: float
-    hessian: np.ndarray
-    cov: np.ndarray
     sigma: float
     n_samples: int
     phi: float
     inflation: float
-    steps: np.ndarray
-    simulations: int
-    at_bound: tuple[str, ...]
+    uncertainty: Uncertainty
 
     @property
-    def cov_inflated(self) -> np.ndarray:
-        return self.inflation * self.cov
+    def inflated(self) -> Uncertainty:
+        return self.uncertainty.scaled(self.inflation)
 
     def to_json(self) -> dict:
-        return {"test": self.test, "archive": self.archive, "names": list(self.names), "x": self.x.tolist(),
-                "fitness": self.fitness, "hessian": self.hessian.tolist(), "cov": self.cov.tolist(),
-                "sigma": self.sigma, "n_samples": self.n_samples, "phi": self.phi, "inflation": self.inflation,
-                "steps": self.steps.tolist(), "simulations": self.simulations, "at_bound": list(self.at_bound)}
+        return {"test": self.test, "archive": self.archive, "fitness": self.fitness, "sigma": self.sigma,
+                "n_samples": self.n_samples, "phi": self.phi, "inflation": self.inflation,
+                "uncertainty": self.uncertainty.to_json()}
 
     @classmethod
     def from_json(cls, d: dict) -> "Laplace":
-        return cls(d["test"], d["archive"], tuple(d["names"]), np.array(d["x"]), float(d["fitness"]),
-                   np.array(d["hessian"]), np.array(d["cov"]), float(d["sigma"]), int(d["n_samples"]),
-                   float(d["phi"]), float(d["inflation"]), np.array(d["steps"]), int(d["simulations"]),
-                   tuple(d["at_bound"]))
+        return cls(d["test"], d["archive"], float(d["fitness"]), float(d["sigma"]), int(d["n_samples"]),
+                   float(d["phi"]), float(d["inflation"]), Uncertainty.from_json(d["uncertainty"]))
 
 
 def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float = 0.5) -> Laplace:
@@ -243,11 +235,9 @@ def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float 
     out = list(exp.outputs)[0]
     col = exp.outputs[out]
     noise = noise_level(exp.data, col, exp.pre_step_end)
-    return Laplace(test=exp.name, archive=str(archive), names=problem.names, x=approx.mean, fitness=float(result.fun),
-                   hessian=approx.hessian, cov=approx.covariance, sigma=float(exp.noise_sigma[out]),
+    return Laplace(test=exp.name, archive=str(archive), fitness=float(result.fun), sigma=float(exp.noise_sigma[out]),
                    n_samples=exp.windowed_data().n_valid(col), phi=float(noise.phi),
-                   inflation=ar1_inflation(noise.phi), steps=approx.steps, simulations=approx.evaluations,
-                   at_bound=approx.at_bound)
+                   inflation=ar1_inflation(noise.phi), uncertainty=approx)
 
 
 def laplace_cache(results: str | Path) -> Path:
@@ -261,19 +251,22 @@ def ensure_laplace(archives: Sequence[str | Path], cache: str | Path, *, n_jobs:
     cache = Path(cache)
     known = {}
     if cache.exists():
-        known = {d["archive"]: d for d in json.loads(cache.read_text())}
+        try:
+            known = {d["archive"]: Laplace.from_json(d) for d in json.loads(cache.read_text())}
+        except (ValueError, KeyError, TypeError):  # a cache of another layout is recomputed
+            known = {}
     out = []
     for a in archives:
         with RunArchive(a) as view:
             result = view.result()
         if result is None:
             raise RapidCosimError(f"{a}: the run is not finished")
-        d = known.get(str(a))
-        if d is not None and np.array_equal(np.array(d["x"]), result.x):
-            out.append(Laplace.from_json(d))
+        lap = known.get(str(a))
+        if lap is not None and np.array_equal(lap.uncertainty.mean, result.x):
+            out.append(lap)
             continue
         lap = laplace_at_optimum(a, n_jobs=n_jobs)
-        log(f"  Laplace at the optimum of {a}: {lap.simulations} simulations")
+        log(f"  Laplace at the optimum of {a}: {lap.uncertainty.evaluations} simulations")
         out.append(lap)
     cache.parent.mkdir(parents=True, exist_ok=True)
     cache.write_text(json.dumps([lap.to_json() for lap in out], indent=1) + "\n")

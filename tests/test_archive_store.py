@@ -21,7 +21,8 @@ from rapid_cosim.archive import ArchiveWriter, RunArchive, data_sha256
 from rapid_cosim.archive import format as store_format
 from rapid_cosim.archive import writer as store_writer
 from rapid_cosim.errors import ArchiveError, ArchiveLocked
-from rapid_cosim.estimators.base import EstimationResult, Iteration, Posterior
+from rapid_cosim.estimators.base import EstimationResult, Iteration
+from rapid_cosim.estimators.uncertainty import Uncertainty
 
 D, E = 3, 2
 NAMES = ("Kp", "Ti", "droop")
@@ -147,7 +148,7 @@ def test_iterations_and_evaluations_round_trip_bit_for_bit(tmp_path):
         check_prefix(a, 14)
         assert a.n_evaluations == sum(SIZES[i % len(SIZES)] for i in range(14))
         assert a.status == "interrupted"
-        assert a.result() is None and a.posterior() is None
+        assert a.result() is None and a.uncertainty() is None
 
 
 def test_inputs_and_metadata_round_trip(tmp_path):
@@ -199,14 +200,14 @@ def _result(posterior: bool) -> EstimationResult:
     post = None
     if posterior:
         samples = g.random((40, D))
-        post = Posterior(
+        post = Uncertainty(
             names=NAMES, samples=samples, weights=g.dirichlet(np.ones(40)), mean=samples.mean(0),
-            std=samples.std(0), interval=np.stack([samples.min(0), samples.max(0)], 1), level=0.95,
-            corr=np.corrcoef(samples.T), log_evidence=-123.25,
+            cov=np.cov(samples.T), interval=np.stack([samples.min(0), samples.max(0)], 1), level=0.95,
+            method="samples", log_evidence=-123.25,
         )
     return EstimationResult(
         method="smc", names=NAMES, x=g.random(D), fun=0.125, nfev=77, nit=14, wall_time=12.5,
-        stop_reason="tolerance reached: |Δf| < 1e-6", history=(), n_failed=3, posterior=post,
+        stop_reason="tolerance reached: |Δf| < 1e-6", history=(), n_failed=3, uncertainty=post,
     )
 
 
@@ -230,18 +231,18 @@ def test_finish_stores_the_result(tmp_path, with_posterior):
         assert same_array(got.x, want.x)
         assert len(got.history) == 3
         if with_posterior:
-            for name in ("samples", "weights", "mean", "std", "interval", "corr"):
-                assert same_array(getattr(got.posterior, name), getattr(want.posterior, name)), name
-            assert (got.posterior.level, got.posterior.log_evidence) == (0.95, -123.25)
+            for name in ("samples", "weights", "mean", "cov", "interval"):
+                assert same_array(getattr(got.uncertainty, name), getattr(want.uncertainty, name)), name
+            assert (got.uncertainty.level, got.uncertainty.log_evidence) == (0.95, -123.25)
         else:
-            assert got.posterior is None
+            assert got.uncertainty is None
         summary = a.summary()
     text = json.dumps(summary, allow_nan=False)  # strict JSON
     assert json.loads(text)["best"] == {n: float(v) for n, v in zip(NAMES, want.x)}
     assert summary["stop_reason"] == want.stop_reason and summary["n_iterations"] == 3
     assert (summary["posterior"] is not None) == with_posterior
     if with_posterior:
-        assert summary["posterior"]["interval"]["Ti"] == list(want.posterior.interval[1])
+        assert summary["posterior"]["interval"]["Ti"] == list(want.uncertainty.interval[1])
     with pytest.raises(ArchiveError, match="finished"):
         ArchiveWriter.reopen(path)
 

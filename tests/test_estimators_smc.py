@@ -12,7 +12,8 @@ import pytest
 from scipy.stats import norm
 
 from rapid_cosim.estimators import Evaluations, SearchSpace, SMCOptions, smc
-from rapid_cosim.estimators.smc import next_temperature, systematic_resample, weighted_quantile
+from rapid_cosim.estimators.smc import next_temperature, systematic_resample
+from rapid_cosim.estimators.uncertainty import weighted_quantile
 
 SPACE = SearchSpace(("R", "Ts"), np.array([0.02, 0.1]), np.array([0.1, 20.0]))
 THETA = np.array([0.05, 5.0])
@@ -54,7 +55,7 @@ def run(problem, seed, **options):
 def test_posterior_matches_the_analytic_one():
     problem = LinearGaussian(seed=0)
     res = run(problem, seed=1, n_particles=2000)
-    post = res.posterior
+    post = res.uncertainty
     assert "temperature 1" in res.stop_reason
     assert post.names == SPACE.names and post.level == 0.9
     assert post.weights.sum() == pytest.approx(1.0)
@@ -70,7 +71,7 @@ def test_posterior_matches_the_analytic_one():
 
 def test_interval_level_is_honoured():
     problem = LinearGaussian(seed=0)
-    post = run(problem, seed=2, n_particles=1500, level=0.5).posterior
+    post = run(problem, seed=2, n_particles=1500, level=0.5).uncertainty
     assert np.all(np.abs(post.interval - problem.interval(0.5)) < 0.15 * problem.std[:, None])
 
 
@@ -80,7 +81,7 @@ def test_90_percent_intervals_cover_the_truth_about_90_percent_of_the_time():
     covered, width_ratio = 0, []
     for seed in range(10):
         problem = LinearGaussian(seed=100 + seed)
-        post = run(problem, seed=seed, n_particles=600).posterior
+        post = run(problem, seed=seed, n_particles=600).uncertainty
         covered += int(np.sum((post.interval[:, 0] <= THETA) & (THETA <= post.interval[:, 1])))
         width_ratio.append(np.diff(post.interval).ravel() / np.diff(problem.interval(0.9)).ravel())
     assert 15 <= covered <= 20

@@ -39,7 +39,7 @@ def test_every_method_recovers_r_and_ts_without_noise(noise_free, method):
     inputs, objective = noise_free
     result = run_chain(objective, inputs.problem.space, method, options=OPTIONS, rng=np.random.default_rng(1),
                        log_likelihood=log_likelihood_for(inputs.problem))
-    estimate = result.posterior.mean if result.posterior is not None else result.x
+    estimate = result.uncertainty.mean if result.uncertainty is not None else result.x
     rel = np.abs(estimate / TRUTH - 1)
     assert rel[0] < 0.005, f"R off by {100 * rel[0]:.3f} %"
     assert rel[1] < 0.02, f"Ts off by {100 * rel[1]:.3f} %"
@@ -58,7 +58,7 @@ def test_bayesian_interval_covers_the_truth_at_its_level(fmus, tmp_path):
         result = run_chain(ProblemObjective(inputs.problem, inputs.fmus, engine=make_engine(2)), inputs.problem.space, "smc",
                            options={"smc": SMCOptions(n_particles=80, n_mcmc_steps=3)},
                            rng=np.random.default_rng(seed), log_likelihood=log_likelihood_for(inputs.problem))
-        interval = result.posterior.interval
+        interval = result.uncertainty.interval
         hits += bool(np.all((interval[:, 0] <= TRUTH) & (TRUTH <= interval[:, 1])))
         widths.append(interval[:, 1] - interval[:, 0])
     assert hits >= 8, f"the 90 % interval covered the truth in {hits} of 10 runs"

@@ -147,7 +147,7 @@ def test_joint_fit_and_consistency_report(experiments, results, repo, capsys):
 
     j = json.loads((res / "joint" / "joint.json").read_text())
     with RunArchive(res / "joint" / "smc.h5") as view:
-        post = view.posterior()
+        post = view.uncertainty()
         assert view.options["estimator_options"] == {"smc": {"n_particles": 24, "n_mcmc_steps": 1}}
     assert j["mean"] == post.mean.tolist() and j["tests"] == ["synA", "synB"]
     for t in j["per_test"]:

@@ -72,7 +72,8 @@ import h5py
 import numpy as np
 
 from ..errors import ArchiveError
-from ..estimators.base import EstimationResult, Posterior
+from ..estimators.base import EstimationResult
+from ..estimators.uncertainty import Uncertainty
 
 FORMAT = "rapid-cosim-archive"
 FORMAT_VERSION = 1
@@ -312,26 +313,45 @@ def write_result(f: h5py.File, result: EstimationResult) -> None:
         wall_time=float(result.wall_time), stop_reason=str(result.stop_reason),
         n_failed=int(result.n_failed),
     )
-    post = result.posterior
-    if post is not None:
+    u = result.uncertainty
+    if u is not None:  # the group keeps the name it had when only SMC posteriors were stored
         p = r.create_group("posterior")
-        for name in ("samples", "weights", "mean", "std", "interval", "corr"):
-            p.create_dataset(name, data=np.asarray(getattr(post, name), dtype="<f8"))
-        p.attrs.update(level=float(post.level), log_evidence=float(post.log_evidence))
+        for name in UNCERTAINTY_ARRAYS:
+            if getattr(u, name) is not None:
+                p.create_dataset(name, data=np.asarray(getattr(u, name), dtype="<f8"))
+        p.attrs.update(level=float(u.level), method=u.method, evaluations=int(u.evaluations),
+                       log_evidence=float("nan") if u.log_evidence is None else float(u.log_evidence))
 
 
-def check_posterior(post: Posterior, names: tuple[str, ...]) -> None:
+UNCERTAINTY_ARRAYS = ("samples", "weights", "mean", "cov", "interval", "hessian", "steps")
+
+
+def check_uncertainty(u: Uncertainty, names: tuple[str, ...]) -> None:
     d = len(names)
-    if tuple(post.names) != names:
-        raise ValueError(f"posterior names {tuple(post.names)} differ from the archive's {names}")
-    samples = np.asarray(post.samples)
-    n = samples.shape[0] if samples.ndim == 2 else -1
-    shapes = {"samples": (n, d), "weights": (n,), "mean": (d,), "std": (d,),
-              "interval": (d, 2), "corr": (d, d)}
+    if tuple(u.names) != names:
+        raise ValueError(f"uncertainty names {tuple(u.names)} differ from the archive's {names}")
+    n = np.shape(u.samples)[0] if u.samples is not None else 0
+    shapes = {"samples": (n, d), "weights": (n,), "mean": (d,), "cov": (d, d), "interval": (d, 2),
+              "hessian": (d, d), "steps": (d,)}
     for name, shape in shapes.items():
-        got = np.shape(getattr(post, name))
+        got = np.shape(getattr(u, name)) if getattr(u, name) is not None else shape
         if got != shape:
-            raise ValueError(f"posterior {name} has shape {got}, expected {shape}")
+            raise ValueError(f"uncertainty {name} has shape {got}, expected {shape}")
+
+
+def read_uncertainty(p, names: tuple[str, ...]) -> Uncertainty:
+    """The stored uncertainty; archives made before it had a covariance stored the
+    standard deviations and correlations instead."""
+    arrays = {k: p[k][()] for k in UNCERTAINTY_ARRAYS if k in p}
+    if "cov" not in arrays:
+        std = p["std"][()]
+        arrays["cov"] = np.outer(std, std) * p["corr"][()]
+    log_evidence = float(p.attrs["log_evidence"])
+    return Uncertainty(names, arrays["mean"], arrays["cov"], arrays["interval"], float(p.attrs["level"]),
+                       str(p.attrs.get("method", "samples")), samples=arrays.get("samples"),
+                       weights=arrays.get("weights"), log_evidence=log_evidence if np.isfinite(log_evidence) else None,
+                       hessian=arrays.get("hessian"), steps=arrays.get("steps"),
+                       evaluations=int(p.attrs.get("evaluations", 0)))
 
 
 def status_of(f: h5py.File) -> str:

@@ -10,7 +10,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..errors import ArchiveError
-from ..estimators.base import EstimationResult, Iteration, Posterior
+from ..estimators.base import EstimationResult, Iteration
+from ..estimators.uncertainty import Uncertainty
 from . import format as fmt
 
 class StoredEvaluations(NamedTuple):
@@ -164,24 +165,13 @@ class RunArchive:
             stop_reason=str(r.attrs["stop_reason"]),
             history=tuple(self.iterations()),
             n_failed=int(r.attrs["n_failed"]),
-            posterior=self.posterior(),
+            uncertainty=self.uncertainty(),
         )
 
-    def posterior(self) -> Posterior | None:
+    def uncertainty(self) -> Uncertainty | None:
         if self.status != "finished" or "posterior" not in self._f["result"]:
             return None
-        p = self._f["result/posterior"]
-        return Posterior(
-            names=self.names,
-            samples=p["samples"][()],
-            weights=p["weights"][()],
-            mean=p["mean"][()],
-            std=p["std"][()],
-            interval=p["interval"][()],
-            level=float(p.attrs["level"]),
-            corr=p["corr"][()],
-            log_evidence=float(p.attrs["log_evidence"]),
-        )
+        return fmt.read_uncertainty(self._f["result/posterior"], self.names)
 
     def summary(self) -> dict[str, Any]:
         """A JSON-serialisable digest; for an unfinished run, the best iteration so far."""
@@ -209,14 +199,14 @@ class RunArchive:
                        wall_time=None, stop_reason=None, n_failed=int(failed.sum()))
         out["best"] = {n: _num(v) for n, v in zip(self.names, x)}
         out["best_fitness"] = _num(fun)
-        post = self.posterior()
+        post = self.uncertainty()
         out["posterior"] = None if post is None else {
-            "n_samples": int(post.samples.shape[0]),
+            "n_samples": 0 if post.samples is None else int(post.samples.shape[0]),
             "mean": {n: _num(v) for n, v in zip(self.names, post.mean)},
             "std": {n: _num(v) for n, v in zip(self.names, post.std)},
             "interval": {n: [_num(lo), _num(hi)] for n, (lo, hi) in zip(self.names, post.interval)},
             "level": _num(post.level),
-            "log_evidence": _num(post.log_evidence),
+            "log_evidence": None if post.log_evidence is None else _num(post.log_evidence),
         }
         return out
 

@@ -300,8 +300,8 @@ class ArchiveWriter:
         x = np.asarray(result.x, dtype="<f8")
         if x.shape != (self.dim,):
             raise ValueError(f"result x has shape {x.shape}, expected {(self.dim,)}")
-        if result.posterior is not None:
-            fmt.check_posterior(result.posterior, self.names)
+        if result.uncertainty is not None:
+            fmt.check_uncertainty(result.uncertainty, self.names)
         self.commit()
         self._f.close()
         self._f = None

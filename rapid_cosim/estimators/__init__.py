@@ -4,17 +4,18 @@ function ``method(objective, space, *, options, rng, callback, x0)`` returning o
 string such as ``"pf:10+nm"``."""
 
 from .base import (EstimationResult, Evaluations, Iteration, IterationCallback, Objective,
-                   Posterior, SearchSpace)
+                   SearchSpace)
 from .chain import REGISTRY, Stage, parse_method, run_chain
 from .gradient import GDOptions, gradient_descent
 from .nelder_mead import NMOptions, nelder_mead
 from .pf import PFOptions, particle_filter
 from .pso import PSOOptions, pso
 from .smc import SMCOptions, smc
+from .uncertainty import Uncertainty
 
 __all__ = [
     "EstimationResult", "Evaluations", "Iteration", "IterationCallback", "Objective",
-    "Posterior", "SearchSpace",
+    "SearchSpace", "Uncertainty",
     "REGISTRY", "Stage", "parse_method", "run_chain",
     "GDOptions", "gradient_descent",
     "NMOptions", "nelder_mead",

@@ -21,6 +21,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ..search import Evaluations, SearchSpace
+from .uncertainty import Uncertainty
 
 
 class Objective(Protocol):
@@ -58,21 +59,6 @@ IterationCallback = Callable[[Iteration], None]
 
 
 @dataclass(frozen=True)
-class Posterior:
-    """Weighted samples of a Bayesian fit and their summaries."""
-
-    names: tuple[str, ...]
-    samples: np.ndarray
-    weights: np.ndarray
-    mean: np.ndarray
-    std: np.ndarray
-    interval: np.ndarray  # (d, 2): equal-tailed credible interval at ``level``
-    level: float
-    corr: np.ndarray
-    log_evidence: float
-
-
-@dataclass(frozen=True)
 class EstimationResult:
     """The outcome of any method or chain, shaped like ``scipy.optimize.OptimizeResult``."""
 
@@ -86,7 +72,7 @@ class EstimationResult:
     stop_reason: str
     history: tuple[Iteration, ...]
     n_failed: int = 0
-    posterior: Posterior | None = None
+    uncertainty: Uncertainty | None = None  # a posterior's, for Bayesian methods
 
     def best(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.names, self.x)}
@@ -266,7 +252,7 @@ class Tracker:
             self.callback(it)
         return it
 
-    def result(self, stop_reason: str, posterior: Posterior | None = None) -> EstimationResult:
+    def result(self, stop_reason: str, uncertainty: Uncertainty | None = None) -> EstimationResult:
         return EstimationResult(
             method=self.stage,
             names=self.space.names,
@@ -278,7 +264,7 @@ class Tracker:
             stop_reason=stop_reason,
             history=tuple(self.history),
             n_failed=self.n_failed,
-            posterior=posterior,
+            uncertainty=uncertainty,
         )
 
 

@@ -93,8 +93,8 @@ def run_chain(
     """Run the stages of ``method`` in order and merge them into one result.
 
     ``options`` maps method names to their options dataclass (defaults otherwise);
-    ``log_likelihood`` is needed when the chain contains ``smc``. The result's posterior
-    is the last SMC stage's, if any.
+    ``log_likelihood`` is needed when the chain contains ``smc``. The result's uncertainty
+    is the last SMC stage's posterior, if any.
     """
     stages = parse_method(method)
     options = dict(options or {})
@@ -113,7 +113,7 @@ def run_chain(
     best: tuple[np.ndarray, float] | None = None
     nfev = n_failed = 0
     wall = 0.0
-    reasons, posterior = [], None
+    reasons, uncertainty = [], None
     for k, stage in enumerate(stages, start=1):
         func, cls = REGISTRY[stage.name]
         opts = options.get(stage.name) or cls()
@@ -133,7 +133,7 @@ def run_chain(
         if best is None or res.fun < best[1]:
             best = (res.x.copy(), float(res.fun))
         x0 = best[0]
-        posterior = res.posterior or posterior
+        uncertainty = res.uncertainty or uncertainty
         reasons.append(f"{stage.name} (stage {k}/{len(stages)}): {res.stop_reason}")
 
     return EstimationResult(
@@ -147,5 +147,5 @@ def run_chain(
         stop_reason="; ".join(reasons),
         history=tuple(history),
         n_failed=n_failed,
-        posterior=posterior,
+        uncertainty=uncertainty,
     )

@@ -12,41 +12,11 @@ solver's noise or the model's nonlinearity far away.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from scipy import stats
-
 from .base import SearchSpace
-
-
-@dataclass(frozen=True)
-class GaussianApproximation:
-    names: tuple[str, ...]
-    mean: np.ndarray
-    hessian: np.ndarray  # of the negative log-likelihood, physical units
-    covariance: np.ndarray  # physical units
-    level: float
-    steps: np.ndarray  # the second pass's steps, physical units
-    evaluations: int
-    at_bound: tuple[str, ...]  # parameters at a bound, whose stencil was moved inside
-
-    @property
-    def std(self) -> np.ndarray:
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
-
-    @property
-    def interval(self) -> np.ndarray:
-        z = stats.norm.ppf(0.5 + self.level / 2)
-        return np.column_stack([self.mean - z * self.std, self.mean + z * self.std])
-
-    @property
-    def corr(self) -> np.ndarray:
-        s = self.std
-        with np.errstate(invalid="ignore", divide="ignore"):
-            c = self.covariance / np.outer(s, s)
-        return np.nan_to_num(c)
+from .uncertainty import Uncertainty, _inverse
 
 
 def hessian_stencil(u: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -84,15 +54,8 @@ def hessian_from_stencil(f: np.ndarray, h: np.ndarray) -> np.ndarray:
     return H
 
 
-def _inverse(H: np.ndarray) -> np.ndarray:
-    try:
-        return np.linalg.inv(H)
-    except np.linalg.LinAlgError:
-        return np.full_like(H, np.nan)
-
-
 def laplace(neg_log_likelihood: Callable[[np.ndarray], np.ndarray], space: SearchSpace, x: np.ndarray, *,
-            rel_step: float = 0.5, level: float = 0.9) -> GaussianApproximation:
+            rel_step: float = 0.5, level: float = 0.9) -> Uncertainty:
     """``neg_log_likelihood`` maps rows of physical parameter sets (n, d) to values (n,),
     evaluated in one call per pass (so a parallel objective parallelises the stencil)."""
     x = np.asarray(x, dtype=float)
@@ -118,7 +81,7 @@ def laplace(neg_log_likelihood: Callable[[np.ndarray], np.ndarray], space: Searc
     eps = 1e-7
     u = np.clip(u_x, h, 1 - h)
     J = (space.from_unit(np.minimum(u + eps, 1)) - space.from_unit(np.maximum(u - eps, 0))) / (2 * eps)
-    cov = _inverse(H_unit) * np.outer(J, J)
     H = H_unit / np.outer(J, J)
     at_bound = tuple(n for n, moved in zip(space.names, shifted) if moved)
-    return GaussianApproximation(space.names, x, H, cov, level, h * np.abs(J), count, at_bound)
+    return Uncertainty.from_hessian(space.names, x, H, level=level, steps=h * np.abs(J), evaluations=count,
+                                    at_bound=at_bound)

@@ -37,7 +37,8 @@ from typing import Callable
 
 import numpy as np
 
-from .base import (Evaluations, EstimationResult, IterationCallback, Objective, Posterior,
+from .uncertainty import Uncertainty
+from .base import (Evaluations, EstimationResult, IterationCallback, Objective,
                    SearchSpace, Tracker, check_option)
 
 LogLikelihood = Callable[[Evaluations], np.ndarray]
@@ -111,35 +112,6 @@ def systematic_resample(weights: np.ndarray, rng: np.random.Generator) -> np.nda
     cdf = np.cumsum(weights)
     cdf[-1] = 1.0
     return np.searchsorted(cdf, positions, side="right").clip(0, n - 1)
-
-
-def weighted_quantile(x: np.ndarray, w: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Quantiles of a weighted sample: the smallest x whose weighted CDF reaches q.
-
-    Unlike interpolating rules, this inverse CDF gives the same answer for a particle of
-    weight 2w as for two copies of weight w, so resampling does not shift the interval.
-    """
-    order = np.argsort(x, kind="stable")
-    xs, ws = x[order], w[order]
-    cdf = np.cumsum(ws) / ws.sum()
-    return xs[np.searchsorted(cdf, q, side="left").clip(0, xs.size - 1)]
-
-
-def summarise(names, samples: np.ndarray, weights: np.ndarray, level: float,
-              log_evidence: float) -> Posterior:
-    """Mean, std, equal-tailed interval at ``level`` and correlation of weighted samples."""
-    w = weights / weights.sum()
-    mean = w @ samples
-    dev = samples - mean
-    cov = (w[:, None] * dev).T @ dev
-    std = np.sqrt(np.diag(cov))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = cov / np.outer(std, std)
-    np.fill_diagonal(corr, 1.0)
-    q = np.array([(1 - level) / 2, (1 + level) / 2])
-    interval = np.array([weighted_quantile(samples[:, j], w, q) for j in range(samples.shape[1])])
-    return Posterior(tuple(names), samples.copy(), w.copy(), mean, std, interval, level, corr,
-                     float(log_evidence))
 
 
 def smc(
@@ -238,5 +210,5 @@ def smc(
                 break
             move(chol)
         reason = f"reached temperature 1 after {stage} tempering stages"
-    posterior = summarise(space.names, t.to_physical(U), weights(), o.level, log_z)
+    posterior = Uncertainty.from_samples(space.names, t.to_physical(U), weights(), level=o.level, log_evidence=log_z)
     return t.result(reason, posterior)

@@ -1,8 +1,8 @@
 """Report of the joint Bayesian fit of R and Ts over several staged tests, and of how
 consistent the per-test estimates are with it.
 
-Reads the joint SMC archive, the per-test archives and the per-test Laplace
-approximations (``laplace.json``, written by :func:`rapid_cosim.staged.ensure_laplace`);
+Takes the joint SMC archive and the per-test Laplace approximations
+(:class:`rapid_cosim.staged.Laplace`, from :func:`rapid_cosim.staged.ensure_laplace`);
 simulates only to report each test's offset and RSSD at the posterior mean.
 Writes ``joint.md``, ``joint.json`` and ``joint.png``.
 """
@@ -16,6 +16,8 @@ from typing import Sequence
 
 import numpy as np
 from matplotlib.ticker import MaxNLocator
+
+from ..staged import Laplace
 
 from .archives import load_run, offsets_at
 from .consistency import Homogeneity, ellipse, homogeneity
@@ -54,23 +56,24 @@ class JointSummary:
     vs_mean_inflated: Homogeneity
 
 
-def summarise_joint(joint_archive: str | Path, laplace: Sequence[dict]) -> JointSummary:
+def summarise_joint(joint_archive: str | Path, laplace: Sequence[Laplace]) -> JointSummary:
     run = load_run(joint_archive)
-    post = run.result.posterior
+    post = run.result.uncertainty
     if post is None:
         raise ValueError(f"{joint_archive}: the run has no posterior (is it an SMC run?)")
     names = tuple(run.result.names)
     idx = [names.index(p) for p in PARAMS]
     tests = tuple(e.name for e in run.inputs.experiments)
-    by_test = {d["test"]: d for d in laplace}
+    by_test = {lap.test: lap for lap in laplace}
     missing = [t for t in tests if t not in by_test]
     if missing:
         raise ValueError(f"no Laplace approximation for {', '.join(missing)}")
-    cov = np.outer(post.std, post.std) * post.corr
-    x = np.array([[by_test[t]["x"][by_test[t]["names"].index(p)] for p in PARAMS] for t in tests])
-    C = np.array([_sub(np.array(by_test[t]["cov"]), by_test[t]["names"]) for t in tests])
-    H = np.array([_sub(np.array(by_test[t]["hessian"]), by_test[t]["names"]) for t in tests])
-    f = np.array([by_test[t]["inflation"] for t in tests])
+    cov = post.cov
+    x = np.array([[by_test[t].uncertainty.mean[by_test[t].uncertainty.names.index(p)] for p in PARAMS]
+                  for t in tests])
+    C = np.array([_sub(by_test[t].uncertainty.cov, by_test[t].uncertainty.names) for t in tests])
+    H = np.array([_sub(by_test[t].uncertainty.hessian, by_test[t].uncertainty.names) for t in tests])
+    f = np.array([by_test[t].inflation for t in tests])
     lap_cov = np.linalg.inv(H.sum(axis=0))
     lap_cov_infl = np.linalg.inv((H / f[:, None, None]).sum(axis=0))
     factor = np.diag(lap_cov_infl) / np.diag(lap_cov)
@@ -79,12 +82,13 @@ def summarise_joint(joint_archive: str | Path, laplace: Sequence[dict]) -> Joint
     at_mean = offsets_at(run, post.mean)
     per_test = []
     for k, t in enumerate(tests):
-        d = by_test[t]
+        lap = by_test[t]
         per_test.append({"test": t, "x": x[k].tolist(), "cov": C[k].tolist(), "sd": np.sqrt(np.diag(C[k])).tolist(),
-                         "phi": d["phi"], "inflation": d["inflation"], "sigma": d["sigma"],
-                         "n_samples": d["n_samples"], "fitness": d["fitness"], "at_bound": d["at_bound"],
+                         "phi": lap.phi, "inflation": lap.inflation, "sigma": lap.sigma,
+                         "n_samples": lap.n_samples, "fitness": lap.fitness,
+                         "at_bound": list(lap.uncertainty.at_bound),
                          "offset_at_joint": at_mean[t][0], "rssd_at_joint": at_mean[t][1],
-                         "archive": d["archive"]})
+                         "archive": lap.archive})
     cov_sub = cov[np.ix_(idx, idx)]
     return JointSummary(
         tests=tests, names=PARAMS, mean=mean, std=post.std[idx], interval=interval, level=post.level,
@@ -243,9 +247,8 @@ def plot_joint(s: JointSummary, out: str | Path, dpi: int = 110) -> Path:
     return save(fig, out, dpi=dpi, tight=True)
 
 
-def write_joint_report(joint_archive: str | Path, laplace_json: str | Path, out_dir: str | Path
+def write_joint_report(joint_archive: str | Path, laplace: Sequence[Laplace], out_dir: str | Path
                        ) -> tuple[JointSummary, Path, Path, Path]:
-    laplace = json.loads(Path(laplace_json).read_text())
     s = summarise_joint(joint_archive, laplace)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
