@@ -2,9 +2,10 @@
 
 A candidate's experiments are the user's experiments with the model swapped for the
 candidate's bench and the effect's parameters added to ``[estimate]`` (or, for a fit
-at an effect's material size, to ``[fixed]``). They are written as config files beside
-the archive, so each candidate is an ordinary archived run that ``rapid-cosim show``,
-``rerun`` and the reports understand.
+at an effect's material size, to ``[fixed]``). They are built in memory, reusing the
+user's measurements; their configs are also written beside the archive for the record
+(never read back), and each candidate is an ordinary archived run that ``rapid-cosim
+show``, ``rerun`` and the reports understand.
 """
 
 from __future__ import annotations
@@ -16,9 +17,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..calibration import RunOptions, ensure_run, inputs_from_configs
+from ..calibration import RunOptions, ensure_run, inputs_from_experiments
 from ..objective import ProblemObjective, evaluate_in_detail
-from ..experiment import Experiment, render_config
+from ..experiment import Experiment, parse_experiment, render_config
+from ..simulator import FmuRef
 from .catalogue import CATALOGUE, NONE, bench_name, effect_parameters
 
 
@@ -116,21 +118,42 @@ def default_start(spec: CandidateSpec, base: Mapping[str, float] | None) -> dict
     return start
 
 
-def write_configs(folder: Path, experiments: Sequence[Experiment], spec: CandidateSpec,
-                  start: Mapping[str, float], polish_from: Mapping[str, float] | None = None, *,
-                  model: str | None = None) -> list[Path]:
-    """``folder/<test>/config.toml`` of each experiment as the candidate's."""
+def candidate_experiments(experiments: Sequence[Experiment], spec: CandidateSpec, start: Mapping[str, float],
+                          polish_from: Mapping[str, float] | None = None, *,
+                          model: str | None = None) -> list[Experiment]:
+    """The experiments as the candidate's, in memory: each one's measurements reused."""
+    out = []
+    for exp in experiments:
+        text = candidate_config(exp, spec, start, model=model)
+        if polish_from is not None:
+            text = _with_start(text, polish_from)
+        out.append(parse_experiment(text, exp.config_path, data=exp.data))
+    return out
+
+
+def record_configs(folder: Path, experiments: Sequence[Experiment]) -> list[Path]:
+    """``folder/<test>/config.toml`` of each experiment, for the record."""
     paths = []
     for exp in experiments:
         path = folder / exp.name / "config.toml"
         path.parent.mkdir(parents=True, exist_ok=True)
-        text = candidate_config(exp, spec, start, model=model)
-        if polish_from is not None:
-            text = _with_start(text, polish_from)
-        if not path.exists() or path.read_text() != text:
-            path.write_text(text)
+        if not path.exists() or path.read_text() != exp.config_text:
+            path.write_text(exp.config_text)
         paths.append(path)
     return paths
+
+
+def candidate_inputs(folder: Path, experiments: Sequence[Experiment], spec: CandidateSpec,
+                     start: Mapping[str, float], polish_from: Mapping[str, float] | None = None, *,
+                     model: str | None = None, package, fmu_dir, fmus: dict[str, FmuRef] | None = None):
+    """The candidate's run inputs, its configs recorded in ``folder``; ``fmus`` caches the
+    FMUs by model across candidates (each is built or loaded once)."""
+    exps = candidate_experiments(experiments, spec, start, polish_from, model=model)
+    record_configs(folder, exps)
+    inputs = inputs_from_experiments(exps, package=package, fmu_dir=fmu_dir, fmus=fmus)
+    if fmus is not None:
+        fmus.update(inputs.fmus)
+    return inputs
 
 
 def _with_start(text: str, start: Mapping[str, float]) -> str:
@@ -143,22 +166,22 @@ def _with_start(text: str, start: Mapping[str, float]) -> str:
 
 def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdir: Path, *,
                   options: RunOptions, start: Mapping[str, float] | None = None, package: str | Path,
-                  fmu_dir: str | Path, progress: bool = False) -> CandidateFit:
+                  fmu_dir: str | Path, progress: bool = False, fmus: dict[str, FmuRef] | None = None) -> CandidateFit:
     """Calibrate the candidate (archived); if the search ends worse than the point where
     its effects are switched off at ``start`` (the base optimum), which it nests, it
     missed that basin: Nelder-Mead polishes from there, also archived, and the better
     of the two stands."""
     start = dict(start or {})
-    paths = write_configs(workdir / "candidates" / spec.slug, experiments, spec, start)
-    inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, compiler="auto")
+    inputs = candidate_inputs(workdir / "candidates" / spec.slug, experiments, spec, start, package=package,
+                              fmu_dir=fmu_dir, fmus=fmus)
     archive = workdir / "candidates" / f"{spec.slug}.h5"
     result, _ = ensure_run(inputs, options, archive, progress=progress)
     if spec.effects and all(n in start for n in inputs.problem.names):
         nested = inputs.problem.space.clip(np.array([start[n] for n in inputs.problem.names]))
         if ProblemObjective(inputs.problem, inputs.fmus)(nested[None]).fitness[0] < result.fun:
             polish = f"{spec.slug}-from-base"
-            paths = write_configs(workdir / "candidates" / polish, experiments, spec, start, polish_from=start)
-            polished_inputs = inputs_from_configs(paths, package=package, fmu_dir=fmu_dir, compiler="auto")
+            polished_inputs = candidate_inputs(workdir / "candidates" / polish, experiments, spec, start,
+                                               polish_from=start, package=package, fmu_dir=fmu_dir, fmus=fmus)
             polished, _ = ensure_run(polished_inputs, replace(options, method="nm"),
                                      workdir / "candidates" / f"{polish}.h5", progress=progress)
             if polished.fun < result.fun:
@@ -177,5 +200,6 @@ def residuals_at(inputs, x) -> dict[str, ExperimentResiduals]:
     return out
 
 
-__all__ = ["CATALOGUE", "CandidateFit", "CandidateSpec", "ExperimentResiduals", "candidate_config", "default_start",
-           "fit_candidate", "residuals_at", "write_configs"]
+__all__ = ["CATALOGUE", "CandidateFit", "CandidateSpec", "ExperimentResiduals", "candidate_config",
+           "candidate_experiments", "candidate_inputs", "default_start", "fit_candidate", "record_configs",
+           "residuals_at"]

@@ -19,7 +19,7 @@ from typing import Callable, Sequence
 import h5py
 import numpy as np
 
-from ..calibration import RunOptions, ensure_run, inputs_from_configs, log_likelihood_for
+from ..calibration import RunOptions, ensure_run, log_likelihood_for
 from ..compiler import build_models
 from ..data import ar1_inflation
 from ..errors import RapidCosimError
@@ -27,7 +27,7 @@ from ..estimators.laplace import laplace
 from ..engine import make_engine
 from ..objective import ProblemObjective
 from ..experiment import Experiment
-from .candidates import CandidateFit, CandidateSpec, default_start, fit_candidate, residuals_at, write_configs
+from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, residuals_at
 from .catalogue import CATALOGUE, NONE, bench_name, camel, write_bench
 from .features import Features, residual_features
 from .selection import THRESHOLD, Ranked, Verdict, bic, decide, decisive, gap, pooled_noise, rank, score
@@ -121,6 +121,7 @@ class _Context:
         shutil.copytree(self.user_package, self.package, dirs_exist_ok=True)  # refreshed on every run
         self.noise = pooled_noise(self.training + self.heldout)
         self.fits: dict[str, CandidateFit] = {}
+        self.fmus: dict = {}  # FMUs by model, built or loaded once for all candidates
         self._predictions: dict[tuple, dict] = {}
         self.run_options = RunOptions(method=options.method, seed=options.seed, n_jobs=options.n_jobs,
                                       estimator_options=options.estimator_options)
@@ -133,7 +134,7 @@ class _Context:
             self.log(f"  fitting {spec.label} ...")
             fit = fit_candidate(spec, self.training, self.workdir, options=self.run_options,
                                 start=start if start is not None else default_start(spec, self.base_parameters()),
-                                package=self.package, fmu_dir=self.fmu_dir)
+                                package=self.package, fmu_dir=self.fmu_dir, fmus=self.fmus)
             self.fits[spec.label] = fit
             self.log(f"    fitness {fit.fitness:.4g}, BIC {bic(fit, self.noise):.1f}, {fit.nfev} evaluations")
         return self.fits[spec.label]
@@ -153,8 +154,8 @@ class _Context:
         return self._predictions[key]
 
     def _predict(self, fit: CandidateFit) -> dict:
-        paths = write_configs(self.workdir / "heldout" / fit.spec.slug, self.heldout, fit.spec, fit.parameters)
-        inputs = inputs_from_configs(paths, package=self.package, fmu_dir=self.fmu_dir)
+        inputs = candidate_inputs(self.workdir / "heldout" / fit.spec.slug, self.heldout, fit.spec, fit.parameters,
+                                  package=self.package, fmu_dir=self.fmu_dir, fmus=self.fmus)
         x = np.array([fit.parameters[n] for n in inputs.problem.names])
         return residuals_at(inputs, x)
 
@@ -325,8 +326,8 @@ def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: Diagnos
     build_models([name], package=package_dir, fmu_dir=ctx.user_fmu_dir, log=lambda *_: None)
     ctx.log(f"  wrote {target} and compiled it; re-calibrating with it ...")
     spec = CandidateSpec(effects)
-    paths = write_configs(ctx.workdir / "recalibrated", ctx.training, spec, values, model=name)
-    inputs = inputs_from_configs(paths, package=package_dir, fmu_dir=ctx.user_fmu_dir)
+    inputs = candidate_inputs(ctx.workdir / "recalibrated", ctx.training, spec, values, model=name,
+                              package=package_dir, fmu_dir=ctx.user_fmu_dir)
     archive = ctx.workdir / "recalibrated.h5"
     result, _ = ensure_run(inputs, replace(ctx.run_options, method="nm"), archive, progress=False)
     fit = CandidateFit(spec, archive, name, result.best(), len(result.names), float(result.fun), result.nfev,
