@@ -1,12 +1,32 @@
-"""rapid-cosim: calibrate Modelica models of power-plant governors against staged tests.
+"""rapid-cosim: calibrate Modelica models of power-plant governors against field measurements.
 
-The package follows the way data flows, each module knowing only those before it::
+The public API, in the manner of scipy.optimize::
 
-    modelica/iGrGen -> build -> simulator (integrator) -> data, experiment -> fitness
-                    -> evaluate -> estimators -> archive -> staged, diagnose -> report -> cli
+    import rapid_cosim as rc
+    fit = rc.calibrate(["experiments/test1"], method="pf:10+nm", seed=1)
+    print(fit)                # the estimate, how it was found
+    fit.plot("test1.png")     # measured and simulated, residuals beneath
+    fit.to_frame()            # one row per parameter (pandas)
 
-``errors`` and ``search`` (the search space and the scores of a batch, which the problem,
-the evaluator and the estimators share) are leaves that import nothing from the package.
+``calibrate``, ``resume``, ``rerun`` and ``load`` return one :class:`Calibration`;
+``diagnose`` finds what a model misses; ``simulate`` runs one model or FMU;
+:class:`Experiment` is made from a config file or in code.
+
+The package follows the way data flows, each module knowing only those before it
+(``docs/architecture.md`` draws it; a test checks the imports)::
+
+    modelica/iGrGen -> compiler -> simulator -> data -> experiment -> problem -> fitness
+        -> objective (+ engine) -> estimators -> archive -> calibration
+        -> staged, diagnose -> report -> api -> cli
+
+``errors`` and ``search`` (the search space and the scores of a batch) are leaves.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
+
+from .api import Calibration, calibrate, diagnose, load, rerun, resume, simulate  # noqa: E402
+from .experiment import Experiment  # noqa: E402
+from .simulator import Trajectory  # noqa: E402
+
+__all__ = ["Calibration", "Experiment", "Trajectory", "calibrate", "diagnose", "load", "rerun", "resume",
+           "simulate", "__version__"]

@@ -8,9 +8,9 @@ from typing import Any, Mapping, Sequence
 
 from ..engine import Engine, make_engine
 from ..errors import RapidCosimError
-from ..estimators.chain import REGISTRY
+from ..estimators.chain import REGISTRY, parse_method
 from ..objective import PENALTY
-from ..simulator import DEFAULT_RUNNER
+from ..simulator import DEFAULT_RUNNER, check_runner
 
 
 @dataclass(frozen=True)
@@ -31,6 +31,18 @@ class RunOptions:
 
     def engine(self) -> Engine:
         return make_engine(self.n_jobs, self.backend, self.scheduler)
+
+    def check(self) -> "RunOptions":
+        """Every option valid (method, estimator options, runner, engine), so that a bad
+        one is refused before an archive is created or a plan announced."""
+        try:
+            parse_method(self.method)
+            stage_options(self)
+        except (ValueError, TypeError) as e:
+            raise RapidCosimError(str(e)) from None
+        check_runner(self.runner)
+        make_engine(self.n_jobs, self.backend, self.scheduler)
+        return self
 
     @classmethod
     def from_json(cls, data: Mapping) -> "RunOptions":

@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import __version__
 from ..archive import ArchiveWriter, RunArchive, data_sha256
-from ..errors import ArchiveError, ConfigError, RapidCosimError
+from ..errors import ArchiveError, ConfigError
 from ..estimators import parse_method, run_chain
 from ..estimators.base import EstimationResult, Iteration
 from ..experiment import Experiment
@@ -96,11 +96,7 @@ def _execute(inputs: RunInputs, options: RunOptions, objective: RecordingObjecti
 
 def start_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *, progress: bool = True) -> EstimationResult:
     """Estimate and archive every iteration as it completes."""
-    try:  # a bad method string or option fails before the archive exists
-        parse_method(options.method)
-        stage_options(options)
-    except (ValueError, TypeError) as e:
-        raise RapidCosimError(str(e)) from None
+    options.check()  # a bad method string or option fails before the archive exists
     problem = inputs.problem
     objective = _objective(inputs, options)
     Path(archive).parent.mkdir(parents=True, exist_ok=True)

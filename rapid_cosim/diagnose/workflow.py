@@ -47,6 +47,22 @@ class DiagnoseOptions:
     write_model: bool = True  # write the named model into the package and re-calibrate with it
     model_name: str | None = None  # class name of the model written; default from the effects
 
+    def __post_init__(self):
+        wrong = [c for c in self.candidates if c not in CATALOGUE]
+        if wrong:
+            raise RapidCosimError(f"candidates {', '.join(wrong)}: not in the catalogue ({', '.join(CATALOGUE)})")
+        if self.max_effects < 1:
+            raise RapidCosimError(f"max_effects must be at least 1, got {self.max_effects}")
+
+
+def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> tuple[list, list]:
+    """(training, held out) by the names of the experiments to hold out."""
+    names = [e.name for e in experiments]
+    unknown = [h for h in holdout if h not in names]
+    if unknown:
+        raise RapidCosimError(f"held-out {', '.join(unknown)}: not among the experiments ({', '.join(names)})")
+    return ([e for e in experiments if e.name not in holdout], [e for e in experiments if e.name in holdout])
+
 
 @dataclass
 class Diagnosis:

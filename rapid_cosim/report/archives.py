@@ -77,10 +77,15 @@ def fit_curves(run: ArchivedRun, experiment: int | str = 0, x=None) -> FitCurves
     """Simulate the archived FMU at the run's best point (or ``x``) on the archived data."""
     problem = run.inputs.problem
     i = problem.experiment_index(experiment) if isinstance(experiment, str) else experiment
-    x = run.result.x if x is None else np.asarray(x, dtype=float)
+    return curves_at(run.inputs, run.result.x if x is None else x, i)
+
+
+def curves_at(inputs: RunInputs, x, i: int) -> FitCurves:
+    """Experiment ``i`` of a run's inputs simulated at ``x``."""
+    problem = inputs.problem
     exp = problem.experiments[i]
-    detail = evaluate_in_detail(problem, run.inputs.fmus, x)[i]
-    fine = simulate_experiment(exp, run.inputs.fmus[exp.model], detail.parameters, fine=True)
+    detail = evaluate_in_detail(problem, inputs.fmus, np.asarray(x, dtype=float))[i]
+    fine = simulate_experiment(exp, inputs.fmus[exp.model], detail.parameters, fine=True)
     output = next(o for o in exp.outputs if exp.weights[o] > 0)
     return FitCurves(detail, fine, output)
 

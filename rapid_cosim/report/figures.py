@@ -18,8 +18,9 @@ import matplotlib.pyplot as plt  # noqa: E402  (after selecting the backend)
 from ..simulator import Trajectory  # noqa: E402
 
 
-def save(fig, out: str | Path, *, dpi: int, tight: bool, pad: float | None = None) -> Path:
-    """Write ``fig`` to ``out`` and close it (reports draw many figures in one process).
+def save(fig, out: str | Path, *, dpi: int, tight: bool, pad: float | None = None, close: bool = True) -> Path:
+    """Write ``fig`` to ``out`` and close it (reports draw many figures in one process;
+    ``close=False`` keeps it for a caller who shows it, as a notebook does).
 
     ``tight`` crops to what is drawn, ``pad`` inches around it (matplotlib's default if
     None); without it the file keeps the figure's own size, as laid out by the caller."""
@@ -31,7 +32,8 @@ def save(fig, out: str | Path, *, dpi: int, tight: bool, pad: float | None = Non
         fig.savefig(out, dpi=dpi, bbox_inches="tight")
     else:
         fig.savefig(out, dpi=dpi, bbox_inches="tight", pad_inches=pad)
-    plt.close(fig)
+    if close:
+        plt.close(fig)
     return out
 
 

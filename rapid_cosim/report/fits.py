@@ -13,7 +13,7 @@ from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from .archives import ArchivedRun, FitCurves, caption, fit_curves, load_run
+from .archives import ArchivedRun, FitCurves, caption, curves_at, fit_curves, load_run
 from .figures import plt, save
 
 COLORS = {"PSO10+NM": "tab:blue", "PF10+NM": "tab:red"}
@@ -110,3 +110,39 @@ def plot_fit_grid(tests: Sequence[Mapping[str, str | Path] | Fits], out: str | P
     if title:
         fig.suptitle(title, fontsize=12, y=1 - 0.12 / fig.get_figheight())
     return save(fig, out, dpi=dpi, tight=True, pad=0.15)
+
+
+def plot_calibration(inputs, x, labels: Sequence[str], *, path: str | Path | None = None, title: str = "",
+                     dpi: int = 110):
+    """Every experiment of a run at ``x``: measured outputs and the simulation (its
+    profiled offset added) above, residuals beneath; the figure, saved if ``path``."""
+    problem = inputs.problem
+    x = np.asarray(x, dtype=float)
+    n = len(problem.experiments)
+    fig = plt.figure(figsize=(8.5, 3.9 * n))
+    outer = fig.add_gridspec(n, 1, hspace=0.35)
+    values = ", ".join(f"{label} = {v:.4g}" for label, v in zip(labels, x))
+    for i, exp in enumerate(problem.experiments):
+        inner = outer[i].subgridspec(2, 1, height_ratios=[3, 1.25], hspace=0.05)
+        ax, ax_res = fig.add_subplot(inner[0]), None
+        ax_res = fig.add_subplot(inner[1], sharex=ax)
+        c = curves_at(inputs, x, i)
+        data = exp.data
+        ax.scatter(data.time, data.columns[exp.outputs[c.output]], s=3, color="0.6", alpha=0.45, lw=0,
+                   label=f"measured {c.output}", rasterized=True, zorder=1)
+        ax.plot(c.fine.time, c.simulated, color="tab:blue", lw=1.4, label="simulated", zorder=3)
+        ax_res.plot(c.detail.fit.time, c.residual * 1e3, color="tab:blue", lw=0.7)
+        ax_res.axhline(0.0, color="k", lw=0.6)
+        ax.set_ylabel(c.output)
+        ax_res.set_ylabel("residual\n(10⁻³)")
+        ax.set_title(f"{caption(exp)}" + (f"; {values}" if i == 0 else ""), fontsize=9)
+        ax.legend(fontsize=7.5, loc="best", markerscale=3)
+        ax.tick_params(labelbottom=False)
+        for a in (ax, ax_res):
+            a.grid(alpha=0.3)
+    ax_res.set_xlabel("time (s)")
+    if title:
+        fig.suptitle(title, fontsize=11)
+    if path is not None:
+        save(fig, path, dpi=dpi, tight=True, close=False)
+    return fig

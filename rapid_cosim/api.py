@@ -1,0 +1,234 @@
+"""The Python API: calibrate, resume, rerun, load, diagnose, simulate.
+
+Every calibration returns one :class:`Calibration`, in the manner of scipy's
+``OptimizeResult`` (``x``, ``fun``, ``nfev``, ``nit``, ``success``, ``message``) plus what
+a calibration has beyond an optimisation: named parameters, intervals when the method
+gives them, the archive the run lives in, and ``plot()`` / ``to_frame()``. The command
+line is a thin layer over these functions.
+
+    import rapid_cosim as rc
+    fit = rc.calibrate(["experiments/test1"], method="pf:10+nm", seed=1)
+    print(fit)
+    fit.plot("test1.png")
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field, replace
+from datetime import datetime
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .archive import RunArchive
+from .calibration import RunInputs, RunOptions, inputs_from_archive, inputs_from_experiments
+from .calibration import rerun as _rerun
+from .calibration import resume_run, start_run
+from .compiler import ensure_fmu
+from .errors import ArchiveError, ConfigError
+from .estimators.base import EstimationResult
+from .estimators.uncertainty import Uncertainty
+from .experiment import Experiment, load_experiment
+from .simulator import DEFAULT_RUNNER, Simulator, Trajectory
+
+PACKAGE = "modelica/iGrGen"
+FMU_DIR = "fmus"
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """The outcome of a calibration.
+
+    ``x`` holds the best parameter values (physical units) in the order of ``names``
+    (FMU parameter names; ``"<param>@<experiment>"`` for per-experiment ones), ``labels``
+    their short labels; ``fun`` is the best fitness (RSSD, or ARSSD over experiments).
+    ``uncertainty`` is the posterior of a Bayesian method (``smc``), else None.
+    ``identical`` is set by :func:`rerun` only: whether the re-run matched the archive bit
+    for bit.
+    """
+
+    x: np.ndarray
+    fun: float
+    nfev: int
+    nit: int
+    success: bool
+    message: str
+    method: str
+    names: tuple[str, ...]
+    labels: tuple[str, ...]
+    status: str
+    archive: Path | None
+    uncertainty: Uncertainty | None = None
+    identical: bool | None = None
+    result: EstimationResult | None = field(default=None, repr=False)
+    inputs: RunInputs | None = field(default=None, repr=False)
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.names, self.x)}
+
+    @property
+    def intervals(self) -> dict[str, tuple[float, float]] | None:
+        """Credible intervals at ``uncertainty.level``, when the method gives them."""
+        return None if self.uncertainty is None else self.uncertainty.intervals()
+
+    def to_frame(self):
+        """One row per parameter: name, label, estimate, interval (if any) and the bounds
+        searched. Needs pandas."""
+        try:
+            import pandas as pd
+        except ImportError:  # pandas is optional for the package
+            raise ImportError("to_frame() needs pandas: pip install pandas") from None
+        space = self.inputs.problem.space if self.inputs is not None else None
+        rows = []
+        for k, (name, label) in enumerate(zip(self.names, self.labels)):
+            row = {"parameter": name, "label": label, "estimate": float(self.x[k])}
+            if self.uncertainty is not None:
+                row.update(mean=float(self.uncertainty.mean[k]), lower=float(self.uncertainty.interval[k, 0]),
+                           upper=float(self.uncertainty.interval[k, 1]))
+            if space is not None:
+                row.update(min=float(space.lower[k]), max=float(space.upper[k]))
+            rows.append(row)
+        return pd.DataFrame(rows).set_index("parameter")
+
+    def plot(self, path: str | Path | None = None, *, title: str | None = None):
+        """Measured and simulated outputs of every experiment at ``x``, residuals beneath.
+        Returns the matplotlib figure; also saves it when ``path`` is given."""
+        from .report.fits import plot_calibration
+
+        if self.inputs is None:
+            raise ValueError("this calibration has no inputs to simulate (load it from its archive)")
+        return plot_calibration(self.inputs, self.x, self.labels, path=path,
+                                title=title or f"{self.method}: fitness {self.fun:.4g}")
+
+    def __str__(self) -> str:
+        from .report.tables import result_table
+
+        return result_table(self)
+
+
+def _calibration(result: EstimationResult, inputs: RunInputs, archive: Path | None, status: str,
+                 identical: bool | None = None) -> Calibration:
+    ok = status == "finished" and result.n_failed < result.nfev
+    return Calibration(x=np.asarray(result.x, dtype=float), fun=float(result.fun), nfev=result.nfev,
+                       nit=result.nit, success=ok, message=result.stop_reason, method=result.method,
+                       names=tuple(result.names), labels=tuple(inputs.problem.labels), status=status,
+                       archive=archive, uncertainty=result.uncertainty, identical=identical, result=result,
+                       inputs=inputs)
+
+
+def as_experiments(experiments: Sequence[str | Path | Experiment] | str | Path | Experiment) -> list[Experiment]:
+    """Experiments from configs (files or their folders) or :class:`Experiment` objects."""
+    if isinstance(experiments, (str, Path, Experiment)):
+        experiments = [experiments]
+    out = [e if isinstance(e, Experiment) else load_experiment(e) for e in experiments]
+    if not out:
+        raise ConfigError("give at least one experiment")
+    return out
+
+
+def default_archive(folder: str | Path | None = None) -> Path:
+    """``<folder>/run-<time>.h5``; without a folder, a fresh temporary one."""
+    folder = Path(folder) if folder is not None else Path(tempfile.mkdtemp(prefix="rapid_cosim_run_"))
+    return folder / f"run-{datetime.now():%Y%m%d-%H%M%S-%f}.h5"
+
+
+def calibrate(experiments: Sequence[str | Path | Experiment] | str | Path | Experiment, method: str = "pf:10+nm",
+              *, seed: int = 1, n_jobs: int = 1, archive: str | Path | None = None,
+              options: Mapping[str, Mapping[str, object]] | None = None, runner: str = DEFAULT_RUNNER,
+              joblib_backend: str = "loky", scheduler: str | None = None, progress: bool = False,
+              package: str | Path = PACKAGE, fmu_dir: str | Path = FMU_DIR, compiler: str = "auto") -> Calibration:
+    """Estimate the experiments' ``[estimate]`` parameters jointly with ``method`` (a chain
+    such as ``"pf:10+nm"``, ``"pso:10+nm"``, ``"smc"``). Every iteration is archived in
+    ``archive`` (default: a new file in a temporary folder, named by the result), so the
+    run can be resumed, re-run or loaded later. ``options`` overrides estimator options,
+    ``{"pf": {"n_particles": 100}}``."""
+    run_options = RunOptions(method=method, seed=seed, n_jobs=n_jobs, backend=joblib_backend, runner=runner,
+                             scheduler=scheduler, estimator_options={m: dict(o) for m, o in (options or {}).items()})
+    run_options.check()
+    inputs = inputs_from_experiments(as_experiments(experiments), package=package, fmu_dir=fmu_dir,
+                                     compiler=compiler)
+    path = Path(archive) if archive is not None else default_archive()
+    result = start_run(inputs, run_options, path, progress=progress)
+    return _calibration(result, inputs, path, "finished")
+
+
+def resume(path: str | Path, *, n_jobs: int | None = None, progress: bool = False) -> Calibration:
+    """Continue an interrupted run from its archive; the result is the uninterrupted one."""
+    result = resume_run(path, n_jobs=n_jobs, progress=progress)
+    return _calibration(result, _inputs(path), Path(path), "finished")
+
+
+def rerun(path: str | Path, *, n_jobs: int | None = None, progress: bool = False) -> Calibration:
+    """Execute an archived run again from the archive alone and compare it bit for bit
+    (``identical``; ``message`` names the first difference when there is one)."""
+    report = _rerun(path, n_jobs=n_jobs, progress=progress)
+    calib = _calibration(report.result, _inputs(path), Path(path), "finished", identical=report.identical)
+    if not report.identical:
+        calib = replace(calib, message=f"different from the archive: {report.first_difference}")
+    return calib
+
+
+def load(path: str | Path) -> Calibration:
+    """An archived run as a :class:`Calibration`: its result if finished, else the best
+    point of its complete iterations (``status`` says which)."""
+    path = Path(path)
+    if not path.exists():
+        raise ArchiveError(f"{path}: no such archive")
+    with RunArchive(path) as view:
+        inputs = inputs_from_archive(view)
+        result = view.result()
+        status = view.status
+        if result is None:
+            result = _partial_result(view)
+    return _calibration(result, inputs, path, status)
+
+
+def _inputs(path) -> RunInputs:
+    with RunArchive(path) as view:
+        return inputs_from_archive(view)
+
+
+def _partial_result(view: RunArchive) -> EstimationResult:
+    its = view.iterations()
+    if not its:
+        x, fun, nfev = np.full(len(view.names), np.nan), np.nan, 0
+    else:
+        best = min(its, key=lambda it: (not np.isfinite(it.best_fitness), it.best_fitness))
+        x, fun, nfev = best.best_x, best.best_fitness, its[-1].n_sims
+    return EstimationResult(view.method, view.names, x, float(fun), int(nfev), len(its), 0.0,
+                            f"{view.status}: {len(its)} complete iterations", tuple(its),
+                            int(view.evaluations().failed.sum()))
+
+
+def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[str | Path | Experiment] = (),
+             workdir: str | Path | None = None, seed: int = 1, n_jobs: int = 1, write_model: bool = False,
+             package: str | Path = PACKAGE, fmu_dir: str | Path = FMU_DIR, log=print, **options):
+    """Find what the base model misses on the ``training`` experiments (confirmed on the
+    ``heldout`` ones): see :mod:`rapid_cosim.diagnose`. Returns its
+    :class:`~rapid_cosim.diagnose.workflow.Diagnosis`; ``options`` are those of
+    :class:`~rapid_cosim.diagnose.workflow.DiagnoseOptions`."""
+    from .diagnose.workflow import DiagnoseOptions, diagnose as run_diagnosis
+
+    folder = Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="rapid_cosim_diagnose_"))
+    opts = DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=write_model, **options)
+    return run_diagnosis(as_experiments(training), as_experiments(heldout) if heldout else [], workdir=folder,
+                         options=opts, package=package, fmu_dir=fmu_dir, log=log)
+
+
+def simulate(model: str | Path, parameters: Mapping[str, float] | None = None, *, stop_time: float | None = None,
+             output_interval: float | None = None, output_times=None, outputs: Sequence[str] | None = None,
+             input_time=None, inputs: Mapping[str, np.ndarray] | None = None, runner: str = DEFAULT_RUNNER,
+             timeout: float | None = None, package: str | Path = PACKAGE, fmu_dir: str | Path = FMU_DIR,
+             compiler: str = "auto") -> Trajectory:
+    """One simulation of a model of the package (a class name, built if needed) or of any
+    FMI 2.0 Model Exchange FMU (a path ending in ``.fmu``)."""
+    fmu = ensure_fmu(str(model), package=package, fmu_dir=fmu_dir, compiler=compiler)
+    sim = Simulator(fmu, timeout=timeout, runner=runner)
+    try:
+        return sim.simulate(parameters, stop_time=stop_time, output_interval=output_interval,
+                            output_times=output_times, outputs=outputs, input_time=input_time, inputs=inputs)
+    finally:
+        sim.close()
