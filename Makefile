@@ -16,7 +16,7 @@ RUN_OPTS     := --results $(RESULTS) --seed $(SEED) --n-jobs $(N_JOBS)
 T0           := $(shell date +%s)
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test bench bench-diagnose clean table1 figures rerun joint diagnose $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose clean table1 figures rerun joint diagnose $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -36,8 +36,11 @@ fmus: $(STAMP)  ## compile the iGrGen test benches into fmus/ (only what changed
 demo: fmus  ## set up, then calibrate staged test 1 with PSO10+NM and PF10+NM; prints its figure and table
 	$(RC) demo $(RUN_OPTS)
 
-test: fmus  ## run the test suite
+test: fmus  ## run the test suite (statistical suites at reduced size)
 	$(PY) -m pytest -q -rs
+
+test-slow: fmus  ## the statistical suites at full size (minutes; CI runs them after make test)
+	$(PY) -m pytest -q -rs -m slow
 
 $(STAGED_TESTS): test%: fmus  ## PSO10+NM and PF10+NM on one staged test, archived in results/testN/, with its figure
 	$(RC) staged-test experiments/test$* $(RUN_OPTS)
