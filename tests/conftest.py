@@ -30,3 +30,33 @@ def fmus(repo) -> dict[str, Path]:
 
     outcomes = build_models(package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus", log=lambda *_: None)
     return {o.model.rsplit(".", 1)[-1]: o.fmu for o in outcomes}
+
+
+BLOWUP = """package Bad
+  model Blowup "x' = a x^2 reaches infinity at t = 1/a"
+    parameter Real a(min = 0, max = 10) = 1;
+    Real x(start = 1, fixed = true);
+    output Real pm = x;
+  equation
+    der(x) = a * x ^ 2;
+  end Blowup;
+end Bad;
+"""
+
+
+@pytest.fixture(scope="session")
+def blowup_fmu(tmp_path_factory) -> Path:
+    """A model whose solution blows up at t = 1/a: a solver failure on demand."""
+    from rapid_cosim.compiler import build_models
+
+    root = tmp_path_factory.mktemp("bad")
+    (root / "Bad.mo").write_text(BLOWUP)
+    return build_models(["Bad.Blowup"], package=root / "Bad.mo", fmu_dir=root / "fmus", compiler="embedded",
+                        log=lambda *_: None)[0].fmu
+
+
+@pytest.fixture
+def blowup(blowup_fmu):
+    from rapid_cosim.simulator import Simulator
+
+    return Simulator(blowup_fmu)

@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from rapid_cosim.compiler import build_models
 from rapid_cosim.engine import make_engine
 from rapid_cosim.objective import PENALTY, ProblemObjective, evaluate_in_detail
 from rapid_cosim.experiment import load_experiment
@@ -60,22 +59,8 @@ def test_truth_scores_near_the_noise_variance(problem):
     assert detail[0].fit.rssd == ev.fitness[0]
 
 
-BLOWUP = """package Bad
-  model Blowup "x' = a x^2 reaches infinity at t = 1/a"
-    parameter Real a(min = 0, max = 10) = 0.1;
-    Real x(start = 1, fixed = true);
-    output Real pm = x;
-  equation
-    der(x) = a * x ^ 2;
-  end Blowup;
-end Bad;
-"""
-
-
-def test_failed_simulations_get_the_penalty_and_the_run_goes_on(tmp_path):
-    (tmp_path / "Bad.mo").write_text(BLOWUP)
-    fmu = build_models(["Bad.Blowup"], package=tmp_path / "Bad.mo", fmu_dir=tmp_path / "fmus",
-                       compiler="embedded", log=lambda *_: None)[0].fmu
+def test_failed_simulations_get_the_penalty_and_the_run_goes_on(tmp_path, blowup_fmu):
+    fmu = blowup_fmu
     t = np.linspace(0, 2, 21)
     exp = load_experiment(write_experiment(tmp_path / "bad", model="Bad.Blowup", time=t, values=1 / (1 - 0.1 * t),
                                            fixed={}, estimate={"a": {"min": 0.01, "max": 2.0}},

@@ -9,7 +9,6 @@ from c_fmus import build_c_fmu
 from reference_models import EFFECT_DEFAULTS, Reference
 from test_reference import CASES, EFFECT_ACTIVE
 
-from rapid_cosim.compiler import build_models
 from rapid_cosim.errors import FmuError, SimulationError, SimulationTimeout
 from rapid_cosim.simulator import InputTable, Simulator
 from rapid_cosim.simulator.compiled import TIMEOUT
@@ -124,26 +123,6 @@ def test_recorded_frequency_drives_the_bench_alike_in_both_runners(fmus):
     compiled = sim.simulate({"gov.Ts": 2.0}, runner="compiled", **kw)
     assert np.max(np.abs(python["pm"] - compiled["pm"])) < 1e-6
     assert np.ptp(compiled["pm"]) > 0.01
-
-
-BLOWUP = """package Bad
-  model Blowup "x' = a x^2 reaches infinity at t = 1/a"
-    parameter Real a = 1;
-    Real x(start = 1, fixed = true);
-  equation
-    der(x) = a * x ^ 2;
-  end Blowup;
-end Bad;
-"""
-
-
-@pytest.fixture(scope="module")
-def blowup(tmp_path_factory):
-    root = tmp_path_factory.mktemp("bad")
-    (root / "Bad.mo").write_text(BLOWUP)
-    out = build_models(["Bad.Blowup"], package=root / "Bad.mo", fmu_dir=root / "fmus", compiler="embedded",
-                       log=lambda *_: None)
-    return Simulator(out[0].fmu)
 
 
 def test_failures_stay_with_their_set(blowup):

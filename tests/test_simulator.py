@@ -3,20 +3,8 @@
 import numpy as np
 import pytest
 
-from rapid_cosim.compiler import build_models
 from rapid_cosim.errors import ParameterError, SimulationError, SimulationTimeout
 from rapid_cosim.simulator import Simulator, get_simulator
-
-BLOWUP = """package Bad
-  model Blowup "x' = a x^2 reaches infinity at t = 1/a"
-    parameter Real a = 1;
-    Real x(start = 1, fixed = true);
-  equation
-    der(x) = a * x ^ 2;
-  end Blowup;
-end Bad;
-"""
-
 
 @pytest.fixture(scope="module")
 def staged(fmus):
@@ -50,15 +38,6 @@ def test_reuse_gives_identical_runs_and_p_ref_reinitialises(staged):
 def test_trajectory_covers_a_stop_time_off_the_grid(staged):
     traj = staged.simulate({}, stop_time=10.03, output_interval=0.05)
     assert traj.time[-1] >= 10.03 and np.allclose(np.diff(traj.time), 0.05)
-
-
-@pytest.fixture(scope="module")
-def blowup(tmp_path_factory):
-    root = tmp_path_factory.mktemp("bad")
-    (root / "Bad.mo").write_text(BLOWUP)
-    out = build_models(["Bad.Blowup"], package=root / "Bad.mo", fmu_dir=root / "fmus", compiler="embedded",
-                       log=lambda *_: None)
-    return Simulator(out[0].fmu)
 
 
 def test_solver_failure_is_a_typed_error_and_the_simulator_recovers(blowup):
