@@ -155,19 +155,25 @@ def calibrate(experiments: Sequence[str | Path | Experiment] | str | Path | Expe
     return _calibration(result, inputs, path, "finished")
 
 
-def resume(path: str | Path, *, n_jobs: int | None = None, progress: bool = False) -> Calibration:
-    """Continue an interrupted run from its archive; the result is the uninterrupted one."""
-    result = resume_run(path, n_jobs=n_jobs, progress=progress)
+def resume(path: str | Path, *, n_jobs: int | None = None, joblib_backend: str | None = None,
+           scheduler: str | None = None, progress: bool = False) -> Calibration:
+    """Continue an interrupted run from its archive, on the archived workers or others
+    (``joblib_backend``, ``scheduler``); the result is the uninterrupted one."""
+    result = resume_run(path, n_jobs=n_jobs, backend=joblib_backend, scheduler=scheduler, progress=progress)
     return _calibration(result, _inputs(path), Path(path), "finished")
 
 
-def rerun(path: str | Path, *, n_jobs: int | None = None, progress: bool = False) -> Calibration:
+def rerun(path: str | Path, *, n_jobs: int | None = None, joblib_backend: str | None = None,
+          scheduler: str | None = None, progress: bool = False) -> Calibration:
     """Execute an archived run again from the archive alone and compare it bit for bit
     (``identical``; ``message`` names the first difference when there is one)."""
-    report = _rerun(path, n_jobs=n_jobs, progress=progress)
+    report = _rerun(path, n_jobs=n_jobs, backend=joblib_backend, scheduler=scheduler, progress=progress)
     calib = _calibration(report.result, _inputs(path), Path(path), "finished", identical=report.identical)
     if not report.identical:
         calib = replace(calib, message=f"different from the archive: {report.first_difference}")
+    elif not report.finished:
+        calib = replace(calib, message=f"{calib.message} (the archive's run was unfinished: its "
+                                       f"{report.iterations_compared} iterations match; resume finishes it)")
     return calib
 
 

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import RapidCosimError
+from .errors import RapidCosimError, RunInterrupted
 
 
 def _assignments(items: list[str]) -> dict[str, float]:
@@ -82,15 +82,21 @@ def cmd_estimate(args) -> int:
 def cmd_resume(args) -> int:
     from .api import resume
 
-    print(resume(args.archive, n_jobs=args.n_jobs, progress=not args.quiet))
+    print(resume(args.archive, n_jobs=args.n_jobs, joblib_backend=args.joblib_backend, scheduler=args.scheduler,
+                 progress=not args.quiet))
     return 0
 
 
 def cmd_rerun(args) -> int:
     from .api import rerun
 
-    fit = rerun(args.archive, n_jobs=args.n_jobs, progress=not args.quiet)
+    fit = rerun(args.archive, n_jobs=args.n_jobs, joblib_backend=args.joblib_backend, scheduler=args.scheduler,
+                progress=not args.quiet)
     print(fit)
+    if fit.identical and "unfinished" in fit.message:
+        print("\nidentical as far as the archive goes: its iterations match the re-run bit for bit; "
+              f"the run was unfinished ('rapid-cosim resume {args.archive}' finishes it)")
+        return 0
     if fit.identical:
         print(f"\nidentical: all {fit.nit} iterations and the result match the archive bit for bit")
         return 0
@@ -107,6 +113,22 @@ def cmd_show(args) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps(summary, indent=2) + "\n")
         print(f"written: {args.json}")
+    if summary["damaged"]:
+        raise RapidCosimError(summary["damaged"][0])
+    return 0
+
+
+def cmd_verify(args) -> int:
+    from .archive.verify import verify
+
+    checks = verify(args.archive)
+    for c in checks:
+        print(f"  {'ok     ' if c.intact else 'DAMAGED'} {c.part}" + (f": {c.detail}" if c.detail else ""))
+    damaged = [c for c in checks if not c.intact]
+    if damaged:
+        print(f"{args.archive}: damaged ({len(damaged)} of {len(checks)} parts)")
+        return 1
+    print(f"{args.archive}: intact ({len(checks)} parts checked)")
     return 0
 
 
@@ -261,11 +283,17 @@ def build_parser() -> argparse.ArgumentParser:
         p = command(name, func, help)
         p.add_argument("archive")
         p.add_argument("--n-jobs", type=int, default=None, help="worker processes (default: as archived)")
+        p.add_argument("--joblib-backend", choices=["loky", "multiprocessing", "sequential", "dask"],
+                       help="where particles run (default: as archived; the result does not depend on it)")
+        p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="a running dask scheduler")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
 
     p = command("show", cmd_show, "summarise an archived run")
     p.add_argument("archive")
     p.add_argument("--json", metavar="FILE", help="also write the summary as JSON (best parameters under 'best')")
+
+    p = command("verify", cmd_verify, "check every part of an archive against its checksums")
+    p.add_argument("archive")
 
     p = command("benches", cmd_benches, "build the FMUs and plot every test bench's step response")
     p.add_argument("--results", default="results", help="output directory (default %(default)s)")
@@ -325,22 +353,36 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"warning: {message}", file=sys.stderr)
 
 
+def _terminate(signum, frame):
+    raise KeyboardInterrupt  # SIGTERM ends a run as Ctrl-C does: archive closed, resumable
+
+
 def main(argv: list[str] | None = None) -> int:
+    import signal
+    import threading
     import warnings
 
     args = build_parser().parse_args(argv)
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
     with warnings.catch_warnings():  # restores the filters and showwarning on exit
         # a user wants each warning once, as a sentence, not the source line that raised it
         warnings.filterwarnings("once", category=UserWarning)
         warnings.showwarning = _show_warning
         try:
             return args.func(args)
+        except RunInterrupted as e:
+            print(f"rapid-cosim {args.command}: {e}", file=sys.stderr)
+            return 130
         except RapidCosimError as e:
             print(f"rapid-cosim {args.command}: error: {e}", file=sys.stderr)
             return 2
         except KeyboardInterrupt:
             print("interrupted", file=sys.stderr)
             return 130
+        finally:
+            if main_thread:
+                signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -9,14 +9,16 @@ engine, the number of workers or the chunking.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 
-from .errors import RapidCosimError
+from .errors import EngineLost, RapidCosimError
 
 JOBLIB_BACKENDS = ("loky", "multiprocessing", "sequential", "dask")
+LOST_WORKER_RETRIES = 3  # times a batch is run again on a fresh pool after a worker died
 
 
 class Engine(Protocol):
@@ -37,10 +39,17 @@ class SequentialEngine:
 
 @dataclass
 class JoblibEngine:
-    """Local worker processes through joblib (``loky`` keeps its workers between calls)."""
+    """Local worker processes through joblib (``loky`` keeps its workers between calls).
+
+    A worker that dies (killed, out of memory) breaks its pool: the batch is run again
+    on a fresh pool, up to ``retries`` times, and each loss is noted in ``events`` (the
+    run archives them with the iteration they happened in) and warned about.
+    """
 
     n_jobs: int = 2
     backend: str = "loky"
+    retries: int = LOST_WORKER_RETRIES
+    events: list[str] = field(default_factory=list)
 
     @property
     def workers(self) -> int:
@@ -50,16 +59,33 @@ class JoblibEngine:
 
     def map(self, fn, payload, chunks) -> list:
         import joblib
+        from joblib.externals.loky.process_executor import BrokenProcessPool, TerminatedWorkerError
 
-        with joblib.parallel_config(backend=self.backend, n_jobs=self.n_jobs):
-            return joblib.Parallel()(joblib.delayed(fn)(payload, c) for c in chunks)
+        for attempt in range(self.retries + 1):
+            try:
+                with joblib.parallel_config(backend=self.backend, n_jobs=self.n_jobs):
+                    return joblib.Parallel()(joblib.delayed(fn)(payload, c) for c in chunks)
+            except (TerminatedWorkerError, BrokenProcessPool) as e:
+                reason = str(e).strip().splitlines()[0][:200]
+                if attempt == self.retries:
+                    raise RapidCosimError(f"worker processes died {attempt + 1} times in one batch, the last "
+                                          f"time: {reason}") from None
+                event = f"a worker process died ({reason}); its batch ran again on a fresh pool"
+                self.events.append(event)
+                warnings.warn(event, stacklevel=2)
+        raise AssertionError("unreachable")
 
 
 @dataclass
 class DaskEngine:
     """A dask.distributed cluster: the active ``Client``, or one connected to
     ``scheduler`` (``tcp://host:port``). FMUs travel by content, so workers need no
-    shared file system."""
+    shared file system.
+
+    A worker lost mid-batch costs only its tasks: the scheduler runs them again on the
+    others (evaluations are pure, so the result is the same). A lost scheduler ends the
+    batch with :class:`EngineLost`; the run's archive then keeps what was done.
+    """
 
     scheduler: str | None = None
     n_jobs: int = -1  # chunks per batch; -1: one per worker
@@ -86,12 +112,30 @@ class DaskEngine:
 
     def map(self, fn, payload, chunks) -> list:
         client = self._client()
-        kept = getattr(self, "_scattered", None)
-        if kept is None or kept[0] is not payload or kept[1] is not client:
-            # the payload (experiments, data, FMU bytes) goes to every worker once per run
-            kept = self._scattered = (payload, client, client.scatter(payload, broadcast=True))
-        futures = [client.submit(fn, kept[2], c, pure=False) for c in chunks]
-        return client.gather(futures)
+        try:
+            # The payload (experiments, data, FMU bytes) goes with each task rather than
+            # scattered once: a task whose worker died then runs again anywhere.
+            futures = [client.submit(fn, payload, c, pure=False) for c in chunks]
+            return client.gather(futures)
+        except Exception as e:
+            if client.status == "running" and "connection" not in str(e).lower():
+                raise  # an error of the evaluation itself
+            reason = str(e).strip().splitlines()[0][:160] if str(e).strip() else type(e).__name__
+            self._close(client)
+            raise EngineLost(f"lost the dask scheduler at {self.scheduler or 'the active client'} "
+                             f"({reason})") from None
+
+    def _close(self, client) -> None:
+        """Close a client whose scheduler is gone (else it keeps trying to reconnect)."""
+        import logging
+
+        for name in ("distributed", "distributed.client", "distributed.utils"):  # its reconnect noise, not ours
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+        try:
+            client.close(timeout=5)
+        except Exception:  # already half-closed: nothing left to release
+            pass
+        self._connected = None
 
 
 def make_engine(n_jobs: int = 1, backend: str = "loky", scheduler: str | None = None) -> Engine:

@@ -70,5 +70,32 @@ class ArchiveError(RapidCosimError):
     """An archive that is unreadable, inconsistent with a replay, or held by another run."""
 
 
+class ArchiveDamaged(ArchiveError):
+    """A part of an archive fails its checksum or cannot be read: which part, why, and
+    what can still be read."""
+
+    def __init__(self, path: str, part: str, reason: str, readable: str | None = None):
+        self.path, self.part, self.reason, self.readable = path, part, reason, readable
+        tail = f"; {readable}" if readable else ""
+        super().__init__(f"{path}: damaged {part} ({reason}){tail}; 'rapid-cosim verify {path}' lists what is intact")
+
+
+class ArchiveFull(ArchiveError):
+    """The device holding an archive ran out of space; what was committed is kept."""
+
+
+class EngineLost(RapidCosimError):
+    """The cluster a run used is gone (its dask scheduler died or became unreachable)."""
+
+
+class RunInterrupted(RapidCosimError):
+    """A run stopped by Ctrl-C or SIGTERM; its archive is closed and can be resumed."""
+
+    def __init__(self, archive: str, n_iterations: int):
+        self.archive, self.n_iterations = archive, n_iterations
+        super().__init__(f"interrupted; {archive} holds {n_iterations} complete iterations: "
+                         f"'rapid-cosim resume {archive}' continues the run")
+
+
 class ArchiveLocked(ArchiveError):
     """Another live process holds the archive for writing."""

@@ -19,6 +19,7 @@ import pytest
 
 from rapid_cosim.archive import ArchiveWriter, RunArchive, data_sha256
 from rapid_cosim.archive import format as store_format
+from rapid_cosim.archive import seal
 from rapid_cosim.archive import writer as store_writer
 from rapid_cosim.errors import ArchiveError, ArchiveLocked
 from rapid_cosim.estimators.base import EstimationResult, Iteration
@@ -325,20 +326,9 @@ def test_rows_past_the_last_complete_iteration_are_ignored_then_overwritten(tmp_
 
 
 def _raw_ranges(path) -> list[tuple[int, int]]:
-    """Byte ranges of the datasets' contents: the only bytes a live writer may change.
-
-    Plus the superblock's consistency flags (bytes 20-23 of a version 0 superblock), which
-    HDF5 sets while the file is open for writing; it does not act on them for version 0.
-    """
-    ranges = [(20, 24)]
-
-    def visit(name, obj):
-        if isinstance(obj, h5py.Dataset) and obj.id.get_offset() is not None:
-            ranges.append((obj.id.get_offset(), obj.id.get_offset() + obj.id.get_storage_size()))
-
-    with h5py.File(path, "r", locking=False) as f:  # as the archive's own readers do
-        f.visititems(visit)
-    return ranges
+    """The bytes a live writer may change, as the seal leaves them out (fixed-size
+    dataset contents and the superblock's flags)."""
+    return seal.live_ranges(str(path))
 
 
 def _changed_outside(before: bytes, after: bytes, ranges) -> list[int]:

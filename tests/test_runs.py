@@ -12,8 +12,10 @@ import pytest
 
 from rapid_cosim.archive import RunArchive
 from rapid_cosim.calibration import RunOptions, inputs_from_configs, rerun, resume_run, start_run
+from rapid_cosim.archive.format import text_crc
+from rapid_cosim.archive.seal import seal
 from rapid_cosim.cli import main
-from rapid_cosim.errors import ArchiveLocked
+from rapid_cosim.errors import ArchiveDamaged, ArchiveLocked
 from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
 
 FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}
@@ -50,15 +52,31 @@ def test_rerun_from_the_archive_alone_is_bit_identical(config, tmp_path):
     assert report.simulations > 0
 
 
-def test_rerun_detects_a_different_archive(config, tmp_path):
+def test_rerun_detects_a_run_that_computes_something_else(config, tmp_path, monkeypatch):
+    archive = tmp_path / "run.h5"
+    start_run(inputs_from_configs([config]), RunOptions(method="pso:2", seed=5), archive, progress=False)
+    from rapid_cosim.objective import ProblemObjective
+
+    real = ProblemObjective.__call__
+
+    def shifted(self, X):  # as another build of the model would: a hair's breadth off
+        ev = real(self, X)
+        return type(ev)(ev.fitness + 1e-12, ev.rssd + 1e-12, ev.failed)
+
+    monkeypatch.setattr(ProblemObjective, "__call__", shifted)
+    report = rerun(archive, progress=False)
+    assert not report.identical and "fitness" in report.first_difference
+
+
+def test_tampered_bytes_are_named_as_damage(config, tmp_path):
     archive = tmp_path / "run.h5"
     start_run(inputs_from_configs([config]), RunOptions(method="pso:2", seed=5), archive, progress=False)
     import h5py
 
-    with h5py.File(archive, "r+") as f:  # tamper with one stored fitness
+    with h5py.File(archive, "r+") as f:  # one stored fitness changed, the checksum not
         f["evaluations/fitness"][3] += 1e-9
-    report = rerun(archive, progress=False)
-    assert not report.identical and "fitness" in report.first_difference
+    with pytest.raises(ArchiveDamaged, match=r"damaged iteration 0 \(checksum mismatch\)"):
+        rerun(archive, progress=False)
 
 
 # The Python runner keeps the run slow enough (seconds) to be killed in the middle.
@@ -169,6 +187,8 @@ def test_an_archive_from_before_the_runner_option_reruns_with_the_python_loop(co
         del options["runner"]
         del f["inputs/options"]
         f["inputs"].create_dataset("options", data=json.dumps(options), dtype=h5py.string_dtype("utf-8"))
+        f["inputs/options"].attrs["crc32"] = text_crc(json.dumps(options))
+    seal(str(archive))  # the edit changed the structure: seal it again, as the writer would
     assert RunOptions.from_json(options).runner == "python"
     report = rerun(archive, progress=False)
     assert report.identical, report.first_difference

@@ -7,7 +7,7 @@ Layout (HDF5 1.8 file format, so any HDF5 >= 1.8 reads it)::
     /                      attrs: format, format_version, rapid_cosim_version, created,
                                   method, seed (decimal text), n_experiments
     /status                'running' | 'finished' | 'interrupted'  (S16, rewritten in place)
-    /committed             [n_iterations, n_evaluations] of complete iterations, written last
+    /committed             [n_iterations, n_evaluations, crc] of complete iterations, written last
     /space/names, lower, upper
     /inputs/configs/<name>    TOML text, verbatim          (attr key)
     /inputs/options           run options as JSON text
@@ -65,6 +65,7 @@ import hashlib
 import io
 import json
 import os
+import zlib
 from typing import Any, Mapping
 from urllib.parse import quote
 
@@ -74,9 +75,10 @@ import numpy as np
 from ..errors import ArchiveError
 from ..estimators.base import EstimationResult
 from ..estimators.uncertainty import Uncertainty
+from . import seal
 
 FORMAT = "rapid-cosim-archive"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: checksums (see "Checksums"); archives of version 1 are read without them
 STATUSES = ("running", "finished", "interrupted")
 
 LIBVER = ("earliest", "v108")  # 1.8 objects (creation order); no superblock status flags
@@ -86,6 +88,41 @@ BLOBS = {"rng_state": "rng", "extras": "extras"}  # byte dataset -> its table fi
 # Room made for a new archive; each runs out after roughly 40 iterations of 100
 # particles, and every enlargement doubles it.
 INITIAL_ROOM = {"evaluations": 4096, "table": 256, "rng_state": 1 << 16, "extras": 1 << 20}
+
+
+def crc32(*parts: bytes) -> int:
+    """CRC-32 of the parts, one after the other (zlib's: fast, and enough to detect
+    damage; nothing here defends against deliberate tampering)."""
+    value = 0
+    for part in parts:
+        value = zlib.crc32(part, value)
+    return value
+
+
+def text_crc(text: str) -> int:
+    return crc32(text.encode("utf-8"))
+
+
+def committed_row(n_it: int, n_ev: int) -> np.ndarray:
+    return np.array([n_it, n_ev, crc32(np.array([n_it, n_ev], dtype="<i8").tobytes())], dtype="<i8")
+
+
+def header_crc(attrs: Mapping[str, Any], names, lower, upper) -> int:
+    """Checksum of the root attributes a run is defined by and of its search space."""
+    fields = {k: str(attrs[k]) for k in HEADER_ATTRS if k in attrs}
+    return crc32(json.dumps(fields, sort_keys=True).encode(), json.dumps(list(names)).encode(),
+                 np.ascontiguousarray(lower, dtype="<f8").tobytes(), np.ascontiguousarray(upper, dtype="<f8").tobytes())
+
+
+def iteration_crc(row: np.ndarray, columns: Mapping[str, np.ndarray], rng: bytes, extras: bytes) -> int:
+    """Checksum of one iteration: its table row (its own crc field left out), its
+    evaluation rows and its bytes of rng state and extras."""
+    head = np.array(row, copy=True)
+    head["crc"] = 0
+    return crc32(head.tobytes(), *(np.ascontiguousarray(columns[c]).tobytes() for c in EVAL_COLUMNS), rng, extras)
+
+
+HEADER_ATTRS = ("format", "format_version", "rapid_cosim_version", "created", "method", "seed", "n_experiments")
 
 
 def iteration_dtype(dim: int) -> np.dtype:
@@ -103,6 +140,7 @@ def iteration_dtype(dim: int) -> np.dtype:
             ("extras_offset", "<i8"),
             ("extras_size", "<i8"),
             ("best_x", "<f8", (dim,)),
+            ("crc", "<u4"),
         ]
     )
 
@@ -168,6 +206,7 @@ def put_text(group: h5py.Group, key: str, text: str) -> None:
         raise ValueError(f"{key!r}: expected text without NUL characters")
     ds = group.create_dataset(child_name(key), data=text, dtype=h5py.string_dtype("utf-8"))
     ds.attrs["key"] = key
+    ds.attrs["crc32"] = text_crc(text)
 
 
 def read_text(ds: h5py.Dataset) -> str:
@@ -241,7 +280,8 @@ def write_inputs(f: h5py.File, configs, options_text, fmus, data) -> None:
     g = inputs.create_group("configs", track_order=True)
     for key, text in configs.items():
         put_text(g, key, text)
-    inputs.create_dataset("options", data=options_text, dtype=h5py.string_dtype("utf-8"))
+    options = inputs.create_dataset("options", data=options_text, dtype=h5py.string_dtype("utf-8"))
+    options.attrs["crc32"] = text_crc(options_text)
     g = inputs.create_group("fmus", track_order=True)
     for key, blob in fmus.items():
         raw = bytes(blob)
@@ -279,9 +319,9 @@ def rewrite(path: str, room: Mapping[str, int], result: EstimationResult | None 
     tmp = path + ".rewrite"
     try:
         with open_reader(path) as src, h5py.File(
-            tmp, "w", libver=LIBVER, track_order=True, locking=False
+            tmp, "w", libver=LIBVER, track_order=True, locking=False, userblock_size=seal.USERBLOCK
         ) as dst:
-            n_it, n_ev = (int(v) for v in src["committed"][()])
+            n_it, n_ev = (int(v) for v in src["committed"][()][:2])
             table = src["iterations/table"][:n_it]
             ends = blob_ends(table)
             dst.attrs.update(src.attrs)
@@ -298,6 +338,7 @@ def rewrite(path: str, room: Mapping[str, int], result: EstimationResult | None 
             if result is not None:
                 write_result(dst, result)
                 dst["status"][()] = np.bytes_(b"finished")
+        seal.seal(tmp)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
@@ -321,6 +362,20 @@ def write_result(f: h5py.File, result: EstimationResult) -> None:
                 p.create_dataset(name, data=np.asarray(getattr(u, name), dtype="<f8"))
         p.attrs.update(level=float(u.level), method=u.method, evaluations=int(u.evaluations),
                        log_evidence=float("nan") if u.log_evidence is None else float(u.log_evidence))
+    r.attrs["crc32"] = result_crc(r)
+
+
+def result_crc(r: h5py.Group) -> int:
+    """Checksum of the stored result: its arrays and attributes, as read back."""
+    def attrs(obj) -> bytes:
+        return json.dumps({k: str(v) for k, v in sorted(obj.attrs.items()) if k != "crc32"}).encode()
+
+    parts = [attrs(r), np.ascontiguousarray(r["x"][()]).tobytes()]
+    if "posterior" in r:
+        p = r["posterior"]
+        parts.append(attrs(p))
+        parts += [name.encode() + np.ascontiguousarray(p[name][()]).tobytes() for name in sorted(p)]
+    return crc32(*parts)
 
 
 UNCERTAINTY_ARRAYS = ("samples", "weights", "mean", "cov", "interval", "hessian", "steps")

@@ -3,6 +3,8 @@ why the writer never changes the structure of the live file)."""
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import os
 import time
@@ -14,9 +16,10 @@ import h5py
 import numpy as np
 
 from .. import __version__
-from ..errors import ArchiveError
+from ..errors import ArchiveDamaged, ArchiveError, ArchiveFull
 from ..estimators.base import EstimationResult, Iteration
 from . import format as fmt
+from . import seal
 from .lock import Lock
 
 # Iterations are committed in groups, at most this many seconds apart (and when the run
@@ -33,7 +36,7 @@ class ArchiveWriter:
     'interrupted'. Only one writer per archive, across processes (see the lock above).
     """
 
-    def __init__(self, path: str, lock: Lock, commit_seconds: float | None = None):
+    def __init__(self, path: str, lock: Lock, commit_seconds: float | None = None, keep: int | None = None):
         """Internal: use :meth:`create` or :meth:`reopen` (``commit_seconds``: see
         ``COMMIT_SECONDS``)."""
         self.path = path
@@ -42,6 +45,7 @@ class ArchiveWriter:
         self.commit_seconds = COMMIT_SECONDS if commit_seconds is None else commit_seconds
         self._clear_pending()
         self._last_commit = float("-inf")  # the first iteration is committed at once
+        self._keep = keep
         weakref.finalize(self, lock.release)  # a writer dropped without close() frees the lock
         self._open()
 
@@ -58,12 +62,21 @@ class ArchiveWriter:
         self.names = tuple(f["space/names"].asstr()[()])
         self.dim = len(self.names)
         self.n_experiments = int(f.attrs["n_experiments"])
-        self._n_it, self._n_ev = (int(v) for v in f["committed"][()])
+        committed = f["committed"][()]
+        self._checksums = committed.shape == (3,)  # format 1 archives have none (and are resumed so)
+        self._n_it, self._n_ev = (int(v) for v in committed[:2])
+        truncate = self._keep is not None and self._keep < self._n_it
+        if truncate:  # iterations past ``keep`` are damaged: they are computed again
+            kept = f["iterations/table"][: self._keep]
+            self._n_it = self._keep
+            self._n_ev = int(kept[-1]["eval_offset"] + kept[-1]["eval_count"]) if len(kept) else 0
         self._ends = fmt.blob_ends(f["iterations/table"][: self._n_it])
         self._finished = fmt.status_of(f) == "finished"
         self._ev = {name: f["evaluations"][name] for name in fmt.EVAL_COLUMNS}
         self._it = {name: f["iterations"][name] for name in ("table", *fmt.BLOBS)}
         self._committed = f["committed"]
+        if truncate:
+            self._write_committed(self._n_it, self._n_ev)
         self._room = {"evaluations": self._ev["x"].shape[0], "table": self._it["table"].shape[0],
                       **{b: self._it[b].shape[0] for b in fmt.BLOBS}}
 
@@ -109,7 +122,8 @@ class ArchiveWriter:
             # Built beside and renamed into place: a crash leaves no archive or a whole one.
             tmp = path + ".creating"
             try:
-                with h5py.File(tmp, "w", libver=fmt.LIBVER, track_order=True, locking=False) as f:
+                with h5py.File(tmp, "w", libver=fmt.LIBVER, track_order=True, locking=False,
+                               userblock_size=seal.USERBLOCK) as f:
                     f.attrs.update(
                         format=fmt.FORMAT,
                         format_version=fmt.FORMAT_VERSION,
@@ -121,16 +135,18 @@ class ArchiveWriter:
                         n_experiments=int(n_experiments),
                     )
                     f.create_dataset("status", data=np.bytes_(b"running"), dtype="S16")
-                    f.create_dataset("committed", data=np.zeros(2, dtype="<i8"))
+                    f.create_dataset("committed", data=fmt.committed_row(0, 0))
                     f["committed"].attrs["meaning"] = (
-                        "[n_iterations, n_evaluations] complete; ignore rows past these"
+                        "[n_iterations, n_evaluations, crc] complete; ignore rows past these"
                     )
                     s = f.create_group("space")
                     s.create_dataset("names", data=list(names), dtype=h5py.string_dtype("utf-8"))
                     s.create_dataset("lower", data=lower)
                     s.create_dataset("upper", data=upper)
+                    f.attrs["crc32"] = fmt.header_crc(f.attrs, names, lower, upper)
                     fmt.write_inputs(f, configs, options_text, fmus, data)
                     fmt.make_run_datasets(f, len(names), int(n_experiments), fmt.INITIAL_ROOM)
+                seal.seal(tmp)
             except BaseException:
                 if os.path.exists(tmp):
                     os.unlink(tmp)
@@ -142,8 +158,10 @@ class ArchiveWriter:
             raise
 
     @classmethod
-    def reopen(cls, path: str | os.PathLike, commit_seconds: float | None = None) -> "ArchiveWriter":
-        """Open an unfinished archive to append after its last complete iteration."""
+    def reopen(cls, path: str | os.PathLike, commit_seconds: float | None = None,
+               keep: int | None = None) -> "ArchiveWriter":
+        """Open an unfinished archive to append after its last complete iteration (after
+        iteration ``keep`` when the ones past it are damaged: they are dropped)."""
         path = os.fspath(path)
         lock = Lock(path)
         lock.acquire()
@@ -154,6 +172,14 @@ class ArchiveWriter:
                 if os.path.exists(stale):
                     os.unlink(stale)
             try:
+                reason = seal.check(path)
+            except seal.Unsealed:
+                reason = None
+            except OSError as exc:
+                raise ArchiveError(f"{path}: not a readable archive ({exc})") from None
+            if reason:
+                raise ArchiveDamaged(path, "HDF5 structure", reason, "it cannot be resumed")
+            try:
                 with fmt.open_reader(path) as f:
                     fmt.check_format(f, path)
                     if fmt.status_of(f) == "finished":
@@ -161,7 +187,7 @@ class ArchiveWriter:
             except OSError as exc:
                 raise ArchiveError(f"{path}: not a readable archive ({exc})") from None
             try:
-                writer = cls(path, lock, commit_seconds)
+                writer = cls(path, lock, commit_seconds, keep)
             except OSError as exc:
                 if "already open for read" in str(exc):
                     raise ArchiveError(
@@ -246,6 +272,8 @@ class ArchiveWriter:
         row["best_x"] = best_x
         columns = {"x": x, "fitness": fitness, "failed": failed, "weights": weights,
                    "iteration": np.full(n, i, dtype="<i8"), "rssd": rssd}
+        if self._checksums:
+            row["crc"] = fmt.iteration_crc(row, columns, blobs["rng_state"].tobytes(), blobs["extras"].tobytes())
         self._pending.append((row, columns, blobs))
         self._pending_ev += n
         for b in fmt.BLOBS:
@@ -263,22 +291,39 @@ class ArchiveWriter:
         n_it, n_ev = self._n_it + len(self._pending), self._n_ev + self._pending_ev
         need = {"evaluations": n_ev, "table": n_it}
         need.update({b: self._ends[b] + self._pending_blobs[b] for b in fmt.BLOBS})
-        if any(need[k] > self._room[k] for k in need):
-            self._enlarge(need)
         pending, n_ev0, ends0, n_it0 = self._pending, self._n_ev, dict(self._ends), self._n_it
         self._clear_pending()  # a failed commit drops its iterations (a resume replays them)
-        rows = np.stack([p[0] for p in pending])
-        for name in fmt.EVAL_COLUMNS:
-            fmt.put_rows(self._ev[name], n_ev0, np.concatenate([p[1][name] for p in pending]))
-        for b in fmt.BLOBS:
-            fmt.put_rows(self._it[b], ends0[b], np.concatenate([p[2][b] for p in pending]))
-        fmt.put_rows(self._it["table"], n_it0, rows)
-        self._f.flush()
-        self._committed.write_direct(np.array([n_it, n_ev], dtype="<i8"))
-        self._f.flush()
+        with self._space_guard():
+            if any(need[k] > self._room[k] for k in need):
+                self._enlarge(need)
+            rows = np.stack([p[0] for p in pending])
+            for name in fmt.EVAL_COLUMNS:
+                fmt.put_rows(self._ev[name], n_ev0, np.concatenate([p[1][name] for p in pending]))
+            for b in fmt.BLOBS:
+                fmt.put_rows(self._it[b], ends0[b], np.concatenate([p[2][b] for p in pending]))
+            fmt.put_rows(self._it["table"], n_it0, rows)
+            self._f.flush()
+            self._write_committed(n_it, n_ev)
         self._n_it, self._n_ev = n_it, n_ev
         for b in fmt.BLOBS:
             self._ends[b] = need[b]
+
+    @contextlib.contextmanager
+    def _space_guard(self):
+        """A full device as one :class:`ArchiveFull` that says what is kept and what next."""
+        try:
+            yield
+        except OSError as e:
+            if e.errno == errno.ENOSPC or "No space left" in str(e) or "errno = 28" in str(e):
+                raise ArchiveFull(f"{self.path}: no space left on its device; the archive keeps its "
+                                  f"{self._n_it} complete iterations: free space, then "
+                                  f"'rapid-cosim resume {self.path}'") from None
+            raise
+
+    def _write_committed(self, n_it: int, n_ev: int) -> None:
+        self._committed.write_direct(fmt.committed_row(n_it, n_ev) if self._checksums
+                                     else np.array([n_it, n_ev], dtype="<i8"))
+        self._f.flush()
 
     def _clear_pending(self) -> None:
         self._pending: list = []
@@ -307,15 +352,17 @@ class ArchiveWriter:
         self._f = None
         try:
             room = {"evaluations": self._n_ev, "table": self._n_it, **self._ends}
-            fmt.rewrite(self.path, room, result)
+            with self._space_guard():
+                fmt.rewrite(self.path, room, result)
         except BaseException:
             self._open()  # still the live archive; close() marks it interrupted
             raise
         self._finished = True
         self._lock.release()
 
-    def close(self) -> None:
-        """Flush and close; the run is 'interrupted' unless :meth:`finish` was called."""
+    def close(self, quiet: bool = False) -> None:
+        """Commit, mark the run 'interrupted' unless :meth:`finish` was called, close.
+        ``quiet``: a failure here is not raised (another error is already on its way)."""
         if self._f is None:
             self._lock.release()
             return
@@ -323,6 +370,9 @@ class ArchiveWriter:
             if not self._finished:
                 self.commit()
                 self._set_status("interrupted")
+        except Exception:
+            if not quiet:
+                raise
         finally:
             self._f.close()
             self._f = None
@@ -331,8 +381,8 @@ class ArchiveWriter:
     def __enter__(self) -> "ArchiveWriter":
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close(quiet=exc_type is not None)
 
     # ---- internals
 

@@ -11,6 +11,7 @@ cache left empty: every simulation is done again and every iteration compared.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import warnings
 from dataclasses import dataclass, replace
@@ -21,7 +22,7 @@ import numpy as np
 
 from .. import __version__
 from ..archive import ArchiveWriter, RunArchive, data_sha256
-from ..errors import ArchiveError, ConfigError
+from ..errors import ArchiveDamaged, ArchiveError, ConfigError, EngineLost, RunInterrupted
 from ..estimators import parse_method, run_chain
 from ..estimators.base import EstimationResult, Iteration
 from ..experiment import Experiment
@@ -78,8 +79,14 @@ def _execute(inputs: RunInputs, options: RunOptions, objective: RecordingObjecti
     if any(s.name == "smc" for s in parse_method(options.method)) and log_likelihood is None:
         raise ConfigError("method smc needs a noise level in every experiment: set [fitness] noise")
     bar = _Progress(options.method, progress)
+    events = getattr(objective.objective.engine, "events", [])
+    seen = len(events)
 
     def callback(it: Iteration) -> None:
+        nonlocal seen
+        if len(events) > seen:  # what the engine went through (a lost worker) goes with the iteration
+            it = replace(it, extras={**it.extras, "engine_events": np.array(events[seen:])})
+            seen = len(events)
         on_iteration(it)
         bar.update(it)
 
@@ -107,26 +114,44 @@ def start_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *, pr
             options=_archive_options(options, inputs),
             fmus={m: ref.content for m, ref in inputs.fmus.items()},
             data={e.name: _archived_data(e) for e in problem.experiments},
-            n_experiments=len(problem.experiments)) as writer:
+            n_experiments=len(problem.experiments)) as writer, _interruptible(writer):
         result = _execute(inputs, options, objective, lambda it: writer.append(it, objective.rssd_of(it.x)), progress)
         writer.finish(result)
     return result
 
 
+@contextlib.contextmanager
+def _interruptible(writer: ArchiveWriter):
+    """Ctrl-C (or SIGTERM, which the command line turns into it) ends the run with a
+    :class:`RunInterrupted` that says how to resume; the writer then commits what it
+    has and closes the archive as 'interrupted'."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        raise RunInterrupted(writer.path, writer.n_iterations) from None
+    except EngineLost as e:
+        raise EngineLost(f"{e}; {writer.path} holds {writer.n_iterations} complete iterations: "
+                         f"'rapid-cosim resume {writer.path} --joblib-backend loky' finishes the run on this "
+                         "machine") from None
+
+
 def resume_run(archive: str | Path, *, n_jobs: int | None = None, backend: str | None = None,
-               progress: bool = True) -> EstimationResult:
+               scheduler: str | None = None, progress: bool = True) -> EstimationResult:
     """Continue an interrupted run; the result equals that of an uninterrupted run."""
     with RunArchive(archive) as view:
         if view.status == "finished":
             raise ArchiveError(f"{archive}: the run is finished; use 'rapid-cosim rerun' to reproduce it")
         inputs = inputs_from_archive(view)
-        options = _resumed_options(view, n_jobs, backend)
-        stored = view.iterations()
-        ev = view.evaluations()
+        options = _resumed_options(view, n_jobs, backend, scheduler)
+        stored, damage = view.intact_iterations()
+        ev = view.evaluations(sum(len(it.x) for it in stored))
+    if damage is not None:
+        warnings.warn(f"{damage.path}: iteration {len(stored)} onwards is damaged ({damage.reason}); resuming from "
+                      f"the {len(stored)} intact iterations, the rest is computed again", stacklevel=2)
     known = {x.tobytes(): (float(f), bool(fl), r.copy()) for x, f, fl, r in zip(ev.x, ev.fitness, ev.failed, ev.rssd)}
     objective = _objective(inputs, options, known)
     clock = {"offset": 0.0}
-    with ArchiveWriter.reopen(archive) as writer:
+    with ArchiveWriter.reopen(archive, keep=len(stored)) as writer, _interruptible(writer):
         def on_iteration(it: Iteration) -> None:
             if it.index < len(stored):
                 why = same_iteration(it, stored[it.index])
@@ -144,12 +169,17 @@ def resume_run(archive: str | Path, *, n_jobs: int | None = None, backend: str |
     return result
 
 
-def _resumed_options(view: RunArchive, n_jobs: int | None, backend: str | None) -> RunOptions:
+def _resumed_options(view: RunArchive, n_jobs: int | None, backend: str | None,
+                     scheduler: str | None = None) -> RunOptions:
+    """The archived options, with the workers overridden where asked: where a run goes on
+    does not change its result (another backend than dask drops the scheduler)."""
     options = RunOptions.from_json(view.options)
     if options.method != view.method or options.seed != view.seed:
         raise ArchiveError(f"{view.path}: the stored options disagree with the run's method/seed")
-    return replace(options, n_jobs=options.n_jobs if n_jobs is None else n_jobs,
-                   backend=options.backend if backend is None else backend)
+    backend = options.backend if backend is None else backend
+    scheduler = scheduler if scheduler is not None else (options.scheduler if backend == "dask" else None)
+    return replace(options, n_jobs=options.n_jobs if n_jobs is None else n_jobs, backend=backend,
+                   scheduler=scheduler).check()
 
 
 @dataclass(frozen=True)
@@ -159,14 +189,15 @@ class RerunReport:
     first_difference: str | None
     result: EstimationResult
     simulations: int
+    finished: bool = True  # False: the archive held an unfinished run, compared as far as it went
 
 
 def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None = None,
-          progress: bool = True) -> RerunReport:
+          scheduler: str | None = None, progress: bool = True) -> RerunReport:
     """Execute the archived run again, every simulation included, and compare."""
     with RunArchive(archive) as view:
         inputs = inputs_from_archive(view)
-        options = _resumed_options(view, n_jobs, backend)
+        options = _resumed_options(view, n_jobs, backend, scheduler)
         stored = view.iterations()
         archived = view.result()
     objective = _objective(inputs, options)
@@ -174,7 +205,8 @@ def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None
 
     def on_iteration(it: Iteration) -> None:
         if it.index >= len(stored):
-            differences.append(f"iteration {it.index} is not in the archive")
+            if archived is not None:  # an unfinished archive stops early; a finished one must not
+                differences.append(f"iteration {it.index} is not in the archive")
         else:
             why = same_iteration(it, stored[it.index])
             if why:
@@ -185,19 +217,25 @@ def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None
         if not (np.array_equal(result.x, archived.x) and result.fun == archived.fun and result.nfev == archived.nfev
                 and result.nit == archived.nit):
             differences.append("final result")
-    elif len(stored) != result.nit:
-        differences.append(f"the archive holds {len(stored)} iterations of an unfinished run, the re-run made {result.nit}")
+    elif len(stored) > result.nit:
+        differences.append(f"the archive holds {len(stored)} iterations, the re-run made only {result.nit}")
     return RerunReport(identical=not differences, iterations_compared=min(len(stored), result.nit),
                        first_difference=differences[0] if differences else None, result=result,
-                       simulations=objective.simulated)
+                       simulations=objective.simulated, finished=archived is not None)
 
 
 def summary_json(archive: str | Path) -> dict:
     """The archive's summary with the experiments it fitted (for ``show --json``)."""
     with RunArchive(archive) as view:
         out = view.summary()
-        out["experiments"] = sorted(view.configs)
-        out["options"] = {k: v for k, v in view.options.items() if k != "experiments"}
+        try:
+            out["experiments"] = sorted(view.configs)
+        except ArchiveDamaged as e:
+            out["experiments"], out["damaged"] = ["(damaged)"], out["damaged"] + [str(e)]
+        try:
+            out["options"] = {k: v for k, v in view.options.items() if k != "experiments"}
+        except ArchiveDamaged as e:
+            out["options"], out["damaged"] = None, out["damaged"] + [str(e)]
     return json.loads(json.dumps(out))
 
 

@@ -44,4 +44,6 @@ def summary_text(summary: Mapping) -> str:
         lines.append(line)
     if summary.get("stop_reason"):
         lines.append(f"  stop: {summary['stop_reason']}")
+    if summary.get("damaged"):
+        lines.append(f"  shown: what is intact; {len(summary['damaged'])} damaged part(s)")
     return "\n".join(lines)

@@ -1,0 +1,181 @@
+"""Faults a run survives: Ctrl-C and SIGTERM, a full disk, a killed worker process, and
+options refused before anything is made. Each ends with the uninterrupted result."""
+
+import errno
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from rapid_cosim.archive import RunArchive
+from rapid_cosim.archive import format as archive_format
+from rapid_cosim.calibration import RunOptions, inputs_from_configs, resume_run, start_run, summary_json
+from rapid_cosim.cli import main
+from rapid_cosim.errors import ArchiveFull
+from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+
+FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}
+ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"}, "gov.Ts": {"min": 0.1, "max": 20.0, "label": "Ts"}}
+# the Python runner keeps a run long enough (seconds) to be interrupted in the middle
+OPTIONS = dict(method="pf:8+nm", seed=4, runner="python", estimator_options={"pf": {"n_particles": 24}})
+
+
+@pytest.fixture(scope="module")
+def config(fmus, tmp_path_factory):
+    t, y = synthesize(fmus["StagedTest"], {**FIXED, "gov.R": 0.06, "gov.Ts": 4.0}, duration=25.0,
+                      noise=NoiseModel(white_sigma=0.0008, offset=0.001), rng=np.random.default_rng(7))
+    return write_experiment(tmp_path_factory.mktemp("faults") / "synth", model="iGrGen.TestBenches.StagedTest",
+                            time=t, values=y, fixed=FIXED, estimate=ESTIMATE)
+
+
+@pytest.fixture(scope="module")
+def expected(config, tmp_path_factory):
+    return start_run(inputs_from_configs([config]), RunOptions(**OPTIONS),
+                     tmp_path_factory.mktemp("full") / "full.h5", progress=False)
+
+
+def _same(result, expected):
+    assert np.array_equal(result.x, expected.x) and result.fun == expected.fun
+    assert (result.nfev, result.nit) == (expected.nfev, expected.nit)
+
+
+def _wait_for_iterations(archive, n, proc, timeout=60):
+    deadline = time.time() + timeout
+    while time.time() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+        try:
+            with RunArchive(archive) as view:
+                if view.n_iterations >= n:
+                    return
+        except Exception:
+            pass
+    raise AssertionError(f"{archive} did not reach {n} iterations")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_an_interrupt_closes_the_archive_and_says_how_to_resume(config, expected, tmp_path, repo, sig):
+    archive = tmp_path / "run.h5"
+    cmd = [sys.executable, "-m", "rapid_cosim.cli", "estimate", str(config), "--method", OPTIONS["method"],
+           "--seed", "4", "--runner", "python", "--option", "pf.n_particles=24", "--archive", str(archive), "--quiet"]
+    proc = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _wait_for_iterations(archive, 3, proc)
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "holds" in err and f"'rapid-cosim resume {archive}' continues the run" in err
+    assert "Traceback" not in err
+    with RunArchive(archive) as view:
+        assert view.status == "interrupted" and view.n_iterations >= 3
+    assert not archive.with_name("run.h5.lock").exists()
+    _same(resume_run(archive, progress=False), expected)
+
+
+def test_a_full_disk_keeps_the_archive_readable_and_it_resumes_once_there_is_space(config, expected, tmp_path,
+                                                                                   monkeypatch):
+    archive = tmp_path / "run.h5"
+    real = archive_format.put_rows
+    calls = {"n": 0}
+
+    def filling(ds, start, values):  # the disk fills up in the third commit (nine writes each)
+        calls["n"] += 1
+        if calls["n"] > 20:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real(ds, start, values)
+
+    monkeypatch.setattr(archive_format, "put_rows", filling)
+    options = RunOptions(**OPTIONS)
+    with pytest.raises(ArchiveFull, match=r"no space left on its device; the archive keeps its \d+ complete "
+                                          r"iterations: free space, then 'rapid-cosim resume"):
+        start_run(inputs_from_configs([config]), options, archive, progress=False)
+    monkeypatch.setattr(archive_format, "put_rows", real)
+    with RunArchive(archive) as view:
+        kept = view.n_iterations
+        assert kept >= 1 and len(view.iterations()) == kept  # readable up to the last complete iteration
+    resumed = resume_run(archive, progress=False)
+    full = start_run(inputs_from_configs([config]), options, tmp_path / "full.h5", progress=False)
+    _same(resumed, full)
+
+
+def _loky_workers() -> list[int]:
+    mine = str(os.getpid())
+    pids = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/stat") as fh:
+                ppid = fh.read().rsplit(")", 1)[1].split()[1]
+            with open(f"/proc/{pid}/cmdline", "rb") as fh:
+                cmdline = fh.read()
+        except OSError:
+            continue
+        if ppid == mine and b"loky" in cmdline and b"popen_loky" in cmdline:
+            pids.append(int(pid))
+    return pids
+
+
+def test_a_killed_worker_costs_a_retry_not_the_run(config, expected, tmp_path):
+    archive = tmp_path / "run.h5"
+    killed = []
+
+    def killer():
+        deadline = time.time() + 60
+        while time.time() < deadline and not killed:
+            time.sleep(0.1)
+            try:
+                with RunArchive(archive) as view:
+                    if view.n_iterations < 2:
+                        continue
+            except Exception:
+                continue
+            for pid in _loky_workers()[:1]:
+                os.kill(pid, signal.SIGKILL)
+                killed.append(pid)
+
+    thread = threading.Thread(target=killer, daemon=True)
+    thread.start()
+    with pytest.warns(UserWarning, match="a worker process died"):
+        result = start_run(inputs_from_configs([config]), RunOptions(**{**OPTIONS, "n_jobs": 2}), archive,
+                           progress=False)
+    thread.join()
+    assert killed
+    _same(result, expected)
+    with RunArchive(archive) as view:
+        events = [str(e) for it in view.iterations() for e in it.extras.get("engine_events", [])]
+    assert events and "ran again on a fresh pool" in events[0]
+
+
+def test_show_counts_what_a_live_run_has_done(config, tmp_path, repo):
+    archive = tmp_path / "live.h5"
+    cmd = [sys.executable, "-m", "rapid_cosim.cli", "estimate", str(config), "--method", OPTIONS["method"],
+           "--seed", "4", "--runner", "python", "--option", "pf.n_particles=24", "--archive", str(archive), "--quiet"]
+    proc = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        _wait_for_iterations(archive, 3, proc)
+        summary = summary_json(archive)
+        with RunArchive(archive) as view:
+            its = view.iterations()
+    finally:
+        proc.kill()
+        proc.wait()
+    n = summary["n_iterations"]
+    # the elite particle is carried, not simulated again: 24 in the first iteration, 23 after
+    assert summary["nfev"] == its[n - 1].n_sims <= 24 + 23 * (n - 1)
+    assert summary["nit"] == n
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--method", "foo"], "unknown method 'foo'"),
+    (["--option", "pf.n_particle=3"], "pf has no option 'n_particle'"),
+    (["--runner", "python", "--joblib-backend", "loky", "--scheduler", "tcp://127.0.0.1:1"],
+     "a scheduler address needs the dask backend"),
+])
+def test_a_bad_option_is_refused_before_anything_is_announced_or_made(config, tmp_path, capsys, argv, message):
+    archive = tmp_path / "never.h5"
+    assert main(["estimate", str(config), "--archive", str(archive), *argv]) == 2
+    captured = capsys.readouterr()
+    assert message in captured.err and captured.out == ""
+    assert not archive.exists() and not list(tmp_path.iterdir())
