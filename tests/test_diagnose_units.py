@@ -96,7 +96,7 @@ def test_laplace_recovers_a_known_gaussian():
     cov = np.array([[1e-6, 2e-5], [2e-5, 1e-2]])
     precision = np.linalg.inv(cov)
     g = laplace(lambda X: 0.5 * np.einsum("ni,ij,nj->n", X - mean, precision, X - mean), space, mean)
-    assert np.allclose(g.covariance, cov, rtol=1e-3)
+    assert np.allclose(g.cov, cov, rtol=1e-3)
 
 
 def test_generated_benches_equal_the_hand_written_ones(repo, tmp_path):

@@ -15,7 +15,9 @@ with event indicators (state events) is refused, as this loop does no root-findi
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
+import signal
 import time as time_module
 from ctypes import byref, c_double, c_void_p, cast
 
@@ -58,6 +60,7 @@ class Integrator:
         self._get_states = dll.fmi2GetContinuousStates
         self._get_derivatives = dll.fmi2GetDerivatives
         self.before_rhs = None  # called with t before each right-hand side (inputs)
+        self._raised: BaseException | None = None  # what a right-hand side raised
         self._real_n = n_states
         self._n = max(n_states, 1)  # CVode needs one state; a stateless model gets a dummy
         self._error = "no details"
@@ -96,17 +99,23 @@ class Integrator:
         return data
 
     def _f(self, t, y, ydot, user_data) -> int:
-        if not self._real_n:
-            self._data(ydot)[0] = 0.0
+        # ctypes prints and drops an exception raised in a callback (Ctrl-C included): it
+        # is kept instead, CVode is stopped (-1: unrecoverable), and advance() raises it.
+        try:
+            if not self._real_n:
+                self._data(ydot)[0] = 0.0
+                return 0
+            c = self._component
+            if self.before_rhs is not None and self.before_rhs(t):
+                return 1
+            if (self._set_time(c, t) >= _FMI_ERROR
+                    or self._set_states(c, self._data(y), self._real_n) >= _FMI_ERROR
+                    or self._get_derivatives(c, self._data(ydot), self._real_n) >= _FMI_ERROR):
+                return 1  # recoverable: CVode retries with a smaller step
             return 0
-        c = self._component
-        if self.before_rhs is not None and self.before_rhs(t):
-            return 1
-        if (self._set_time(c, t) >= _FMI_ERROR
-                or self._set_states(c, self._data(y), self._real_n) >= _FMI_ERROR
-                or self._get_derivatives(c, self._data(ydot), self._real_n) >= _FMI_ERROR):
-            return 1  # recoverable: CVode retries with a smaller step
-        return 0
+        except BaseException as e:
+            self._raised = e
+            return -1
 
     def _record_error(self, line, func, file, msg, err_code, err_user_data, ctx) -> None:
         self._error = f"{func.decode()}: {msg.decode()}" if func and msg else str(err_code)
@@ -126,6 +135,9 @@ class Integrator:
     def advance(self, t_out: float) -> float:
         """Integrate to ``t_out`` and leave the FMU at that time and state."""
         flag = CVode(self._mem, t_out, self._x, byref(self._t), CV_NORMAL)
+        if self._raised is not None:
+            raised, self._raised = self._raised, None
+            raise raised
         if flag < 0:
             raise SimulationError(f"CVode failed (flag {flag}) near t={self._t.value:g}: {self._error}")
         c = self._component
@@ -165,6 +177,16 @@ def _input_setter(fmu, input_vrs, inputs: InputTable, limit: dict):
     return set_inputs
 
 
+@contextlib.contextmanager
+def _signals_deferred():
+    deferred = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, deferred)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)  # a pending signal is delivered here
+
+
 class ReferenceLoop:
     """One fmpy instance of an FMU and its integrator, re-initialised for every run."""
 
@@ -181,12 +203,16 @@ class ReferenceLoop:
 
     def run(self, params: dict[str, float], names: list[str], types: list[int], start_time: float,
             times: np.ndarray, inputs: InputTable | None, timeout: float | None) -> np.ndarray:
-        """Outputs (times, names) of one run; a failure leaves the loop ready for the next."""
-        try:
-            return self._integrate(params, names, types, start_time, times, inputs, timeout)
-        except BaseException:
-            self._recover()
-            raise
+        """Outputs (times, names) of one run; a failure leaves the loop ready for the next.
+
+        Ctrl-C and SIGTERM wait for the end of the run (milliseconds): raised inside one of
+        CVode's Python callbacks, ctypes would print and drop them."""
+        with _signals_deferred():
+            try:
+                return self._integrate(params, names, types, start_time, times, inputs, timeout)
+            except BaseException:
+                self._recover()
+                raise
 
     def _integrate(self, params, names, types, start_time, times, inputs, timeout) -> np.ndarray:
         fmu, vr = self._instance, self.fmu.value_references
