@@ -16,7 +16,7 @@ RUN_OPTS     := --results $(RESULTS) --seed $(SEED) --n-jobs $(N_JOBS)
 T0           := $(shell date +%s)
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose clean table1 figures rerun joint diagnose $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose clean table1 figures rerun event1 joint diagnose $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -58,9 +58,12 @@ rerun: fmus  ## re-run ARCHIVE=results/test1/pf10+nm.h5 from the archive alone; 
 	@test -n "$(ARCHIVE)" || { echo "usage: make rerun ARCHIVE=results/test1/pf10+nm.h5"; exit 2; }
 	$(RC) rerun $(ARCHIVE) --n-jobs $(N_JOBS)
 
-joint: fmus  ## joint Bayesian fit of R and Ts over tests 1-8, and how consistent the per-test estimates are
-	$(RC) staged-test $(TABLE1_TESTS) $(RUN_OPTS) --quiet
-	$(RC) joint --tests 1-8 $(RUN_OPTS)
+event1: fmus  ## PSO10+NM and PF10+NM on the recorded under-frequency event (COMTRADE), with its figure
+	$(RC) staged-test experiments/event1 $(RUN_OPTS)
+
+joint: fmus  ## joint Bayesian fit of R and Ts over tests 1-8 and event1, and how consistent each one's estimate is
+	$(RC) staged-test $(TABLE1_TESTS) experiments/event1 $(RUN_OPTS) --quiet
+	$(RC) joint --tests 1-8,event1 $(RUN_OPTS)
 	@echo "make joint: $$(( $$(date +%s) - $(T0) )) s wall time"
 
 diagnose: fmus  ## name what TG Type I misses on tests 1-10 (4 and 8 held out), write it into iGrGen.Diagnosed

@@ -175,3 +175,35 @@ def diagnosis_report(diagnosis, folder: str | Path, json_path: str | Path | None
         Path(json_path).write_text(json.dumps(diagnosis.to_json(), indent=2) + "\n")
         files.append(Path(json_path))
     return report.read_text(), files
+
+
+def validation_page(archive: str | Path, out: str | Path | None = None, *, n_jobs: int = 1):
+    """The unit's validation page (:mod:`rapid_cosim.report.html`) for a finished run, at
+    ``out`` (default: the archive's name with .html). A method without intervals of its
+    own gets the Laplace approximation at the best point, when the noise levels are known."""
+    from .report.archives import load_run
+    from .report.html import write_validation_page
+    from .staged import hessian_uncertainty
+
+    run = load_run(archive)
+    unc, note = None, ""
+    if run.result.uncertainty is None:
+        try:
+            unc = hessian_uncertainty(run.inputs, run.result.x, archive, n_jobs=n_jobs)
+            inflation = max(_ar1_inflation(e) for e in run.inputs.experiments)
+            unc = unc.scaled(inflation)
+            note = (f"Laplace approximation at the best point, its covariance inflated {inflation:.2g}-fold for "
+                    "the pre-event noise's correlation (AR(1))")
+        except RapidCosimError as e:
+            note = f"the run's method gives none, and no Laplace approximation: {e}"
+    return write_validation_page(run, out or Path(archive).with_suffix(".html"), uncertainty=unc,
+                                 interval_note=note)
+
+
+def _ar1_inflation(exp) -> float:
+    from .data import ar1_inflation, noise_level
+
+    if exp.pre_step_end is None:
+        return 1.0
+    return max(ar1_inflation(noise_level(exp.data, col, exp.pre_step_end).phi) for col in exp.outputs.values())
+

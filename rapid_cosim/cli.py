@@ -145,6 +145,18 @@ def cmd_staged_test(args) -> int:
     return 0
 
 
+def cmd_report(args) -> int:
+    from .campaign import validation_page
+
+    page = validation_page(args.archive, args.out, n_jobs=args.n_jobs)
+    print(f"{page.path}: {page.n_figures} figure(s); per experiment RMSE, peak error, settled change and "
+          "response time")
+    for m in page.metrics:
+        print(f"  {m.experiment:<10} {m.output:<6} RMSE {m.rmse:.3g}  peak {m.peak_error:.3g}  "
+              f"settled change error {m.settled_error:+.3g}")
+    return 0
+
+
 def cmd_table1(args) -> int:
     from .campaign import table_1
     from .staged import parse_tests
@@ -295,12 +307,18 @@ def build_parser() -> argparse.ArgumentParser:
     p = command("verify", cmd_verify, "check every part of an archive against its checksums")
     p.add_argument("archive")
 
+    p = command("report", cmd_report, "write a finished run's validation page: one self-contained HTML file "
+                "with every experiment's traces, error metrics and the parameters with intervals")
+    p.add_argument("archive")
+    p.add_argument("--out", help="HTML file (default: the archive's name with .html)")
+    p.add_argument("--n-jobs", type=int, default=1, help="worker processes for the intervals (default %(default)s)")
+
     p = command("benches", cmd_benches, "build the FMUs and plot every test bench's step response")
     p.add_argument("--results", default="results", help="output directory (default %(default)s)")
     model_options(p)
 
-    p = command("staged-test", cmd_staged_test, "calibrate staged tests with PSO10+NM and PF10+NM (archived, "
-                "make-like) and draw each test's fit figure")
+    p = command("staged-test", cmd_staged_test, "calibrate staged tests or recorded events with PSO10+NM and "
+                "PF10+NM (archived, make-like) and draw each one's fit figure (recorded inputs above)")
     p.add_argument("experiments", nargs="+", help="experiment folders or configs, e.g. experiments/test1")
     campaign_options(p)
 

@@ -60,9 +60,10 @@ def simulate_experiment(exp: Experiment, fmu: FmuRef | str, params: Mapping[str,
     sim = get_simulator(fmu, timeout=s.timeout)
     if fine:
         return sim.simulate(params, start_time=s.start_time, stop_time=s.stop_time,
-                            output_interval=s.output_interval, outputs=list(exp.outputs), runner=runner)
+                            output_interval=s.output_interval, outputs=list(exp.outputs), runner=runner,
+                            inputs=exp.input_table)
     return sim.simulate(params, start_time=s.start_time, output_times=exp.windowed_data().time,
-                        outputs=list(exp.outputs), runner=runner)
+                        outputs=list(exp.outputs), runner=runner, inputs=exp.input_table)
 
 
 class ExperimentBatch:
@@ -76,7 +77,8 @@ class ExperimentBatch:
         s = exp.simulation
         self.prepared = get_simulator(fmu, timeout=s.timeout).prepare(
             list(exp.fixed) + [name for name, _ in assignment], start_time=s.start_time,
-            output_times=exp.windowed_data().time, outputs=list(exp.outputs), runner=runner)
+            output_times=exp.windowed_data().time, outputs=list(exp.outputs), runner=runner,
+            inputs=exp.input_table)
 
     def __call__(self, X: np.ndarray):
         values = np.empty((X.shape[0], self.fixed.size + len(self.columns)))

@@ -92,6 +92,35 @@ def check_parameters(experiment: Experiment, parameter_info: Mapping[str, Parame
                                   f"[{lo:g}, {hi:g}]", file, key)
 
 
+def check_signals(experiment: Experiment, types: Mapping[str, str], model_inputs: Sequence[str]) -> None:
+    """Every output compared is a variable the model can record (by its FMI type), every
+    ``[inputs]`` entry one of its inputs (Real), and every input of the model driven."""
+    file = str(experiment.config_path)
+    recordable = ("Real", "Integer", "Enumeration", "Boolean")
+    for out in experiment.outputs:
+        key = config_key("data.outputs", out)
+        if out not in types:
+            close = close_matches(out, list(types), n=3)
+            hint = f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ""
+            raise ConfigError(f"model {experiment.model} has no output '{out}'{hint}", file, key)
+        if types[out] not in recordable:
+            raise ConfigError(f"'{out}' is a {types[out]} variable; Real, Integer, Enumeration and Boolean "
+                              "ones can be compared", file, key)
+    listing = ", ".join(model_inputs) or "(none)"
+    for spec in experiment.inputs:
+        key = config_key("inputs", spec.name)
+        if spec.name not in model_inputs:
+            raise ConfigError(f"model {experiment.model} has no input '{spec.name}'; its inputs: {listing}",
+                              file, key)
+        if types[spec.name] != "Real":
+            raise ConfigError(f"input '{spec.name}' is a {types[spec.name]} input; rapid-cosim drives Real "
+                              "inputs only", file, key)
+    undriven = [n for n in model_inputs if n not in {s.name for s in experiment.inputs}]
+    if undriven:
+        raise ConfigError(f"model {experiment.model} has input(s) {', '.join(undriven)} that no [inputs] entry "
+                          f"drives (e.g. {undriven[0]} = {{ column = \"...\" }})", file, "inputs")
+
+
 def build_problem(experiments: Sequence[Experiment],
                   parameter_info: Mapping[str, ParameterInfo] | None = None) -> Problem:
     """Join experiments into one search problem (see the module docstring for the rules)."""

@@ -23,7 +23,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .calibration import (RunOptions, ensure_run, inputs_from_archive, inputs_from_configs,
+from .calibration import (RunInputs, RunOptions, ensure_run, inputs_from_archive, inputs_from_configs,
                            log_likelihood_for)
 from .archive import RunArchive
 from .data import ar1_inflation, noise_level
@@ -220,24 +220,34 @@ def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float 
     if len(problem.experiments) != 1:
         raise RapidCosimError(f"{archive}: the Laplace check is per test; this run fits {len(problem.experiments)}")
     exp = problem.experiments[0]
-    loglik = log_likelihood_for(problem)
-    if loglik is None:
-        raise RapidCosimError(f"{archive}: {exp.name} has no noise level ([fitness] noise)")
-    objective = ProblemObjective(problem, inputs.fmus, engine=make_engine(n_jobs))
-
-    def neg_log_likelihood(X):
-        ev = objective(X)
-        if ev.failed.any():
-            raise RapidCosimError(f"{archive}: a simulation near the optimum failed")
-        return -loglik(ev)
-
-    approx = laplace(neg_log_likelihood, problem.space, np.asarray(result.x, dtype=float), rel_step=rel_step)
+    approx = hessian_uncertainty(inputs, result.x, archive, n_jobs=n_jobs, rel_step=rel_step)
     out = list(exp.outputs)[0]
     col = exp.outputs[out]
     noise = noise_level(exp.data, col, exp.pre_step_end)
     return Laplace(test=exp.name, archive=str(archive), fitness=float(result.fun), sigma=float(exp.noise_sigma[out]),
                    n_samples=exp.windowed_data().n_valid(col), phi=float(noise.phi),
                    inflation=ar1_inflation(noise.phi), uncertainty=approx)
+
+
+def hessian_uncertainty(inputs: RunInputs, x, where: str | Path, *, n_jobs: int = 1,
+                        rel_step: float = 0.5) -> Uncertainty:
+    """The Gaussian (Laplace) approximation of the run's likelihood at ``x``: every
+    experiment's white noise at its configured level, the Hessian by central differences."""
+    problem = inputs.problem
+    loglik = log_likelihood_for(problem)
+    if loglik is None:
+        missing = [e.name for e in problem.experiments if e.noise_sigma is None]
+        raise RapidCosimError(f"{where}: {', '.join(missing) or 'an experiment'} has no noise level "
+                              "([fitness] noise), so the likelihood is not known")
+    objective = ProblemObjective(problem, inputs.fmus, engine=make_engine(n_jobs))
+
+    def neg_log_likelihood(X):
+        ev = objective(X)
+        if ev.failed.any():
+            raise RapidCosimError(f"{where}: a simulation near the optimum failed")
+        return -loglik(ev)
+
+    return laplace(neg_log_likelihood, problem.space, np.asarray(x, dtype=float), rel_step=rel_step)
 
 
 def laplace_cache(results: str | Path) -> Path:

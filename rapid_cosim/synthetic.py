@@ -92,3 +92,51 @@ def write_experiment(folder: str | Path, *, model: str, time: np.ndarray, values
     path = folder / "config.toml"
     path.write_text(render_config(sections))
     return path
+
+
+# --------------------------------------------------------------------------- recorded disturbances
+
+
+def under_frequency_event(time: np.ndarray, *, t_event: float, loss: float = 0.03, inertia: float = 5.0,
+                          damping: float = 1.0, reserve_droop: float = 0.05, reserve_lag: float = 6.0,
+                          f_nom: float = 50.0) -> np.ndarray:
+    """Frequency deviation (Hz) of a grid that loses ``loss`` pu of generation at
+    ``t_event``: inertia ``2H df/dt = -loss - D df + p_r`` and an aggregate primary
+    reserve ``Tg dp_r/dt = -df / Rg - p_r`` (all pu on the grid's base). The frequency
+    falls at ``loss / 2H`` at first, turns at a nadir when the reserve catches up, and
+    recovers to ``-loss / (D + 1 / Rg)``: the shape of a recorded under-frequency event."""
+    a = np.array([[-damping / (2 * inertia), 1 / (2 * inertia)],
+                  [-1 / (reserve_droop * reserve_lag), -1 / reserve_lag]])
+    b = np.array([-loss / (2 * inertia), 0.0])
+    lam, v = np.linalg.eig(a)  # the exact step response: x = A^-1 (exp(A tau) - I) b
+    c = np.linalg.solve(v, np.linalg.solve(a, b))
+    tau = np.clip(np.asarray(time, dtype=float) - t_event, 0.0, None)
+    x = (v @ (c[:, None] * (np.exp(np.outer(lam, tau)) - 1.0))).real
+    return f_nom * x[0]
+
+
+def pmu_noise(n: int, *, rate: float, sigma: float, window: float, rng: np.random.Generator) -> np.ndarray:
+    """Noise of a PMU's frequency estimate: ``sigma`` RMS, correlated over the estimator's
+    ``window`` seconds (a first-order filter of white noise)."""
+    from scipy.signal import lfilter
+
+    a = np.exp(-1.0 / (rate * window))
+    start = sigma * rng.standard_normal()  # drawn from the stationary distribution
+    white = rng.standard_normal(n) * sigma * np.sqrt((1 + a) / (1 - a))
+    out, _ = lfilter([1 - a], [1.0, -a], white[1:], zi=[a * start])
+    return np.concatenate([[start], out])
+
+
+def synthesize_event(fmu: str | Path | Simulator, parameters: Mapping[str, float], *, duration: float,
+                     rate: float, t_event: float, f_noise: float, p_noise: NoiseModel, rng: np.random.Generator,
+                     input: str = "f_dev", output: str = "pm", event: Mapping | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(time, measured frequency deviation in Hz, measured output) of a unit riding
+    through an under-frequency event: the model is driven by the true frequency; the
+    recorder adds PMU noise to the frequency and ``p_noise`` to the output."""
+    sim = fmu if isinstance(fmu, Simulator) else get_simulator(fmu)
+    t = np.arange(0.0, duration, 1.0 / rate)
+    f_true = under_frequency_event(t, t_event=t_event, **dict(event or {}))
+    traj = sim.simulate(parameters, output_times=t, outputs=[output], input_time=t, inputs={input: f_true})
+    f_meas = f_true + pmu_noise(t.size, rate=rate, sigma=f_noise, window=0.3, rng=rng)
+    return t, f_meas, traj[output] + p_noise.sample(t.size, rng)

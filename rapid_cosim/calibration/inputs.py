@@ -12,10 +12,10 @@ import numpy as np
 from ..archive import RunArchive
 from ..compiler import ensure_fmu
 from ..data import MeasuredData
-from ..errors import ConfigError
+from ..errors import ConfigError, FmuError
 from ..experiment import Experiment, load_experiment, parse_experiment
 from ..fitness import gaussian_log_likelihood
-from ..problem import Problem, build_problem, check_parameters
+from ..problem import Problem, build_problem, check_parameters, check_signals
 from ..search import Evaluations
 from ..simulator import FmuRef, get_simulator
 
@@ -58,12 +58,21 @@ def inputs_from_experiments(experiments: Sequence[Experiment], *, package: str |
 
 
 def _checked_problem(experiments: Sequence[Experiment], fmus: Mapping[str, FmuRef]) -> Problem:
-    infos = {}
+    sims = {}
     for model, ref in fmus.items():
-        sim = get_simulator(ref)
-        infos[model] = {n: p for n, p in sim.parameters.items() if p.settable}
+        try:
+            sims[model] = get_simulator(ref)
+        except FmuError as e:  # the FMU is named by the config key that chose it, not its cached copy
+            exp = next((x for x in experiments if x.model == model), None)
+            if exp is None:
+                raise
+            reason = str(e).split(": ", 1)[-1]
+            key = "experiment.fmu" if model.endswith(".fmu") else "experiment.model"
+            raise ConfigError(f"{model}: {reason}", str(exp.config_path), key) from None
     for exp in experiments:
-        check_parameters(exp, infos[exp.model])
+        sim = sims[exp.model]
+        check_parameters(exp, {n: p for n, p in sim.parameters.items() if p.settable})
+        check_signals(exp, sim.fmu.types, sim.fmu.inputs)
     return build_problem(experiments)
 
 
@@ -72,13 +81,15 @@ def inputs_from_archive(archive: RunArchive) -> RunInputs:
     configs, data, blobs, hashes = archive.configs, archive.data, archive.fmus, archive.hashes["fmus"]
     meta = archive.options.get("experiments", {})
     experiments = []
+    def measured(key: str, time_column: str) -> MeasuredData:
+        columns = dict(data[key])
+        return MeasuredData.from_arrays(columns.pop(time_column), columns, source=f"{archive.path}:/inputs/data/{key}")
+
     for name, text in configs.items():
         info = meta.get(name, {})
-        columns = dict(data[name])
-        time_column = info.get("time_column", "time")
-        measured = MeasuredData.from_arrays(columns.pop(time_column), columns,
-                                            source=f"{archive.path}:/inputs/data/{name}")
-        experiments.append(parse_experiment(text, info.get("config_path", f"{archive.path}:{name}"), data=measured))
+        files = {file: measured(f"{name}|{file}", time) for file, time in info.get("files", {}).items()}
+        experiments.append(parse_experiment(text, info.get("config_path", f"{archive.path}:{name}"),
+                                            data=measured(name, info.get("time_column", "time")), files=files))
     fmus = {model: FmuRef(model, hashes[model], raw) for model, raw in blobs.items()}  # archive.fmus checked them
     return RunInputs(_checked_problem(experiments, fmus), fmus)
 

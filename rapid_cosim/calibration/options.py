@@ -86,4 +86,14 @@ def _parse_value(raw: str):
 
 
 def stage_options(options: RunOptions) -> dict:
-    return {m: REGISTRY[m][1](**kw) for m, kw in options.estimator_options.items()}
+    out = {}
+    for m, kw in options.estimator_options.items():
+        if m not in REGISTRY:
+            raise ValueError(f"options for an unknown method {m!r}; methods: {', '.join(sorted(REGISTRY))}")
+        cls = REGISTRY[m][1]
+        known = [f.name for f in fields(cls)]
+        unknown = [k for k in kw if k not in known]
+        if unknown:
+            raise ValueError(f"{m} has no option {unknown[0]!r}; its options: {', '.join(known)}")
+        out[m] = cls(**kw)
+    return out

@@ -58,13 +58,28 @@ class _Progress:
 def _archive_options(options: RunOptions, inputs: RunInputs) -> dict:
     return {**options.to_json(), "rapid_cosim_version": __version__,
             "experiments": {e.name: {"config_path": str(e.config_path), "model": e.model,
-                                     "time_column": e.time_column} for e in inputs.experiments}}
+                                     "time_column": e.time_column,
+                                     "files": {s.file: s.time for s in e.inputs if s.file is not None}}
+                            for e in inputs.experiments}}
 
 
-def _archived_data(exp: Experiment) -> dict[str, np.ndarray]:
-    columns = {exp.time_column: np.asarray(exp.data.time, dtype=float)}
-    columns.update({name: np.asarray(values, dtype=float) for name, values in exp.data.columns.items()})
-    return columns
+def _archived_data(exp: Experiment) -> dict[str, dict[str, np.ndarray]]:
+    """The experiment's measurements as the archive keeps them: its data file under its
+    name, each other file its inputs read under ``<name>|<file>``."""
+    def columns(data, time_column):
+        out = {time_column: np.asarray(data.time, dtype=float)}
+        out.update({name: np.asarray(values, dtype=float) for name, values in data.columns.items()})
+        return out
+
+    stored = {exp.name: columns(exp.data, exp.time_column)}
+    for spec in exp.inputs:
+        if spec.file is not None:
+            stored[f"{exp.name}|{spec.file}"] = columns(exp.files[spec.file], spec.time)
+    return stored
+
+
+def _all_data(experiments) -> dict[str, dict[str, np.ndarray]]:
+    return {key: cols for e in experiments for key, cols in _archived_data(e).items()}
 
 
 def _objective(inputs: RunInputs, options: RunOptions, known=None) -> RecordingObjective:
@@ -113,7 +128,7 @@ def start_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *, pr
             configs={e.name: e.config_text for e in problem.experiments},
             options=_archive_options(options, inputs),
             fmus={m: ref.content for m, ref in inputs.fmus.items()},
-            data={e.name: _archived_data(e) for e in problem.experiments},
+            data=_all_data(problem.experiments),
             n_experiments=len(problem.experiments)) as writer, _interruptible(writer):
         result = _execute(inputs, options, objective, lambda it: writer.append(it, objective.rssd_of(it.x)), progress)
         writer.finish(result)
@@ -257,7 +272,7 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
             differences.append("method, seed or estimator options")
         if view.configs != {e.name: e.config_text for e in inputs.experiments}:
             differences.append("experiment config")
-        if view.hashes["data"] != {e.name: data_sha256(_archived_data(e)) for e in inputs.experiments}:
+        if view.hashes["data"] != {k: data_sha256(c) for k, c in _all_data(inputs.experiments).items()}:
             differences.append("measured data")
         if differences:
             raise ArchiveError(f"{archive} holds a run with another {', '.join(differences)}; "

@@ -1,7 +1,8 @@
 """Measurements in, masked and on a time base.
 
 ``measured`` holds a recording in memory (:class:`MeasuredData`: time, columns, masks,
-gaps); ``readers`` reads one from a file; ``noise`` estimates its noise level.
+gaps, resampling); ``readers`` reads one from a file (CSV, MAT, HDF5), ``comtrade`` and
+``pmu`` the recorders' formats; ``noise`` estimates its noise level.
 """
 
 from .measured import (Gap, MaskedSamplesWarning, MeasuredData, MissingColumn, close_matches, describe_missing,

@@ -160,6 +160,30 @@ class MeasuredData:
             None if self.rows is None else self.rows[sl],
         )
 
+    def resample(self, times) -> "MeasuredData":
+        """The columns linearly interpolated onto ``times`` (inside the record): a common
+        base for recordings made at other rates. A new sample is masked unless both
+        samples around it are valid."""
+        times = np.asarray(times, dtype=np.float64)
+        tol = 1e-9 * max(1.0, abs(self.time[0]), abs(self.time[-1]))
+        if times.size == 0 or times[0] < self.time[0] - tol or times[-1] > self.time[-1] + tol:
+            raise DataError(f"a new time base must lie inside the record ({self.time[0]:g} s to "
+                            f"{self.time[-1]:g} s)", self.source)
+        t = np.clip(times, self.time[0], self.time[-1])
+        lo = np.clip(np.searchsorted(self.time, t, side="right") - 1, 0, max(self.time.size - 2, 0))
+        hi = np.minimum(lo + 1, self.time.size - 1)
+        span = self.time[hi] - self.time[lo]
+        w = np.divide(t - self.time[lo], span, out=np.zeros_like(t), where=span > 0)
+        columns, valid = {}, {}
+        for name, v in self.columns.items():
+            ok = self.valid[name]
+            inside = (ok[lo] & ok[hi]) | (ok[lo] & (w == 0)) | (ok[hi] & (w == 1))
+            with np.errstate(invalid="ignore"):
+                values = np.where(w == 1, v[hi], np.where(w == 0, v[lo], (1 - w) * v[lo] + w * v[hi]))
+            columns[name] = np.where(inside, values, np.nan)
+            valid[name] = inside & np.isfinite(columns[name])
+        return MeasuredData(f"{self.source} (resampled)", times, columns, valid)
+
     def gaps(self, column: str | None = None) -> tuple[Gap, ...]:
         """Masked intervals of one column, or of every column when ``column`` is None."""
         names = self.names if column is None else (column,)

@@ -19,6 +19,11 @@ Formats, chosen by the file suffix:
     A ``time`` dataset and one dataset per column (a 2-D (N, k) dataset is split like
     ``signal``), in the root group or in the group named after a colon:
     ``run.h5:/tests/test1``.
+``.cfg`` / ``.cff``
+    IEEE C37.111 COMTRADE (:mod:`.comtrade`): every analog channel by its name, scaled
+    to primary values; time in seconds from the first sample.
+``.csv`` with ``timestamp``
+    A PMU export (:mod:`.pmu`): absolute timestamps, in seconds from an event time.
 
 Rows in error messages are counted as a spreadsheet shows them: the header is row 1,
 the first sample row 2. For MAT and HDF5 files, errors name the 1-based sample number.
@@ -37,7 +42,9 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import DataError
+from . import comtrade
 from .measured import MaskedSamplesWarning, MeasuredData, MissingColumn, bad_time_reason, first_bad_time
+from .pmu import read_pmu_csv
 
 CSV_SUFFIXES = (".csv",)
 MAT_SUFFIXES = (".mat",)
@@ -55,8 +62,12 @@ def split_hdf5_path(path: str | Path) -> tuple[Path, str]:
 
 def load_measurements(path: str | Path, time_column: str = "time",
                       columns: Mapping[str, str] | None = None,
-                      warn: bool = True) -> MeasuredData:
-    """Read a recording (CSV, MAT or HDF5, by suffix) into a :class:`MeasuredData`.
+                      warn: bool = True, *, timestamp: str | None = None,
+                      event_time: str | float | None = None) -> MeasuredData:
+    """Read a recording (CSV, MAT, HDF5 or COMTRADE, by suffix) into a :class:`MeasuredData`.
+
+    ``timestamp`` names a CSV column of absolute timestamps (a PMU export,
+    :mod:`.pmu`): time is then in seconds from ``event_time``.
 
     ``columns`` maps the names wanted to the names in the file (``{"pm": "signal_0"}``);
     when given, only those columns are kept, and a missing one is a
@@ -70,15 +81,19 @@ def load_measurements(path: str | Path, time_column: str = "time",
     if not file.is_file():
         raise DataError(f"file not found: {file.resolve()}", str(file))
     source = str(path)
-    if suffix in CSV_SUFFIXES:
+    skipped: dict[str, str] = {}
+    if suffix in CSV_SUFFIXES and timestamp is not None:
+        data = read_pmu_csv(file, timestamp, event_time)
+    elif suffix in comtrade.SUFFIXES:
+        data = comtrade.read_comtrade(file)
+    elif suffix in CSV_SUFFIXES:
         data = _read_csv(file, source, time_column)
-        skipped: dict[str, str] = {}
     elif suffix in MAT_SUFFIXES:
         data, skipped = _read_mat(file, source, time_column)
     elif suffix in HDF5_SUFFIXES:
         data, skipped = _read_hdf5(file, group, source, time_column)
     else:
-        supported = ", ".join(CSV_SUFFIXES + MAT_SUFFIXES + HDF5_SUFFIXES)
+        supported = ", ".join(CSV_SUFFIXES + MAT_SUFFIXES + HDF5_SUFFIXES + comtrade.SUFFIXES)
         raise DataError(f"unknown file type '{file.suffix}'; supported: {supported}", source)
     if columns is not None:
         for stored in columns.values():

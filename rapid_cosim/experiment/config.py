@@ -79,11 +79,13 @@ from ..data import split_hdf5_path
 from ..errors import ConfigError, DataError
 from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, EstimateSpec, Experiment,
                          SimulationSettings)
-from .toml_writer import BARE_KEY_RE
+from .signals import read_inputs, read_outputs
+from .toml_writer import config_key
 
 _SECTIONS: dict[str, frozenset[str] | None] = {
-    "experiment": frozenset({"name", "model", "description"}),
-    "data": frozenset({"file", "time", "outputs"}),
+    "experiment": frozenset({"name", "model", "fmu", "description"}),
+    "data": frozenset({"file", "time", "outputs", "timestamp", "event_time", "resample"}),
+    "inputs": None,  # model input names
     "fixed": None,  # parameter names
     "estimate": None,
     "fitness": frozenset({"window", "weights", "offset", "noise", "pre_step_end"}),
@@ -109,10 +111,11 @@ def load_experiment(path: str | Path) -> Experiment:
     return parse_experiment(text, path)
 
 
-def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = None) -> Experiment:
+def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = None,
+                     files: dict[str, MeasuredData] | None = None) -> Experiment:
     """An experiment from its config text; ``path`` locates relative data files and names
-    the config in errors. With ``data`` given (a run re-built from its archive), no file
-    is read."""
+    the config in errors. With ``data`` given (and ``files`` for inputs read from other
+    files: a run re-built from its archive), no file is read."""
     path = Path(path)
     file = str(path)
     try:
@@ -136,16 +139,23 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         raise ConfigError(f"name {name!r} must be letters, digits, '_', '-' or '.' "
                           f"(it names search dimensions <param>@<name> and archive groups)",
                           file, "experiment.name")
-    model = cfg.string(exp, "experiment", "model")
+    model = _read_model(exp, path, cfg)
     description = cfg.string(exp, "experiment", "description", default="", allow_empty=True)
 
     d = sections["data"]
     data_file = cfg.string(d, "data", "file")
-    time_column = cfg.string(d, "data", "time", default="time")
-    outputs = cfg.table(cfg.require(d, "data", "outputs"), "data.outputs")
-    if not outputs:
+    timestamp = cfg.string(d, "data", "timestamp") if "timestamp" in d else None
+    time_column = timestamp or cfg.string(d, "data", "time", default="time")
+    event_time = d.get("event_time")
+    if event_time is not None and (timestamp is None or isinstance(event_time, bool)
+                                   or not isinstance(event_time, (str, int, float))):
+        raise ConfigError("event_time (a timestamp, or epoch seconds) goes with a timestamp column",
+                          file, "data.event_time")
+    out_table = cfg.table(cfg.require(d, "data", "outputs"), "data.outputs")
+    if not out_table:
         raise ConfigError("needs at least one model output -> data column", file, "data.outputs")
-    outputs = {out: cfg.string(outputs, "data.outputs", out) for out in outputs}
+    output_specs = read_outputs(out_table, cfg)
+    outputs = {out: spec.column for out, spec in output_specs.items()}
 
     fixed = _read_fixed(sections["fixed"], cfg)
     estimate = _read_estimate(sections["estimate"], cfg)
@@ -155,7 +165,10 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
                           file, config_key("estimate", both[0]))
 
     if data is None:
-        data = _load_data(path, data_file, time_column, outputs, file)
+        data = _load_data(path, data_file, time_column, outputs, file, timestamp, event_time)
+        if "resample" in d:
+            step = _positive(cfg.number(d["resample"], "data.resample"), cfg, "data.resample")
+            data = data.resample(data.time[0] + step * np.arange(int((data.time[-1] - data.time[0]) / step + 1e-9) + 1))
     else:
         for out, col in outputs.items():
             if col not in data.columns:
@@ -181,32 +194,87 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
                               f"{data.time[0]:g} s to {data.time[-1]:g} s",
                               file, "fitness.pre_step_end")
     noise, noise_sigma = _read_noise(f, outputs, data, pre_step_end, cfg)
+    if noise_sigma is not None and noise == NOISE_PRE_STEP:  # the level of the compared, converted values
+        noise_sigma = {out: sigma * output_specs[out].conversion.gain for out, sigma in noise_sigma.items()}
     simulation = _read_simulation(sections["simulation"], inside, cfg)
+    inputs = read_inputs(sections["inputs"], cfg, pre_step_end)
+    files = dict(files or {})
+    for spec in inputs:
+        if spec.file is not None and spec.file not in files:
+            files[spec.file] = _load_data(path, spec.file, spec.time, {spec.name: spec.column}, file, None, None,
+                                          key=config_key("inputs", spec.name))
+    check_inputs(inputs, data, files, simulation, cfg)
 
     return Experiment(
         name=name, config_path=path, config_text=text, model=model, description=description,
         data=data, outputs=outputs, fixed=fixed, estimate=estimate, weights=weights,
         window=window, offset=offset, noise=noise, noise_sigma=noise_sigma,
         pre_step_end=pre_step_end, simulation=simulation, time_column=time_column,
+        conversions={o: s.conversion for o, s in output_specs.items() if not s.conversion.identity},
+        inputs=inputs, files=files,
     )
 
 
+def _read_model(exp: dict, path: Path, cfg: "_Reader") -> str:
+    """A bench of the package (``model``), or any FMU file (``fmu``, or a ``model`` ending
+    in .fmu), made absolute from the config's folder."""
+    if ("model" in exp) == ("fmu" in exp):
+        raise ConfigError("give either model (a class of the package) or fmu (an FMU file), not both or neither",
+                          cfg.file, "experiment.model")
+    key = "fmu" if "fmu" in exp else "model"
+    value = cfg.string(exp, "experiment", key)
+    if key == "model" and not value.endswith(".fmu"):
+        return value
+    if not value.endswith(".fmu"):
+        raise ConfigError(f"{value!r} is not an .fmu file", cfg.file, f"experiment.{key}")
+    fmu = Path(value)
+    return str(fmu if fmu.is_absolute() else (path.parent / fmu).resolve())
+
+
+def check_inputs(inputs, data: MeasuredData, files: dict[str, MeasuredData], simulation, cfg: "_Reader") -> None:
+    """Each input's column exists, and covers the simulated span without a gap: a model
+    cannot run through a hole in its input."""
+    for spec in inputs:
+        key = config_key("inputs", spec.name)
+        source = files[spec.file] if spec.file is not None else data
+        if spec.column not in source.columns:
+            raise ConfigError(describe_missing(spec.column, list(source.names)), cfg.file, f"{key}.column")
+        t = source.time
+        dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+        if t[0] > simulation.start_time + dt or t[-1] < simulation.stop_time - dt:
+            raise ConfigError(f"column '{spec.column}' spans {t[0]:g} s to {t[-1]:g} s, the simulation "
+                              f"{simulation.start_time:g} s to {simulation.stop_time:g} s", cfg.file, key)
+        inside = (t >= simulation.start_time - dt) & (t <= simulation.stop_time + dt)
+        masked = inside & ~source.valid[spec.column]
+        if masked.any():
+            first = int(np.flatnonzero(masked)[0])
+            raise ConfigError(f"column '{spec.column}' has no value at {t[first]:g} s: a gap in an input "
+                              "the model cannot run through", cfg.file, key)
+        steps = np.diff(t[inside])
+        if steps.size and steps.max() > 3.0 * dt:
+            k = int(np.argmax(steps))
+            raise ConfigError(f"column '{spec.column}' has no sample between {t[inside][k]:g} s and "
+                              f"{t[inside][k + 1]:g} s: a gap in an input the model cannot run through",
+                              cfg.file, key)
+
+
 def _load_data(config: Path, data_file: str, time_column: str, outputs: dict[str, str],
-               file: str) -> MeasuredData:
+               file: str, timestamp: str | None, event_time, key: str | None = None) -> MeasuredData:
     fpath, group = split_hdf5_path(data_file)
     if not fpath.is_absolute():
         fpath = config.parent / fpath
     if not fpath.is_file():
-        raise ConfigError(f"data file not found: {fpath.resolve()}", file, "data.file")
+        raise ConfigError(f"data file not found: {fpath.resolve()}", file, key or "data.file")
     target = str(fpath) + (f":{group}" if group != "/" else "")
     try:
-        data = load_measurements(target, time_column=time_column)
+        data = load_measurements(target, time_column=time_column, timestamp=timestamp, event_time=event_time)
     except MissingColumn as e:  # only the time column can be missing here
-        raise ConfigError(f"{target}: {e.detail}", file, "data.time") from None
+        raise ConfigError(f"{target}: {e.detail}", file, key or ("data.timestamp" if timestamp else "data.time")) \
+            from None
     for out, col in outputs.items():
         if col not in data.columns:
             raise ConfigError(f"{target}: {describe_missing(col, list(data.names))}",
-                              file, config_key("data.outputs", out))
+                              file, key or config_key("data.outputs", out))
     return data
 
 
@@ -424,12 +492,6 @@ def _flatten(table: dict, is_leaf, prefix: str = ""):
             yield name, v
         else:
             yield from _flatten(v, is_leaf, name)
-
-
-def config_key(where: str, k: str) -> str:
-    """`where.k` in TOML dotted-key form, quoting `k` when it is not a bare key."""
-    part = k if BARE_KEY_RE.match(k) else f'"{k}"'
-    return f"{where}.{part}" if where else part
 
 
 def _suggest(word: str, candidates: Sequence[str]) -> str:

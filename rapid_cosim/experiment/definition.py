@@ -9,13 +9,15 @@ carries the text of its config, so that an archive can keep it and re-run it alo
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from ..data import MeasuredData
+from ..simulator import InputTable
+from .signals import Conversion, InputSpec
 
 CONFIG_NAME = "config.toml"
 DEFAULT_TIMEOUT = 30.0
@@ -88,7 +90,33 @@ class Experiment:
     pre_step_end: float | None
     simulation: SimulationSettings
     time_column: str = "time"  # as the data file names it (archives store the data under it)
+    conversions: dict[str, Conversion] = field(default_factory=dict)  # outputs compared after a conversion
+    inputs: tuple[InputSpec, ...] = ()  # model inputs driven by measured columns
+    files: dict[str, MeasuredData] = field(default_factory=dict)  # inputs' other data files, by name
 
+    def measured(self, output: str, data: MeasuredData | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The values ``output`` is compared with (converted as configured) and their mask."""
+        data = self.data if data is None else data
+        column = self.outputs[output]
+        values, valid = data.columns[column], data.valid[column]
+        conversion = self.conversions.get(output)
+        return (values if conversion is None else conversion.apply(data.time, values, valid)), valid
+
+    @functools.cached_property
+    def input_table(self) -> InputTable | None:
+        """The model's inputs over time, from their measured columns (None: no inputs)."""
+        if not self.inputs:
+            return None
+        columns = {}
+        times = []
+        for spec in self.inputs:
+            source = self.files[spec.file] if spec.file is not None else self.data
+            valid = source.valid[spec.column]
+            values = spec.conversion.apply(source.time, source.columns[spec.column], valid)
+            times.append(source.time)
+            columns[spec.name] = (source.time, values)
+        base = times[0] if all(np.array_equal(t, times[0]) for t in times) else np.unique(np.concatenate(times))
+        return InputTable.from_columns(base, {n: np.interp(base, t, v) for n, (t, v) in columns.items()})
     def windowed_data(self) -> MeasuredData:
         """The measurements inside the fitness window (made once: every simulation asks)."""
         return self._windowed
@@ -102,10 +130,12 @@ class Experiment:
         """The windowed measurements as the fitness reads them, one column per output
         (made once: every simulation is scored against them)."""
         data, outputs = self.windowed_data(), tuple(self.outputs)
+        window = np.flatnonzero((self.data.time >= data.time[0]) & (self.data.time <= data.time[-1]))
+        pairs = [self.measured(o) for o in outputs]  # converted on the whole record (baselines), then cut
         return ScoredSamples(
             outputs=outputs,
-            measured=np.column_stack([data.columns[self.outputs[o]] for o in outputs]),
-            valid=np.column_stack([data.valid[self.outputs[o]] for o in outputs]),
+            measured=np.column_stack([v[window] for v, _ in pairs]),
+            valid=np.column_stack([ok[window] for _, ok in pairs]),
             weights=np.array([self.weights[o] for o in outputs]))
 
     # ---- ways to make one

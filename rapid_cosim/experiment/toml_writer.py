@@ -12,6 +12,12 @@ import numpy as np
 BARE_KEY_RE = re.compile(r"^[A-Za-z0-9_\-]+$")
 
 
+def config_key(where: str, k: str) -> str:
+    """`where.k` in TOML dotted-key form, quoting `k` when it is not a bare key."""
+    part = k if BARE_KEY_RE.match(k) else f'"{k}"'
+    return f"{where}.{part}" if where else part
+
+
 def render_config(sections: Mapping[str, Mapping[str, Any]]) -> str:
     """TOML text of a config given as ``{section: {key: value}}``, for configs that
     programs write (synthetic studies, the discrepancy workflow's re-calibration).

@@ -34,8 +34,8 @@ def draw_fit(ax, ax_res, runs: Mapping[str, ArchivedRun], curves: Mapping[str, F
     first = next(iter(curves.values()))
     exp = first.detail.experiment
     data = exp.data
-    col = exp.outputs[first.output]
-    ax.scatter(data.time, data.columns[col], s=dot_size, color="0.6", alpha=0.45, lw=0, label="measured pm",
+    ax.scatter(data.time, exp.measured(first.output)[0], s=dot_size, color="0.6", alpha=0.45, lw=0,
+               label=f"measured {first.output}",
                rasterized=True, zorder=1)
     xs = [runs[label].result.x for label in curves]
     same = all(np.allclose(x, xs[0], rtol=1e-3, atol=0) for x in xs)
@@ -86,10 +86,32 @@ def plot_test_fit(archives: Mapping[str, str | Path] | Fits, out: str | Path, *,
     """One staged test: ``archives`` maps a method label to its archive (same test), or is
     that test's :func:`load_fits`."""
     runs, curves = _loaded(archives)
-    fig, (ax, ax_res) = plt.subplots(2, 1, figsize=(8.5, 5.4), sharex=True,
-                                     gridspec_kw={"height_ratios": [3, 1.25], "hspace": 0.06})
-    draw_fit(ax, ax_res, runs, curves, title=title)
+    exp = next(iter(curves.values())).detail.experiment
+    if not exp.inputs:
+        fig, (ax, ax_res) = plt.subplots(2, 1, figsize=(8.5, 5.4), sharex=True,
+                                         gridspec_kw={"height_ratios": [3, 1.25], "hspace": 0.06})
+        draw_fit(ax, ax_res, runs, curves, title=title)
+        return save(fig, out, dpi=dpi, tight=True)
+    fig, (ax_in, ax, ax_res) = plt.subplots(3, 1, figsize=(8.5, 7.2), sharex=True,
+                                            gridspec_kw={"height_ratios": [1.7, 3, 1.25], "hspace": 0.08})
+    draw_inputs(ax_in, exp)
+    draw_fit(ax, ax_res, runs, curves, title="")
+    ax_in.set_title(title if title is not None else caption(exp), fontsize=10)
     return save(fig, out, dpi=dpi, tight=True)
+
+
+def draw_inputs(ax, exp) -> None:
+    """The recorded signals that drive the model, as recorded (before conversion)."""
+    for k, spec in enumerate(exp.inputs):
+        source = exp.files[spec.file] if spec.file is not None else exp.data
+        unit = f" ({spec.conversion.unit})" if spec.conversion.unit else ""
+        ax.plot(source.time, source.columns[spec.column], color=f"C{k + 2}", lw=0.8,
+                label=f"recorded {spec.column}{unit}, drives {spec.name}")
+    ax.set_ylabel(exp.inputs[0].column + (f" ({exp.inputs[0].conversion.unit})" if exp.inputs[0].conversion.unit
+                                          else ""))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7.5, loc="best", framealpha=0.85)
+    ax.tick_params(labelbottom=False)
 
 
 def plot_fit_grid(tests: Sequence[Mapping[str, str | Path] | Fits], out: str | Path, *, ncols: int = 2,
@@ -114,35 +136,56 @@ def plot_fit_grid(tests: Sequence[Mapping[str, str | Path] | Fits], out: str | P
 
 def plot_calibration(inputs, x, labels: Sequence[str], *, path: str | Path | None = None, title: str = "",
                      dpi: int = 110):
-    """Every experiment of a run at ``x``: measured outputs and the simulation (its
-    profiled offset added) above, residuals beneath; the figure, saved if ``path``."""
+    """Every experiment of a run at ``x``: recorded inputs (if any), measured outputs and
+    the simulation (its profiled offset added), residuals beneath; the figure, saved if
+    ``path``."""
     problem = inputs.problem
     x = np.asarray(x, dtype=float)
     n = len(problem.experiments)
-    fig = plt.figure(figsize=(8.5, 3.9 * n))
-    outer = fig.add_gridspec(n, 1, hspace=0.35)
+    heights = [4.6 if e.inputs else 3.9 for e in problem.experiments]
+    fig = plt.figure(figsize=(8.5, sum(heights)))
+    outer = fig.add_gridspec(n, 1, hspace=0.35, height_ratios=heights)
     values = ", ".join(f"{label} = {v:.4g}" for label, v in zip(labels, x))
     for i, exp in enumerate(problem.experiments):
-        inner = outer[i].subgridspec(2, 1, height_ratios=[3, 1.25], hspace=0.05)
-        ax, ax_res = fig.add_subplot(inner[0]), None
-        ax_res = fig.add_subplot(inner[1], sharex=ax)
-        c = curves_at(inputs, x, i)
-        data = exp.data
-        ax.scatter(data.time, data.columns[exp.outputs[c.output]], s=3, color="0.6", alpha=0.45, lw=0,
-                   label=f"measured {c.output}", rasterized=True, zorder=1)
-        ax.plot(c.fine.time, c.simulated, color="tab:blue", lw=1.4, label="simulated", zorder=3)
-        ax_res.plot(c.detail.fit.time, c.residual * 1e3, color="tab:blue", lw=0.7)
-        ax_res.axhline(0.0, color="k", lw=0.6)
-        ax.set_ylabel(c.output)
-        ax_res.set_ylabel("residual\n(10⁻³)")
-        ax.set_title(f"{caption(exp)}" + (f"; {values}" if i == 0 else ""), fontsize=9)
-        ax.legend(fontsize=7.5, loc="best", markerscale=3)
-        ax.tick_params(labelbottom=False)
-        for a in (ax, ax_res):
-            a.grid(alpha=0.3)
-    ax_res.set_xlabel("time (s)")
+        draw_experiment(fig, outer[i], exp, curves_at(inputs, x, i),
+                        title=f"{caption(exp)}" + (f"; {values}" if i == 0 else ""))
     if title:
         fig.suptitle(title, fontsize=11)
     if path is not None:
         save(fig, path, dpi=dpi, tight=True, close=False)
     return fig
+
+
+def plot_experiment(exp, c: FitCurves, *, title: str = "", path: str | Path | None = None, dpi: int = 100):
+    """One experiment's curves (:func:`~.archives.curves_at`) in a figure of its own."""
+    fig = plt.figure(figsize=(8.5, 5.6 if exp.inputs else 4.6))
+    draw_experiment(fig, fig.add_gridspec(1, 1)[0], exp, c, title=title or caption(exp))
+    if path is not None:
+        save(fig, path, dpi=dpi, tight=True, close=False)
+    return fig
+
+
+def draw_experiment(fig, cell, exp, c: FitCurves, *, title: str) -> None:
+    """Inside one grid cell: recorded inputs (if any), measured and simulated output,
+    residuals."""
+    ratios = ([1.5] if exp.inputs else []) + [3, 1.25]
+    axes = [fig.add_subplot(a) for a in cell.subgridspec(len(ratios), 1, height_ratios=ratios, hspace=0.08)]
+    for a in axes[1:]:
+        a.sharex(axes[0])
+    if exp.inputs:
+        draw_inputs(axes[0], exp)
+    ax, ax_res = axes[-2], axes[-1]
+    ax.scatter(exp.data.time, exp.measured(c.output)[0], s=3, color="0.6", alpha=0.45, lw=0,
+               label=f"measured {c.output}", rasterized=True, zorder=1)
+    ax.plot(c.fine.time, c.simulated, color="tab:blue", lw=1.4, label="simulated", zorder=3)
+    ax_res.plot(c.detail.fit.time, c.residual * 1e3, color="tab:blue", lw=0.7)
+    ax_res.axhline(0.0, color="k", lw=0.6)
+    ax.set_ylabel(c.output)
+    ax_res.set_ylabel("residual\n(10⁻³)")
+    ax_res.set_xlabel("time (s)")
+    axes[0].set_title(title, fontsize=9)
+    ax.legend(fontsize=7.5, loc="best", markerscale=3)
+    for a in axes[:-1]:
+        a.tick_params(labelbottom=False)
+    for a in axes:
+        a.grid(alpha=0.3)

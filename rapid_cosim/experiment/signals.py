@@ -1,0 +1,157 @@
+"""Measured signals <-> model variables: what drives a model's inputs, and what its
+outputs are compared with, with units and conversions.
+
+A ``[inputs]`` entry maps one model input to a data column::
+
+    [inputs]
+    f_dev = { column = "FREQ", unit = "Hz", convert = "deviation", nominal = 50.0,
+              baseline = "pre-event" }
+    dw = { column = "f", file = "pmu.csv", time = "t", convert = "deviation_pu", nominal = 50.0,
+           sign = -1 }
+
+and an output may be converted the same way (``outputs = { pm = { column = "P_MW",
+scale = 0.0025 } }``: MW on a 400 MW base). The value given to the model is::
+
+    sign * scale * converted(column * unit factor) + offset     (minus a baseline)
+
+with ``convert`` one of ``"none"`` (the value itself), ``"deviation"`` (value minus
+``nominal``, same unit) and ``"deviation_pu"`` (``(value - nominal) / nominal``); ``unit``
+scales the column to its dimension's base (``mHz`` to ``Hz``, ``kW`` to ``MW``); and
+``baseline`` removes the mean (``"pre-event"``) or a straight line (``"detrend"``) of the
+samples before ``baseline_end`` (default: ``[fitness] pre_step_end``), so that a
+recorder's steady offset is not taken for a disturbance. An input may come from another
+file than the outputs (``file``, with its own ``time`` column, on the same time base).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+from .toml_writer import config_key
+
+UNITS = {"": 1.0, "1": 1.0, "pu": 1.0, "Hz": 1.0, "mHz": 1e-3, "kHz": 1e3, "MW": 1.0, "kW": 1e-3, "W": 1e-6,
+         "GW": 1e3, "Mvar": 1.0, "s": 1.0, "rad/s": 1.0}
+CONVERSIONS = ("none", "deviation", "deviation_pu")
+BASELINES = ("none", "pre-event", "detrend")
+INPUT_KEYS = frozenset({"column", "file", "time", "unit", "convert", "nominal", "scale", "offset", "sign",
+                        "baseline", "baseline_end"})
+OUTPUT_KEYS = frozenset({"column", "unit", "scale", "offset"})
+
+
+@dataclass(frozen=True)
+class Conversion:
+    unit: str = ""
+    convert: str = "none"
+    nominal: float | None = None
+    scale: float = 1.0
+    offset: float = 0.0
+    sign: float = 1.0
+    baseline: str = "none"
+    baseline_end: float | None = None
+
+    @property
+    def identity(self) -> bool:
+        return self == Conversion(unit=self.unit) and UNITS[self.unit] == 1.0
+
+    @property
+    def gain(self) -> float:
+        """How much a small change of the column changes the value (a noise level's factor)."""
+        return abs(UNITS[self.unit] * self.scale / (self.nominal if self.convert == "deviation_pu" else 1.0))
+
+    def apply(self, time: np.ndarray, values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        v = np.asarray(values, dtype=float) * UNITS[self.unit]
+        if self.convert == "deviation":
+            v = v - self.nominal
+        elif self.convert == "deviation_pu":
+            v = (v - self.nominal) / self.nominal
+        v = self.sign * self.scale * v + self.offset
+        if self.baseline != "none":
+            before = valid & (time < self.baseline_end)
+            if self.baseline == "pre-event":
+                v = v - np.mean(v[before])
+            else:
+                slope, intercept = np.polyfit(time[before], v[before], 1)
+                v = v - (slope * time + intercept)
+        return v
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """One model input and the measured column that drives it."""
+
+    name: str
+    column: str
+    file: str | None = None  # another data file than [data] file, on the same time base
+    time: str = "time"  # that file's time column
+    conversion: Conversion = Conversion()
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """One model output and the measured column it is compared with."""
+
+    name: str
+    column: str
+    conversion: Conversion = Conversion()
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def read_outputs(table: dict, cfg) -> dict[str, OutputSpec]:
+    """``[data] outputs``: output -> column, or output -> a table with ``column`` and a
+    conversion."""
+    out = {}
+    for name, value in table.items():
+        key = config_key("data.outputs", name)
+        if isinstance(value, str):
+            out[name] = OutputSpec(name, cfg.string({name: value}, "data.outputs", name))
+            continue
+        spec = cfg.table(value, key)
+        cfg.check_keys(spec, OUTPUT_KEYS, key)
+        out[name] = OutputSpec(name, cfg.string(spec, key, "column"), _conversion(spec, cfg, key, None))
+    return out
+
+
+def read_inputs(table: dict, cfg, pre_step_end: float | None) -> tuple[InputSpec, ...]:
+    specs = []
+    for name, value in table.items():
+        key = config_key("inputs", name)
+        spec = cfg.table(value, key)
+        cfg.check_keys(spec, INPUT_KEYS, key)
+        file = cfg.string(spec, key, "file") if "file" in spec else None
+        specs.append(InputSpec(name, cfg.string(spec, key, "column"), file,
+                               cfg.string(spec, key, "time", default="time"),
+                               _conversion(spec, cfg, key, pre_step_end)))
+    return tuple(specs)
+
+
+def _conversion(spec: dict, cfg, key: str, pre_step_end: float | None) -> Conversion:
+    unit = spec.get("unit", "")
+    if unit not in UNITS:
+        raise ConfigError(f"unit {unit!r} is not known; units: {', '.join(u for u in UNITS if u)}", cfg.file,
+                          f"{key}.unit")
+    convert = cfg.string(spec, key, "convert", default="none")
+    if convert not in CONVERSIONS:
+        raise ConfigError(f"convert {convert!r} is not one of {', '.join(CONVERSIONS)}", cfg.file, f"{key}.convert")
+    nominal = cfg.number(spec["nominal"], f"{key}.nominal") if "nominal" in spec else None
+    if convert != "none" and nominal is None:
+        raise ConfigError(f"convert = \"{convert}\" needs the nominal value (nominal = 50.0)", cfg.file, key)
+    if convert == "deviation_pu" and not nominal:
+        raise ConfigError("a per-unit deviation needs a nonzero nominal value", cfg.file, f"{key}.nominal")
+    sign = cfg.number(spec.get("sign", 1.0), f"{key}.sign")
+    if sign not in (1.0, -1.0):
+        raise ConfigError(f"sign must be 1 or -1, got {sign:g}", cfg.file, f"{key}.sign")
+    baseline = cfg.string(spec, key, "baseline", default="none")
+    if baseline not in BASELINES:
+        raise ConfigError(f"baseline {baseline!r} is not one of {', '.join(BASELINES)}", cfg.file,
+                          f"{key}.baseline")
+    end = cfg.number(spec["baseline_end"], f"{key}.baseline_end") if "baseline_end" in spec else pre_step_end
+    if baseline != "none" and end is None:
+        raise ConfigError(f"baseline = \"{baseline}\" needs the end of the quiet samples (baseline_end, or "
+                          "[fitness] pre_step_end)", cfg.file, key)
+    return Conversion(unit, convert, nominal, cfg.number(spec.get("scale", 1.0), f"{key}.scale"),
+                      cfg.number(spec.get("offset", 0.0), f"{key}.offset"), sign, baseline, end)
