@@ -67,9 +67,10 @@ class CandidateFit:
 
 
 def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, float], *,
-                     model: str | None = None) -> str:
-    """The TOML of ``exp`` turned into a candidate's experiment (``model``: another class
-    than the candidate's bench, such as the calibrated model written from it).
+                     model: str | Mapping[str, str] | None = None) -> str:
+    """The TOML of ``exp`` turned into a candidate's experiment, on the candidate's bench
+    for the experiment's base (``model``: another class, or one per base bench, such as
+    the calibrated model written from it).
 
     ``start`` (the base model's optimum) narrows the governor's bounds around it but is
     not given as a starting point: a particle at the base optimum with the effect off
@@ -97,7 +98,9 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, f
             estimate[name]["min"] = max(estimate[name]["min"], low * start[name])
             estimate[name]["max"] = min(estimate[name]["max"], high * start[name])
             estimate[name]["scale"] = scale
-    sections = {**raw, "experiment": {**raw["experiment"], "model": model or bench_name(spec.effects),
+    if isinstance(model, Mapping):
+        model = model.get(exp.model)
+    sections = {**raw, "experiment": {**raw["experiment"], "model": model or bench_name(spec.effects, exp.model),
                                       "description": f"{raw['experiment'].get('description', exp.name)} "
                                                      f"[candidate {spec.label}]"},
                 "data": data, "fixed": fixed, "estimate": estimate}
@@ -120,14 +123,14 @@ def default_start(spec: CandidateSpec, base: Mapping[str, float] | None) -> dict
 
 def candidate_experiments(experiments: Sequence[Experiment], spec: CandidateSpec, start: Mapping[str, float],
                           polish_from: Mapping[str, float] | None = None, *,
-                          model: str | None = None) -> list[Experiment]:
+                          model: str | Mapping[str, str] | None = None) -> list[Experiment]:
     """The experiments as the candidate's, in memory: each one's measurements reused."""
     out = []
     for exp in experiments:
         text = candidate_config(exp, spec, start, model=model)
         if polish_from is not None:
             text = _with_start(text, polish_from)
-        out.append(parse_experiment(text, exp.config_path, data=exp.data))
+        out.append(parse_experiment(text, exp.config_path, data=exp.data, files=exp.files))
     return out
 
 
@@ -145,7 +148,8 @@ def record_configs(folder: Path, experiments: Sequence[Experiment]) -> list[Path
 
 def candidate_inputs(folder: Path, experiments: Sequence[Experiment], spec: CandidateSpec,
                      start: Mapping[str, float], polish_from: Mapping[str, float] | None = None, *,
-                     model: str | None = None, package, fmu_dir, fmus: dict[str, FmuRef] | None = None):
+                     model: str | Mapping[str, str] | None = None, package, fmu_dir,
+                     fmus: dict[str, FmuRef] | None = None):
     """The candidate's run inputs, its configs recorded in ``folder``; ``fmus`` caches the
     FMUs by model across candidates (each is built or loaded once)."""
     exps = candidate_experiments(experiments, spec, start, polish_from, model=model)

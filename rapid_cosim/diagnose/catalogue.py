@@ -1,11 +1,13 @@
 """Named candidate effects: what each is physically, where it sits in the signal path,
 its parameters with bounds, and how to compose it with others into a test bench.
 
-Every effect is a Modelica extension of the base staged test (``iGrGen.TestBenches.
-StagedTest``): frequency-path blocks go between the source and the governor, valve-side
+Every effect is a Modelica extension of a base bench: the staged test (``iGrGen.
+TestBenches.StagedTest``) or the recorded-frequency bench (``FrequencyInput``).
+Frequency-path blocks go between the source (or the input) and the governor, valve-side
 effects swap the governor for a TG Type I variant, the transducer goes after it. Single
-effects have hand-written benches in the package; combinations (the greedy second effect)
-and calibrated results are generated here as Modelica text.
+effects on the staged test have hand-written benches in the package; the rest
+(combinations, the greedy second effect, effects on the recorded-frequency bench, and
+calibrated results) are generated here as Modelica text.
 
 Each parameter carries an ``off`` value (the effect absent) and a ``material`` value: a
 size an engineer would care about. If a fit with the effect held at its material size is
@@ -20,6 +22,10 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 BASE_BENCH = "iGrGen.TestBenches.StagedTest"
+INPUT_BENCH = "iGrGen.TestBenches.FrequencyInput"
+# The benches the effects are composed into: a staged step from a source block, or a
+# recorded frequency deviation (Hz) fed through the input f_dev.
+BASES = {BASE_BENCH: "StagedTest", INPUT_BENCH: "FrequencyInput"}
 NONE = "none"
 
 
@@ -95,14 +101,26 @@ def check_effects(effects: Sequence[str]) -> tuple[str, ...]:
     return tuple(e for e in CATALOGUE if e in effects)
 
 
-def bench_name(effects: Sequence[str]) -> str:
-    """Class name of the bench for a set of effects (hand-written for zero or one)."""
+def check_base(model: str) -> str:
+    if model not in BASES:
+        raise ValueError(f"diagnose composes effects into {' or '.join(BASES)}; {model} is neither (an "
+                         "experiment on another model can be calibrated, not diagnosed)")
+    return model
+
+
+def bench_name(effects: Sequence[str], base: str = BASE_BENCH) -> str:
+    """Class name of the bench for a set of effects on ``base`` (hand-written for zero or
+    one effect on the staged test, generated into iGrGen.Diagnosed otherwise)."""
     effects = check_effects(effects)
     if not effects:
-        return BASE_BENCH
-    if len(effects) == 1:
+        return check_base(base)
+    if len(effects) == 1 and base == BASE_BENCH:
         return CATALOGUE[effects[0]].bench
-    return "iGrGen.Diagnosed.StagedTest" + "".join(camel(e) for e in effects)
+    return f"iGrGen.Diagnosed.{BASES[check_base(base)]}" + "".join(camel(e) for e in effects)
+
+
+def is_generated(bench: str) -> bool:
+    return bench.startswith("iGrGen.Diagnosed.")
 
 
 def camel(name: str) -> str:
@@ -115,10 +133,11 @@ def _modifiers(values: Mapping[str, float], prefix: str) -> str:
 
 
 def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str, float] | None = None,
-                 description: str = "") -> str:
-    """Modelica text of a bench: the base staged test with ``effects`` composed in, and
-    ``values`` (FMU names such as ``gov.R``) as modifiers, e.g. calibrated parameters."""
+                 description: str = "", base: str = BASE_BENCH) -> str:
+    """Modelica text of a bench: ``base`` with ``effects`` composed in, and ``values``
+    (FMU names such as ``gov.R``) as modifiers, e.g. calibrated parameters."""
     effects = check_effects(effects)
+    check_base(base)
     values = dict(values or {})
     short = class_name.rsplit(".", 1)[-1]
     within = class_name.rsplit(".", 1)[0] if "." in class_name else ""
@@ -132,21 +151,32 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
         gov_class = "TGTypeIValveEffects"
     if gov_class == "TGTypeIValveEffects" and "backlash" not in effects:
         values.setdefault("gov.T_bl", 1e-3)  # without backlash the valve should simply follow
+    kind = "staged test" if base == BASE_BENCH else "recorded-frequency bench"
     lines = [f"within {within};" if within else "within;",
-             f'model {short} "{description or "staged test with " + (", ".join(effects) or "no effect")}"',
-             f"  Sources.FrequencyStep src{_modifiers(values, 'src')};"]
-    path = "src.y"
+             f'model {short} "{description or kind + " with " + (", ".join(effects) or "no effect")}"']
     connects = []
+    if base == BASE_BENCH:
+        lines.append(f"  Sources.FrequencyStep src{_modifiers(values, 'src')};")
+        path = "src.y"
+    else:  # as TestBenches.FrequencyInput: the recorded deviation in Hz, on the f_nom base
+        f_nom = values.pop("f_nom", 50.0)
+        lines += [f'  parameter Real f_nom(unit="Hz", min=1) = {f_nom:.10g} "frequency base";',
+                  '  input Real f_dev(unit="Hz") "measured frequency minus nominal";']
+        path = None
+
+    def feed(block: str) -> None:
+        connects.append(f"connect({path}, {block});" if path else f"{block}.signal = -f_dev / f_nom;")
+
     if "deadband" in effects:
         lines.append(f"  Effects.Deadband db{_modifiers(values, 'db')};")
-        connects.append(f"connect({path}, db.u);")
+        feed("db.u")
         path = "db.y"
     if "delay" in effects:
         lines.append(f"  Effects.PadeDelay dly{_modifiers(values, 'dly')};")
-        connects.append(f"connect({path}, dly.u);")
+        feed("dly.u")
         path = "dly.y"
     lines.append(f"  Governors.{gov_class} gov{_modifiers(values, 'gov')};")
-    connects.append(f"connect({path}, gov.dw);")
+    feed("gov.dw")
     if "measurement_lag" in effects:
         lines.append(f"  Effects.MeasurementLag meas{_modifiers(values, 'meas')};")
         connects.append("connect(gov.pm, meas.u);")
@@ -162,12 +192,13 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
 
 
 def write_bench(package: str | Path, effects: Sequence[str], class_name: str, *,
-                values: Mapping[str, float] | None = None, description: str = "", register: bool = True) -> Path:
+                values: Mapping[str, float] | None = None, description: str = "", register: bool = True,
+                base: str = BASE_BENCH) -> Path:
     """Write the bench of ``effects`` as ``class_name`` (in ``iGrGen.Diagnosed``) into
     ``package``. An unchanged file is not rewritten; ``register`` lists it in
     ``package.order``."""
     path = Path(package) / "Diagnosed" / f"{class_name.rsplit('.', 1)[1]}.mo"
-    text = bench_source(effects, class_name, values=values, description=description)
+    text = bench_source(effects, class_name, values=values, description=description, base=base)
     if not path.exists() or path.read_text() != text:
         path.write_text(text)
     if register:

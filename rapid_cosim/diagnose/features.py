@@ -70,6 +70,7 @@ class TestFeatures:
     return_residue: float | None  # in units of the step response
     withdrawal: float | None  # in units of the step response
     pre_step_bias: float  # in standard errors
+    notes: list[str] = field(default_factory=list)  # features read differently, or skipped, and why
 
 
 @dataclass
@@ -163,11 +164,16 @@ def _ramp_fraction(t, y, t0, t1, y0, y1, window_s: float = 2.0) -> float | None:
 def test_features(exp: Experiment, residual: np.ndarray, time: np.ndarray, floor: NoiseFloor) -> TestFeatures:
     (out,) = [o for o in exp.outputs if exp.weights[o] > 0]
     data = exp.windowed_data()
-    t, y = data.time, data.columns[exp.outputs[out]]
-    t_step = float(exp.fixed.get("src.t_step", 10.0))
-    t_ret = float(exp.fixed.get("src.t_return", np.inf))
+    inside = np.flatnonzero((exp.data.time >= data.time[0]) & (exp.data.time <= data.time[-1]))
+    t, y = data.time, exp.measured(out)[0][inside]  # as compared: converted to the model's units
+    notes: list[str] = []
+    if exp.inputs:
+        t_step, t_ret, df = _recorded_move(exp, notes)
+    else:
+        t_step = float(exp.fixed.get("src.t_step", 10.0))
+        t_ret = float(exp.fixed.get("src.t_return", np.inf))
+        df = float(exp.fixed.get("src.df", np.nan))
     has_return = t_ret < t[-1] - 10.0
-    df = float(exp.fixed.get("src.df", np.nan))
     step_end = min(t_ret, t[-1])
     y0 = _mean_in(t, y, t[0], t_step)
     y1 = _mean_in(t, y, step_end - 0.25 * (step_end - t_step), step_end)
@@ -191,7 +197,31 @@ def test_features(exp: Experiment, residual: np.ndarray, time: np.ndarray, floor
         lag_s=_lag(time, y, yhat), step_response=float(response),
         per_hz=float(abs(response) / abs(df)) if df else float("nan"), rise_time_s=rise, fall_time_s=fall,
         ramp_fraction=_ramp_fraction(t, y, t_step, step_end, y0, y1), return_residue=residue,
-        withdrawal=withdrawal, pre_step_bias=bias)
+        withdrawal=withdrawal, pre_step_bias=bias, notes=notes)
+
+
+def _recorded_move(exp: Experiment, notes: list[str]) -> tuple[float, float, float]:
+    """(event time, no return, step size in Hz) of an input-driven experiment, read from
+    its first input's own movement: the event at ``pre_step_end``, the size the change
+    from the pre-event level to the settled level of the last quarter."""
+    spec = exp.inputs[0]
+    table = exp.input_table
+    t_event = exp.pre_step_end if exp.pre_step_end is not None else float(table.time[0])
+    u = table.values[:, 0]
+    pre = table.time < t_event
+    late = table.time >= table.time[0] + 0.75 * (table.time[-1] - table.time[0])
+    change = float(np.mean(u[late]) - np.mean(u[pre])) if pre.any() and late.any() else float("nan")
+    c = spec.conversion
+    if c.convert == "deviation_pu" and c.nominal:
+        hz = change * c.nominal * c.sign / c.scale
+    elif c.unit in ("Hz", "mHz") or c.convert == "deviation":
+        hz = change * c.sign / c.scale
+    else:
+        hz = float("nan")
+        notes.append(f"input {spec.name} is not a frequency in Hz: step scaling and up/down moves are skipped")
+    notes.append(f"recorded input {spec.name}: the event is taken at {t_event:g} s and its size is the "
+                 f"input's settled change ({hz * 1000:+.0f} mHz); no return step")
+    return float(t_event), float("inf"), hz
 
 
 def residual_features(experiments: Sequence[Experiment], tests: Mapping[str, ExperimentResiduals],

@@ -51,7 +51,9 @@ def _pre_step(exp: Experiment) -> tuple[float, float, int, float]:
     (output,) = [o for o in exp.outputs if exp.weights[o] > 0]
     end = exp.pre_step_end if exp.pre_step_end is not None else float(exp.fixed.get("src.t_step", 10.0))
     est = noise_level(exp.data, exp.outputs[output], end)
-    return float(est.sigma), float(np.clip(est.phi, 0.0, 0.95)), est.n, float(np.median(np.diff(exp.data.time)))
+    conversion = exp.conversions.get(output)  # the level of the compared values (e.g. MW -> pu)
+    gain = conversion.gain if conversion is not None else 1.0
+    return float(est.sigma * gain), float(np.clip(est.phi, 0.0, 0.95)), est.n, float(np.median(np.diff(exp.data.time)))
 
 
 def pooled_noise(experiments: Sequence[Experiment]) -> dict[str, NoiseFloor]:

@@ -22,13 +22,13 @@ import numpy as np
 from ..calibration import RunOptions, ensure_run, log_likelihood_for
 from ..compiler import build_models
 from ..data import ar1_inflation
-from ..errors import RapidCosimError
+from ..errors import ConfigError, RapidCosimError
 from ..estimators.laplace import laplace
 from ..engine import make_engine
 from ..objective import ProblemObjective
 from ..experiment import Experiment
 from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, residuals_at
-from .catalogue import CATALOGUE, NONE, bench_name, camel, write_bench
+from .catalogue import BASE_BENCH, BASES, CATALOGUE, NONE, bench_name, camel, check_base, is_generated, write_bench
 from .features import Features, residual_features
 from .selection import THRESHOLD, Ranked, Verdict, bic, decide, decisive, gap, pooled_noise, rank, score
 from .separate import separating_test
@@ -142,10 +142,15 @@ class _Context:
         self.run_options = RunOptions(method=options.method, seed=options.seed, n_jobs=options.n_jobs,
                                       estimator_options=options.estimator_options)
 
+    @property
+    def bases(self) -> list[str]:
+        return sorted({e.model for e in self.training + self.heldout})
+
     def fit(self, spec: CandidateSpec, start: dict | None = None) -> CandidateFit:
-        if len(spec.effects) > 1:  # a combination's bench is generated into the work copy
-            write_bench(self.package, spec.effects, bench_name(spec.effects),
-                        description=f"base staged test with {', '.join(spec.effects)} (candidate)")
+        for base in self.bases:  # benches not in the package are generated into the work copy
+            if is_generated(bench_name(spec.effects, base)):
+                write_bench(self.package, spec.effects, bench_name(spec.effects, base), base=base,
+                            description=f"{BASES[base]} with {', '.join(spec.effects)} (candidate)")
         if spec.label not in self.fits:
             self.log(f"  fitting {spec.label} ...")
             fit = fit_candidate(spec, self.training, self.workdir, options=self.run_options,
@@ -181,6 +186,11 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
              fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print) -> Diagnosis:
     if not training:
         raise ValueError("diagnose needs at least one training experiment")
+    for exp in [*training, *heldout]:
+        try:
+            check_base(exp.model)
+        except ValueError as e:
+            raise ConfigError(str(e), str(exp.config_path), "experiment.model") from None
     ctx = _Context(training, heldout, workdir, options, package, fmu_dir, log)
     log(f"calibrating the base model and {len(options.candidates)} candidates on "
         f"{', '.join(e.name for e in training)}" + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
@@ -323,9 +333,13 @@ def _separating(ctx: _Context, verdict: Verdict, not_excluded: Sequence[str]) ->
         b = ctx.fits.get(CandidateSpec((other,), held).label)
     else:
         b = ctx.fits.get(other)
-    if a is None or b is None:
+    staged = [e for e in ctx.training if e.model == BASE_BENCH]
+    if a is None or b is None or not staged:
+        if not staged:
+            ctx.log("  no separating staged test proposed: no training experiment is a staged test to design "
+                    "it from")
         return None
-    return separating_test(a, b, ctx.training[0], ctx.noise[ctx.training[0].name])
+    return separating_test(a, b, staged[0], ctx.noise[staged[0].name])
 
 
 def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: DiagnoseOptions):
@@ -335,14 +349,19 @@ def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: Diagnos
     if not re.fullmatch(r"iGrGen\.Diagnosed\.[A-Za-z_][A-Za-z0-9_]*", name):
         raise ValueError(f"model name {name!r} must be iGrGen.Diagnosed.<Identifier>")
     values = dict(chosen.parameters)
-    description = (f"base staged test with {', '.join(effects)}, calibrated on "
-                   f"{', '.join(e.name for e in ctx.training)} by rapid-cosim diagnose")
     package_dir = ctx.user_package
-    target = write_bench(package_dir, effects, name, values=values, description=description)
-    build_models([name], package=package_dir, fmu_dir=ctx.user_fmu_dir, log=lambda *_: None)
-    ctx.log(f"  wrote {target} and compiled it; re-calibrating with it ...")
+    # one class per base bench: the staged test's keeps the name, a recorded-frequency one adds "Input"
+    names = {base: name + ("" if base == BASE_BENCH else "Input") for base in ctx.bases}
+    targets = []
+    for base, cls in names.items():
+        description = (f"{BASES[base]} with {', '.join(effects)}, calibrated on "
+                       f"{', '.join(e.name for e in ctx.training)} by rapid-cosim diagnose")
+        targets.append(write_bench(package_dir, effects, cls, values=values, description=description, base=base))
+    build_models(list(names.values()), package=package_dir, fmu_dir=ctx.user_fmu_dir, log=lambda *_: None)
+    target = targets[0]
+    ctx.log(f"  wrote {', '.join(map(str, targets))} and compiled; re-calibrating with it ...")
     spec = CandidateSpec(effects)
-    inputs = candidate_inputs(ctx.workdir / "recalibrated", ctx.training, spec, values, model=name,
+    inputs = candidate_inputs(ctx.workdir / "recalibrated", ctx.training, spec, values, model=names,
                               package=package_dir, fmu_dir=ctx.user_fmu_dir)
     archive = ctx.workdir / "recalibrated.h5"
     result, _ = ensure_run(inputs, replace(ctx.run_options, method="nm"), archive, progress=False)
