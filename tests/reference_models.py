@@ -24,6 +24,7 @@ EFFECT_DEFAULTS = {
     "StagedTestBacklash": {"gov.backlash": 0.01, "gov.T_bl": 0.05, "gov.eps_bl": 1e-4},
     "StagedTestLoadController": {"gov.K_lc": 0.005},
     "StagedTestMeasurementLag": {"meas.T": 0.5, "meas.offset": 0.0},
+    "StagedTestOutputLimit": {"lim.headroom": 0.05, "lim.eps_lim": 1e-3},
 }
 
 
@@ -96,7 +97,11 @@ class Reference:
         if self.bench == "StagedTestMeasurementLag":
             return x[3] + self.p["meas.offset"]
         xv = x[3] if self.bench == "StagedTestBacklash" else x[0]
-        return _turbine(self.p, xv, x[1], x[2])[2]
+        pm = _turbine(self.p, xv, x[1], x[2])[2]
+        if self.bench == "StagedTestOutputLimit":  # pm - max(pm - p_ref - headroom, 0), smoothed
+            h, eps = self.p["lim.headroom"], self.p["lim.eps_lim"]
+            pm = pm - (_softplus(pm - self.p["gov.p_ref"] - h, eps) - _softplus(-h, eps))
+        return pm
 
     def n_states(self):
         return 3 + {"StagedTestDelay": 2, "StagedTestBacklash": 1, "StagedTestLoadController": 1,

@@ -20,6 +20,7 @@ EFFECT_ACTIVE = {
     "StagedTestBacklash": {"gov.backlash": 0.03},
     "StagedTestLoadController": {"gov.K_lc": 0.05},
     "StagedTestMeasurementLag": {"meas.T": 2.0, "meas.offset": 0.003},
+    "StagedTestOutputLimit": {"lim.headroom": 0.02},
 }
 
 

@@ -1,3 +1,3 @@
 within iGrGen;
-package Governors "TG Type I turbine-governor and its variants with valve-side effects"
+package Governors "Turbine-governors: TG Type I and its variants with valve-side effects; the standard TGOV1, IEEEG1 and HYGOV"
 end Governors;

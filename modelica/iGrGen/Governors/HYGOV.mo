@@ -1,0 +1,63 @@
+within iGrGen.Governors;
+block HYGOV "Hydro turbine-governor HYGOV with the water column (PSS/E; IEEE PES-TR1 2013, sec. 4.1)"
+  parameter Real R(unit="1", min=0.001, max=1) = 0.05 "permanent droop (pu)";
+  parameter Real r(unit="1", min=0.001, max=5) = 0.3 "temporary droop (pu)";
+  parameter Real Tr(unit="s", min=0.001, max=100) = 5.0 "governor (reset) time constant";
+  parameter Real Tf(unit="s", min=0.001, max=10) = 0.05 "filter time constant";
+  parameter Real Tg(unit="s", min=0.001, max=10) = 0.5 "gate servo time constant";
+  parameter Real VELM(unit="1/s", min=1e-4, max=10) = 0.2 "gate velocity limit (pu/s)";
+  parameter Real GMAX(unit="1", min=0, max=2) = 1.0 "maximum gate opening (pu)";
+  parameter Real GMIN(unit="1", min=0, max=2) = 0.0 "minimum gate opening (pu)";
+  parameter Real TW(unit="s", min=0.01, max=10) = 1.0 "water inertia time constant";
+  parameter Real At(unit="1", min=0.5, max=2) = 1.2 "turbine gain";
+  parameter Real Dturb(unit="1", min=0, max=5) = 0.5 "turbine damping (pu)";
+  parameter Real qNL(unit="1", min=0, max=0.5) = 0.08 "no-load water flow (pu)";
+  parameter Real p_ref(unit="1", min=0, max=2) = 0.6 "power at the dispatch (pu)";
+  parameter Real eps_v(unit="1/s", min=1e-9, max=1) = 1e-4 "sharpness: rounding of the velocity limit and the gate (pu/s)";
+  parameter Real K_lim(unit="1/s", min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
+  parameter Real q0 = p_ref / At + qNL "water flow at the dispatch, head 1 (pu)";
+  parameter Real nref = R * q0 "speed reference that holds the dispatch (pu)";
+  Interfaces.RealInput dw "speed deviation w_ref - w (pu): PSS/E's -SPEED";
+  Interfaces.RealOutput pm "mechanical power (pu)";
+  Real e "filtered speed error (pu)";
+  Real xi "integral part of the desired gate (pu)";
+  Real c "desired gate opening (pu)";
+  Real g "gate opening (pu)";
+  Real q "water flow (pu)";
+  Real h "head at the turbine (pu)";
+  Real v "free speed of the integral part (pu/s)";
+  Real vl "velocity-limited speed (pu/s)";
+initial equation
+  e = 0;
+  xi = q0;
+  g = q0;
+  q = q0;
+equation
+  der(e) = (nref + dw.signal - R * c - e) / Tf;
+  v = e / (r * Tr);
+  // velocity limit |vl| <= VELM, smooth: v - sp(v - VELM) + sp(-VELM - v), corrected to vanish at v = 0
+  vl = v - 0.5 * (v - VELM + sqrt((v - VELM) ^ 2 + eps_v ^ 2)) + 0.5 * (-VELM + sqrt(VELM ^ 2 + eps_v ^ 2))
+    + 0.5 * (-VELM - v + sqrt((VELM + v) ^ 2 + eps_v ^ 2)) - 0.5 * (-VELM + sqrt(VELM ^ 2 + eps_v ^ 2));
+  // non-windup position limits GMIN..GMAX on the integral part, as TGOV1's valve
+  der(xi) = vl - (0.5 * (vl - K_lim * (GMAX - xi) + sqrt((vl - K_lim * (GMAX - xi)) ^ 2 + eps_v ^ 2))
+      - 0.5 * (-K_lim * (GMAX - xi) + sqrt((K_lim * (GMAX - xi)) ^ 2 + eps_v ^ 2)))
+    + (0.5 * (-vl - K_lim * (xi - GMIN) + sqrt((-vl - K_lim * (xi - GMIN)) ^ 2 + eps_v ^ 2))
+      - 0.5 * (-K_lim * (xi - GMIN) + sqrt((K_lim * (xi - GMIN)) ^ 2 + eps_v ^ 2)));
+  c = xi + e / r;
+  der(g) = (c - g) / Tg;
+  h = (q / g) ^ 2;
+  der(q) = (1 - h) / TW;
+  pm.signal = At * h * (q - qNL) + Dturb * dw.signal * g;
+  annotation(Documentation(info="<html>
+<p>Source: IEEE PES-TR1 (2013), section 4.1 (HYGOV), and the PSS/E Model Library (HYGOV).
+Speed error (n_ref - dw_PSSE - R c) through the filter 1/(1 + s Tf); the governor's
+PI with transient droop, (1 + s Tr) / (r Tr s), gives the desired gate c, its integral
+part velocity-limited to VELM and held in GMIN..GMAX (<b>non-windup</b>); the gate follows
+through 1/(1 + s Tg). Water column: TW dq/dt = 1 - h with h = (q / g)^2 (the gate as an
+orifice), power At h (q - qNL) - Dturb dw_PSSE g. Opening the gate first drops the head:
+the water-hammer zero (power dips before it rises).</p>
+<p>Limits are smooth (eps_v; the non-windup limit holds a state within its speed / K_lim of the limit, as TGOV1's) as the embedded build has no state events; the
+velocity limit acts on the integral path, as in PSS/E's implementation.</p>
+<p>Initialisation: steady state at p_ref: q = g = c = p_ref / At + qNL, h = 1, and the
+speed reference n_ref = R q. Units: pu on the machine base, s.</p></html>"));
+end HYGOV;

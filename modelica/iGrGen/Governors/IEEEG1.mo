@@ -1,0 +1,70 @@
+within iGrGen.Governors;
+block IEEEG1 "Multi-stage steam turbine-governor IEEEG1 (IEEE 1973; IEEE PES-TR1 2013, sec. 2.2)"
+  parameter Real K(unit="1", min=1, max=100) = 20 "governor gain, 1/droop (pu)";
+  parameter Real T1(unit="s", min=0.001, max=100) = 0.001 "governor lag time constant (PSS/E's 0 is 0.001 here)";
+  parameter Real T2(unit="s", min=0, max=100) = 0.0 "governor lead time constant";
+  parameter Real T3(unit="s", min=0.001, max=10) = 0.1 "valve positioner time constant";
+  parameter Real Uo(unit="1/s", min=1e-4, max=10) = 1.0 "maximum valve opening rate (pu/s)";
+  parameter Real Uc(unit="1/s", min=-10, max=-1e-4) = -1.0 "maximum valve closing rate (pu/s, negative)";
+  parameter Real PMAX(unit="1", min=0, max=2) = 1.0 "maximum valve opening (pu)";
+  parameter Real PMIN(unit="1", min=0, max=2) = 0.0 "minimum valve opening (pu)";
+  parameter Real T4(unit="s", min=0.001, max=100) = 0.3 "inlet piping / steam bowl time constant";
+  parameter Real K1(unit="1", min=0, max=1) = 0.2 "fraction of the HP shaft power after the first stage";
+  parameter Real T5(unit="s", min=0.001, max=100) = 7.0 "second stage (reheater) time constant";
+  parameter Real K3(unit="1", min=0, max=1) = 0.3 "fraction of the HP shaft power after the second stage";
+  parameter Real T6(unit="s", min=0.001, max=100) = 0.6 "third stage time constant";
+  parameter Real K5(unit="1", min=0, max=1) = 0.5 "fraction of the HP shaft power after the third stage";
+  parameter Real T7(unit="s", min=0.001, max=100) = 0.05 "fourth stage (second reheater) time constant";
+  parameter Real K7(unit="1", min=0, max=1) = 0.0 "fraction of the HP shaft power after the fourth stage";
+  parameter Real p_ref(unit="1", min=0, max=2) = 0.6 "power at the dispatch (pu)";
+  parameter Real eps_v(unit="1/s", min=1e-9, max=1) = 1e-4 "sharpness: rounding of the rate limits and the gate (pu/s)";
+  parameter Real K_lim(unit="1/s", min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
+  parameter Real gv0 = p_ref / (K1 + K3 + K5 + K7) "valve opening at the dispatch (pu)";
+  Interfaces.RealInput dw "speed deviation w_ref - w (pu): PSS/E's -SPEED";
+  Interfaces.RealOutput pm "mechanical power of the HP shaft (pu)";
+  Real xl "governor lead-lag state (pu)";
+  Real ysp "speed signal after K (1 + s T2) / (1 + s T1) (pu)";
+  Real v "valve speed the positioner asks for (pu/s)";
+  Real vl "rate-limited valve speed (pu/s)";
+  Real gv "valve opening (pu)";
+  Real x4 "first stage (pu)";
+  Real x5 "second stage (pu)";
+  Real x6 "third stage (pu)";
+  Real x7 "fourth stage (pu)";
+initial equation
+  xl = 0;
+  gv = gv0;
+  x4 = gv0;
+  x5 = gv0;
+  x6 = gv0;
+  x7 = gv0;
+equation
+  der(xl) = (dw.signal - xl) / T1;
+  ysp = K * (xl + T2 / T1 * (dw.signal - xl));
+  v = (gv0 + ysp - gv) / T3;
+  // rate limits Uc <= vl <= Uo, smooth, corrected to vanish at v = 0
+  vl = v - 0.5 * (v - Uo + sqrt((v - Uo) ^ 2 + eps_v ^ 2)) + 0.5 * (-Uo + sqrt(Uo ^ 2 + eps_v ^ 2))
+    + 0.5 * (Uc - v + sqrt((Uc - v) ^ 2 + eps_v ^ 2)) - 0.5 * (Uc + sqrt(Uc ^ 2 + eps_v ^ 2));
+  // non-windup position limits PMIN..PMAX on the valve integrator (as TGOV1's valve)
+  der(gv) = vl - (0.5 * (vl - K_lim * (PMAX - gv) + sqrt((vl - K_lim * (PMAX - gv)) ^ 2 + eps_v ^ 2))
+      - 0.5 * (-K_lim * (PMAX - gv) + sqrt((K_lim * (PMAX - gv)) ^ 2 + eps_v ^ 2)))
+    + (0.5 * (-vl - K_lim * (gv - PMIN) + sqrt((-vl - K_lim * (gv - PMIN)) ^ 2 + eps_v ^ 2))
+      - 0.5 * (-K_lim * (gv - PMIN) + sqrt((K_lim * (gv - PMIN)) ^ 2 + eps_v ^ 2)));
+  der(x4) = (gv - x4) / T4;
+  der(x5) = (x4 - x5) / T5;
+  der(x6) = (x5 - x6) / T6;
+  der(x7) = (x6 - x7) / T7;
+  pm.signal = K1 * x4 + K3 * x5 + K5 * x6 + K7 * x7;
+  annotation(Documentation(info="<html>
+<p>Source: IEEE Committee Report, <i>Dynamic models for steam and hydro turbines in power
+system studies</i>, IEEE Trans. PAS-92 (1973) 1904-1915, fig. 1 and 6; IEEE PES-TR1 (2013),
+section 2.2 (IEEEG1); PSS/E Model Library (IEEEG1). The speed signal K (1 + s T2) / (1 + s T1)
+adds to the reference; the valve positioner 1/T3 is rate-limited (Uc..Uo) and integrates
+to the valve opening, held in PMIN..PMAX (<b>non-windup</b>); four stages T4..T7 with
+fractions K1, K3, K5, K7 make the power of the high-pressure shaft.</p>
+<p>Single shaft only: the low-pressure fractions K2, K4, K6, K8 of a cross-compound unit
+are not modelled. PSS/E allows T1 = 0 (no lag): here T1 is at least 0.001 s.</p>
+<p>Limits are smooth (eps_v; the non-windup limit holds a state within its speed / K_lim of the limit, as TGOV1's) as the embedded build has no state events.
+Initialisation: steady state at p_ref: every stage at p_ref / (K1 + K3 + K5 + K7).
+Units: pu on the machine base, s.</p></html>"));
+end IEEEG1;

@@ -1,0 +1,115 @@
+"""Independent reference for the standard governors (TGOV1, IEEEG1, HYGOV): their block
+diagrams in IEEE PES-TR1 (2013) and the PSS/E model library written out as numpy
+right-hand sides and integrated with scipy between the source's switching times.
+
+Limits use the smooth forms the models' documentation states (the non-windup gate and
+the rate limits rounded over eps); everything else is the textbook diagram. The input
+is the staged test's speed deviation dw = w_ref - w = -df / f_nom.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+SOURCE = {"src.df": -0.2, "src.f_nom": 50.0, "src.t_step": 10.0, "src.t_return": 1e9}
+DEFAULTS = {
+    "TGOV1": {"R": 0.05, "T1": 0.5, "VMAX": 1.0, "VMIN": 0.0, "T2": 2.5, "T3": 7.5, "Dt": 0.0, "p_ref": 0.6,
+              "eps_v": 1e-4, "K_lim": 100.0},
+    "HYGOV": {"R": 0.05, "r": 0.3, "Tr": 5.0, "Tf": 0.05, "Tg": 0.5, "VELM": 0.2, "GMAX": 1.0, "GMIN": 0.0,
+              "TW": 1.0, "At": 1.2, "Dturb": 0.5, "qNL": 0.08, "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
+    "IEEEG1": {"K": 20.0, "T1": 0.001, "T2": 0.0, "T3": 0.1, "Uo": 1.0, "Uc": -1.0, "PMAX": 1.0, "PMIN": 0.0,
+               "T4": 0.3, "K1": 0.2, "T5": 7.0, "K3": 0.3, "T6": 0.6, "K5": 0.5, "T7": 0.05, "K7": 0.0,
+               "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
+}
+
+
+def sp(z, eps):
+    """max(z, 0) rounded over eps."""
+    return 0.5 * (z + np.sqrt(z * z + eps * eps))
+
+
+def non_windup(d, x, lo, hi, p):
+    """An integrator's speed d, capped near a limit: min(d, K_lim (hi - x)) and
+    max(., -K_lim (x - lo)), rounded over eps_v, exactly d = 0 at rest."""
+    e, k = p["eps_v"], p["K_lim"]
+    return (d - (sp(d - k * (hi - x), e) - sp(-k * (hi - x), e))
+            + (sp(-d - k * (x - lo), e) - sp(-k * (x - lo), e)))
+
+
+def rate_limit(v, lo, hi, eps):
+    """v clamped to [lo, hi] (lo < 0 < hi), rounded over eps, exact at v = 0."""
+    return v - (sp(v - hi, eps) - sp(-hi, eps)) + (sp(lo - v, eps) - sp(lo, eps))
+
+
+class Standard:
+    def __init__(self, model: str, params: dict):
+        self.model = model
+        self.p = {**SOURCE, **DEFAULTS[model], **{k.removeprefix("gov."): v for k, v in params.items()}}
+
+    def dw(self, t):
+        p = self.p
+        return -p["src.df"] / p["src.f_nom"] if p["src.t_step"] <= t < p["src.t_return"] else 0.0
+
+    # ------------------------------------------------------------------ TGOV1
+    def _tgov1(self, dw, x):
+        p = self.p
+        x1, x2 = x
+        d = (p["p_ref"] + dw / p["R"] - x1) / p["T1"]
+        dx = [non_windup(d, x1, p["VMIN"], p["VMAX"], p), (x1 - x2) / p["T3"]]
+        pm = x2 + p["T2"] / p["T3"] * (x1 - x2) + p["Dt"] * dw
+        return dx, pm
+
+    # ------------------------------------------------------------------ HYGOV
+    def _hygov(self, dw, x):
+        p = self.p
+        e, xi, g, q = x
+        q0 = p["p_ref"] / p["At"] + p["qNL"]
+        c = xi + e / p["r"]
+        de = (p["R"] * q0 + dw - p["R"] * c - e) / p["Tf"]
+        vl = rate_limit(e / (p["r"] * p["Tr"]), -p["VELM"], p["VELM"], p["eps_v"])
+        h = (q / g) ** 2
+        dx = [de, non_windup(vl, xi, p["GMIN"], p["GMAX"], p), (c - g) / p["Tg"], (1 - h) / p["TW"]]
+        return dx, p["At"] * h * (q - p["qNL"]) + p["Dturb"] * dw * g
+
+    # ------------------------------------------------------------------ IEEEG1
+    def _ieeeg1(self, dw, x):
+        p = self.p
+        xl, gv, x4, x5, x6, x7 = x
+        gv0 = p["p_ref"] / (p["K1"] + p["K3"] + p["K5"] + p["K7"])
+        ysp = p["K"] * (xl + p["T2"] / p["T1"] * (dw - xl))
+        vl = rate_limit((gv0 + ysp - gv) / p["T3"], p["Uc"], p["Uo"], p["eps_v"])
+        dx = [(dw - xl) / p["T1"], non_windup(vl, gv, p["PMIN"], p["PMAX"], p), (gv - x4) / p["T4"],
+              (x4 - x5) / p["T5"], (x5 - x6) / p["T6"], (x6 - x7) / p["T7"]]
+        return dx, p["K1"] * x4 + p["K3"] * x5 + p["K5"] * x6 + p["K7"] * x7
+
+    def _f(self, t, x):
+        return {"TGOV1": self._tgov1, "HYGOV": self._hygov, "IEEEG1": self._ieeeg1}[self.model](self.dw(t), x)
+
+    def start(self):
+        """The steady state at the dispatch, from the diagrams (dw = 0)."""
+        p = self.p
+        if self.model == "TGOV1":
+            x1 = min(max(p["p_ref"], p["VMIN"]), p["VMAX"])
+            return np.array([x1, x1])
+        if self.model == "HYGOV":
+            q0 = p["p_ref"] / p["At"] + p["qNL"]
+            return np.array([0.0, q0, q0, q0])
+        gv0 = p["p_ref"] / (p["K1"] + p["K3"] + p["K5"] + p["K7"])
+        return np.array([0.0, gv0, gv0, gv0, gv0, gv0])
+
+    def simulate(self, t_out):
+        p = self.p
+        cuts = sorted({0.0, p["src.t_step"], p["src.t_return"], float(t_out[-1])})
+        cuts = [c for c in cuts if c <= t_out[-1]]
+        x = self.start()
+        y = np.full(len(t_out), np.nan)
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            mask = (t_out >= a) & (t_out < b) if b < t_out[-1] else (t_out >= a) & (t_out <= b)
+            sol = solve_ivp(lambda t, s: np.asarray(self._f(t if t < b else np.nextafter(b, a), s)[0]), (a, b), x,
+                            method="LSODA", rtol=1e-10, atol=1e-12, dense_output=True, max_step=0.05)
+            if mask.any():
+                states = sol.sol(t_out[mask])
+                y[mask] = [self._f(t, states[:, k])[1] for k, t in enumerate(t_out[mask])]
+            x = sol.y[:, -1]
+        return y
