@@ -53,12 +53,16 @@ def jittered_times(duration: float, rate: float, jitter: float, rng: np.random.G
 
 def synthesize(fmu: str | Path | Simulator, parameters: Mapping[str, float], *, duration: float,
                rate: float = 10.0, jitter: float = 0.003, noise: NoiseModel = NoiseModel(),
-               rng: np.random.Generator, output: str = "pm", output_interval: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
-    """(time, measured output) of one staged test simulated with ``parameters``."""
+               rng: np.random.Generator, output: str = "pm", output_interval: float = 0.01,
+               transform=None) -> tuple[np.ndarray, np.ndarray]:
+    """(time, measured output) of one staged test simulated with ``parameters``;
+    ``transform(time, values)`` changes the simulated output first (a plant that the
+    model does not describe)."""
     sim = fmu if isinstance(fmu, Simulator) else get_simulator(fmu)
     t = jittered_times(duration, rate, jitter, rng)
     traj = sim.simulate(parameters, stop_time=float(t[-1]), output_interval=output_interval, outputs=[output])
-    y = np.interp(t, traj.time, traj[output])
+    clean = traj[output] if transform is None else transform(np.asarray(traj.time), np.asarray(traj[output]))
+    y = np.interp(t, traj.time, clean)
     return t, y + noise.sample(t.size, rng)
 
 

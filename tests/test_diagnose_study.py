@@ -16,7 +16,7 @@ import pytest
 from rapid_cosim.compiler import build_models
 from rapid_cosim.cli import main
 from rapid_cosim.diagnose.catalogue import BASE_BENCH, CATALOGUE
-from rapid_cosim.diagnose.study import SINGLE_SIZE, confusion_text, draw_case, run_case, write_campaign
+from rapid_cosim.diagnose.study import HIDDEN, SINGLE_SIZE, confusion_text, draw_case, run_case, write_campaign
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
 
 SEEDS = (1, 2)
@@ -28,7 +28,7 @@ def study(repo, tmp_path_factory):
     package = work / "package" / "iGrGen"
     shutil.copytree(repo / "modelica" / "iGrGen", package)
     fmu_dir = work / "fmus"
-    build_models([BASE_BENCH, *(e.bench for e in CATALOGUE.values())], package=package, fmu_dir=fmu_dir,
+    build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in CATALOGUE.values())])), package=package, fmu_dir=fmu_dir,
                  log=lambda *_: None)
     return work, package, fmu_dir
 
@@ -36,7 +36,7 @@ def study(repo, tmp_path_factory):
 @pytest.fixture(scope="module")
 def results(study):
     work, package, fmu_dir = study
-    cases = [draw_case(t, s, package=package, fmu_dir=fmu_dir) for t in [*CATALOGUE, "none"] for s in SEEDS]
+    cases = [draw_case(t, s, package=package, fmu_dir=fmu_dir) for t in [*HIDDEN, "none"] for s in SEEDS]
     cases.append(draw_case("deadband", 1, SINGLE_SIZE, package=package, fmu_dir=fmu_dir))
     options = DiagnoseOptions(write_model=False, max_effects=1)
     out = joblib.Parallel(n_jobs=2)(

@@ -22,7 +22,7 @@ from test_recovery import ESTIMATE, FIXED, PARAMS, TRUTH
 from rapid_cosim.calibration import inputs_from_configs, log_likelihood_for
 from rapid_cosim.compiler import build_models
 from rapid_cosim.diagnose.catalogue import BASE_BENCH, CATALOGUE
-from rapid_cosim.diagnose.study import confusion_text, draw_case, run_case
+from rapid_cosim.diagnose.study import HIDDEN, confusion_text, draw_case, run_case
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
 from rapid_cosim.engine import make_engine
 from rapid_cosim.estimators import SMCOptions, run_chain
@@ -36,9 +36,9 @@ def test_the_workflow_names_the_hidden_effect_over_five_seeds(repo, tmp_path):
     package = tmp_path / "package" / "iGrGen"
     shutil.copytree(repo / "modelica" / "iGrGen", package)
     fmu_dir = tmp_path / "fmus"
-    build_models([BASE_BENCH, *(e.bench for e in CATALOGUE.values())], package=package, fmu_dir=fmu_dir,
+    build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in CATALOGUE.values())])), package=package, fmu_dir=fmu_dir,
                  log=lambda *_: None)
-    cases = [draw_case(t, s, package=package, fmu_dir=fmu_dir) for t in [*CATALOGUE, "none"] for s in range(1, 6)]
+    cases = [draw_case(t, s, package=package, fmu_dir=fmu_dir) for t in [*HIDDEN, "none"] for s in range(1, 6)]
     options = DiagnoseOptions(write_model=False, max_effects=1)
     results = joblib.Parallel(n_jobs=2)(joblib.delayed(run_case)(c, tmp_path / "cases", options=options,
                                                                  package=package, fmu_dir=fmu_dir) for c in cases)

@@ -87,11 +87,17 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, f
     estimate = {k: dict(v) for k, v in raw.get("estimate", {}).items()}
     held = dict(spec.held)
     fixed = dict(raw.get("fixed", {}))
+    relative = {p.name for e in spec.effects if CATALOGUE[e].relative for p in CATALOGUE[e].parameters}
     for p in effect_parameters(spec.effects):
+        doc = 1.0
+        if p.name in relative:  # a documented constant, freed around its documented value
+            if p.name not in fixed:
+                raise ValueError(f"{exp.name}: {p.name} is not documented in [fixed]; it cannot be freed")
+            doc = float(fixed.pop(p.name))
         if p.name in held:
-            fixed[p.name] = held[p.name]
+            fixed[p.name] = held[p.name] * doc
         else:
-            estimate[p.name] = {"min": p.min, "max": p.max, "label": p.label, "scale": p.scale}
+            estimate[p.name] = {"min": p.min * doc, "max": p.max * doc, "label": p.label, "scale": p.scale}
     for name, (low, high, scale) in _AROUND_BASE.items():
         if name in estimate and name in start and spec.effects:
             # the effects move the governor's parameters by a factor, not across the range

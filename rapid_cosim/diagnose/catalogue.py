@@ -50,6 +50,17 @@ class Effect:
     parameters: tuple[EffectParameter, ...]
     physics: str  # what it is, for the report
     signature: str  # how it shows in the residuals, for the report
+    relative: bool = False  # a freed documented constant: bounds, off and material are factors of its value
+
+
+def _documented(name: str, label: str) -> Effect:
+    """A documented constant freed: searched from 0.25 to 4 times the documented value
+    (log scale), material when off by half again (x1.5 or /1.5)."""
+    return Effect(f"doc_{label}", f"documented {label} is wrong", "documented", BASE_BENCH,
+                  (EffectParameter(name, label, "s", 0.25, 4.0, 1.0, 1.5, "log"),),
+                  f"the plant documentation's {label} is not the plant's: the model has the right structure, "
+                  "one constant wrong", f"the response's shape is off where {label} acts, with no effect's signature",
+                  relative=True)
 
 
 CATALOGUE: dict[str, Effect] = {e.name: e for e in [
@@ -81,6 +92,14 @@ CATALOGUE: dict[str, Effect] = {e.name: e for e in [
            (EffectParameter("meas.T", "transducer lag", "s", 0.01, 5.0, 0.01, 0.8, "log"),),
            "the recorded power is a filtered version of the mechanical power",
            "the measured response is smoother and later than the model, most at the step"),
+    Effect("output_limit", "output limit above the dispatch point (temperature control)", "output",
+           "iGrGen.TestBenches.StagedTestOutputLimit",
+           (EffectParameter("lim.headroom", "headroom above p_ref", "pu", 0.005, 0.5, 0.5, 0.03, "log"),),
+           "near its rating a gas turbine enters temperature-limit control and stops short of what droop asks",
+           "power-raising responses flatten at a ceiling; power-lowering ones are whole"),
+    # The documented time constants (pmax and pmin are not freed: a factor of pmin = 0 is
+    # nothing, and a ceiling below pmax is the output limit above).
+    *(_documented(f"gov.{c}", c) for c in ("Tc", "T3", "T4", "T5")),
 ]}
 
 # Fixed sharpness settings of the combined governor, equal to the single-effect variants.
@@ -111,7 +130,7 @@ def check_base(model: str) -> str:
 def bench_name(effects: Sequence[str], base: str = BASE_BENCH) -> str:
     """Class name of the bench for a set of effects on ``base`` (hand-written for zero or
     one effect on the staged test, generated into iGrGen.Diagnosed otherwise)."""
-    effects = check_effects(effects)
+    effects = tuple(e for e in check_effects(effects) if not CATALOGUE[e].relative)  # freed constants: same bench
     if not effects:
         return check_base(base)
     if len(effects) == 1 and base == BASE_BENCH:
@@ -136,7 +155,7 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
                  description: str = "", base: str = BASE_BENCH) -> str:
     """Modelica text of a bench: ``base`` with ``effects`` composed in, and ``values``
     (FMU names such as ``gov.R``) as modifiers, e.g. calibrated parameters."""
-    effects = check_effects(effects)
+    effects = tuple(e for e in check_effects(effects) if not CATALOGUE[e].relative)
     check_base(base)
     values = dict(values or {})
     short = class_name.rsplit(".", 1)[-1]
@@ -177,12 +196,17 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
         path = "dly.y"
     lines.append(f"  Governors.{gov_class} gov{_modifiers(values, 'gov')};")
     feed("gov.dw")
+    out = "gov.pm"
+    if "output_limit" in effects:  # counted from the governor's dispatch point
+        own = _modifiers(values, "lim")
+        lines.append(f"  Effects.OutputLimit lim(p_ref = gov.p_ref{', ' + own[1:-1] if own else ''});")
+        connects.append(f"connect({out}, lim.u);")
+        out = "lim.y"
     if "measurement_lag" in effects:
         lines.append(f"  Effects.MeasurementLag meas{_modifiers(values, 'meas')};")
-        connects.append("connect(gov.pm, meas.u);")
-        out = "meas.y.signal"
-    else:
-        out = "gov.pm.signal"
+        connects.append(f"connect({out}, meas.u);")
+        out = "meas.y"
+    out += ".signal"
     lines.append('  output Real pm "mechanical power as recorded (pu)";')
     lines.append("equation")
     lines += [f"  {c}" for c in connects]

@@ -12,6 +12,7 @@ import numpy as np
 from ..experiment import Experiment
 from ..simulator import Simulator, get_simulator
 from .candidates import CandidateFit
+from .catalogue import CATALOGUE
 from .selection import NoiseFloor
 
 STEPS_HZ = (-0.4, -0.2, -0.1, -0.05, 0.05, 0.1, 0.2, 0.4)
@@ -20,9 +21,14 @@ HOLD_S = 50.0  # how long each step is held before the return
 
 def _response(sim: Simulator, fit: CandidateFit, template: Experiment, df: float) -> np.ndarray:
     t_step = float(template.fixed.get("src.t_step", 10.0))
-    params = {**template.fixed, **dict(fit.spec.held), **fit.parameters,
+    held = {k: v * (template.fixed.get(k, 1.0) if _relative(k) else 1.0) for k, v in fit.spec.held}
+    params = {**template.fixed, **held, **fit.parameters,
               "src.df": df, "src.t_step": t_step, "src.t_return": t_step + HOLD_S}
     return sim.simulate(params, stop_time=t_step + 2 * HOLD_S, output_interval=0.1, outputs=["pm"])["pm"]
+
+
+def _relative(name: str) -> bool:
+    return any(e.relative and any(p.name == name for p in e.parameters) for e in CATALOGUE.values())
 
 
 def separating_test(a: CandidateFit, b: CandidateFit, template: Experiment, noise: NoiseFloor) -> dict:

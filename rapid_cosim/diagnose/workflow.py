@@ -29,7 +29,9 @@ from ..objective import ProblemObjective
 from ..experiment import Experiment
 from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, residuals_at
 from .catalogue import BASE_BENCH, BASES, CATALOGUE, NONE, bench_name, camel, check_base, is_generated, write_bench
+from .adequacy import adequacy
 from .features import Features, residual_features
+from .limits import check_material, inadequate, verdict_text
 from .selection import THRESHOLD, Ranked, Verdict, bic, decide, decisive, gap, pooled_noise, rank, score
 from .separate import separating_test
 
@@ -66,12 +68,22 @@ def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> 
 
 @dataclass
 class Diagnosis:
-    """The verdict with its evidence, as the JSON report holds it."""
+    """The verdict with its evidence, as the JSON report holds it.
+
+    ``effect`` is a catalogue name, ``none``, ``ambiguous`` or ``unexplained``;
+    ``effects`` lists the effects named; ``adequate`` says whether the final model fits
+    to the noise (:mod:`.adequacy`, per test under ``adequacy``); ``verdict`` is the
+    sentence, e.g. ``"rate_limit + unexplained remainder"``."""
 
     effect: str
     effects: list[str]
     candidates: list[str]
     reason: str
+    verdict: str
+    adequate: bool
+    adequacy: dict
+    unexplained: dict | None
+    materiality: dict
     ranking: list[dict]
     second_effect_ranking: list[dict]
     not_excluded: list[str]
@@ -164,6 +176,10 @@ class _Context:
         base = self.fits.get(NONE)
         return dict(base.parameters) if base else None
 
+    def tests(self, fit: CandidateFit) -> dict:
+        """Residuals on the training tests and, predicted, on the held-out ones."""
+        return _all_tests(self, fit)
+
     def predict(self, fit: CandidateFit) -> dict:
         """Residuals of the held-out tests at the training calibration; kept, as the
         verdict and the report ask for the same fits more than once."""
@@ -191,6 +207,10 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
             check_base(exp.model)
         except ValueError as e:
             raise ConfigError(str(e), str(exp.config_path), "experiment.model") from None
+    undocumented = [c for c in options.candidates if CATALOGUE[c].relative
+                    and not all(p.name in e.fixed for e in [*training, *heldout] for p in CATALOGUE[c].parameters)]
+    if undocumented:  # a constant no config documents cannot be "documented wrong"
+        options = replace(options, candidates=tuple(c for c in options.candidates if c not in undocumented))
     ctx = _Context(training, heldout, workdir, options, package, fmu_dir, log)
     log(f"calibrating the base model and {len(options.candidates)} candidates on "
         f"{', '.join(e.name for e in training)}" + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
@@ -218,18 +238,32 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     if verdict.effect == "ambiguous":
         separating = _separating(ctx, verdict, not_excluded)
 
-    final_fit, model_written, model_file = base, None, None
+    materiality = {}
     if chosen is not None:
-        final_fit = chosen
-        if options.write_model:
-            model_written, model_file, final_fit = _write_and_recalibrate(ctx, chosen, options)
-    after_tests = _all_tests(ctx, final_fit) if chosen is not None else before_tests
+        chosen, verdict, materiality = check_material(ctx, base, chosen, verdict)
+
+    final_fit = chosen if chosen is not None else base
+    after_tests = _all_tests(ctx, final_fit)
+    fit_before, fit_after = adequacy(before_tests, ctx.noise), adequacy(after_tests, ctx.noise)
+    unexplained = None
+    if not fit_after.adequate:
+        verdict, unexplained = inadequate(ctx, verdict, ranking, before_tests, after_tests, fit_after)
+        if verdict.effect == "unexplained":
+            chosen = None  # a partial explanation is reported, not written into the package
+    model_written, model_file = None, None
+    if chosen is not None and options.write_model:
+        model_written, model_file, final_fit = _write_and_recalibrate(ctx, chosen, options)
+        after_tests = _all_tests(ctx, final_fit)
+        fit_after = adequacy(after_tests, ctx.noise)
     gap_before = _gaps(ctx, before_tests)
     gap_after = _gaps(ctx, after_tests)
     residuals = {name: {"time": t.time, "before": t.residual, "after": after_tests[name].residual}
                  for name, t in before_tests.items()}
     return Diagnosis(
         effect=verdict.effect, effects=verdict.effects, candidates=verdict.candidates, reason=verdict.reason,
+        verdict=verdict_text(verdict, fit_after), adequate=fit_after.adequate,
+        adequacy={"before": fit_before.to_json(), "after": fit_after.to_json()}, unexplained=unexplained,
+        materiality=materiality,
         ranking=[asdict(r) for r in ranking], second_effect_ranking=[asdict(r) for r in second],
         not_excluded=not_excluded, separating_test=separating, held_out=verdict.held_out,
         features=features.to_json(), gap_before=gap_before, gap_after=gap_after,
@@ -246,7 +280,9 @@ def _material_checks(ctx: _Context, base: CandidateFit, options: DiagnoseOptions
     """Effects that, held at a material size, still fit within the threshold of none."""
     base_bic = bic(base, ctx.noise)
     found = []
-    for name in options.candidates:
+    # Freed documented constants are not held: the documentation stands until the data
+    # contradict it, whereas an effect's absence is what "none" claims.
+    for name in (c for c in options.candidates if not CATALOGUE[c].relative):
         held = tuple((p.name, p.material) for p in CATALOGUE[name].parameters)
         fit = ctx.fit(CandidateSpec((name,), held))
         # the held fit estimates no more parameters than none; compare the data terms

@@ -49,6 +49,10 @@ def residual_figure(folder: str | Path, out: str | Path | None = None, *, dpi: i
         title = f"{test}{held}: RMSE {gb['rmse_over_noise']:.2f}x noise"
         if named:
             title += f" -> {ga['rmse_over_noise']:.2f}x"
+        adequacy = record.get("adequacy")
+        if adequacy:
+            ok = [adequacy[k]["tests"][test]["adequate"] for k in ("before", "after")]
+            title += f"; adequate: {'yes' if ok[0] else 'no'}" + (f" -> {'yes' if ok[1] else 'no'}" if named else "")
         ax.set_title(title, fontsize=9)
         ax.set_ylabel("residual (pu)")
         ax.grid(alpha=0.3)
@@ -57,9 +61,10 @@ def residual_figure(folder: str | Path, out: str | Path | None = None, *, dpi: i
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
     axes.flat[0].legend(fontsize=7, loc="upper right")
-    verdict = record["effect"] if record["effect"] != "ambiguous" else \
-        "ambiguous between " + " and ".join(record["candidates"])
-    fig.suptitle(f"Residuals of the staged tests: verdict {verdict} (red: windows not explained by noise)",
+    verdict = record.get("verdict") or record["effect"]
+    if record["effect"] == "ambiguous":
+        verdict = verdict.replace("ambiguous", "ambiguous between " + " and ".join(record["candidates"]))
+    fig.suptitle(f"Residuals: verdict {verdict} (red: windows not explained by noise)",
                  fontsize=10)
     fig.tight_layout()
     return save(fig, out, dpi=dpi, tight=False)
@@ -76,12 +81,31 @@ def _fmt(v, digits=4) -> str:
 def markdown(folder: str | Path) -> str:
     record, _ = load(folder)
     lines = ["# Discrepancy diagnosis", ""]
+    text = record.get("verdict") or (" + ".join(record["effects"]) or record["effect"])
     if record["effect"] == "ambiguous":
-        lines.append(f"**Verdict: ambiguous between {' and '.join(record['candidates'])}.** {record['reason']}.")
-    elif record["effect"] == "none":
-        lines.append(f"**Verdict: none.** {record['reason']}.")
-    else:
-        lines.append(f"**Verdict: {' + '.join(record['effects'])}.** {record['reason']}.")
+        text = text.replace("ambiguous", f"ambiguous between {' and '.join(record['candidates'])}")
+    lines.append(f"**Verdict: {text}.** {record['reason']}.")
+    unexplained = record.get("unexplained")
+    if unexplained:
+        lines += ["", f"Where the model still misses: {unexplained['where']['summary']}."]
+        if unexplained["where"]["flagged"]:
+            lines.append(f"Phases above {1.5:g} noise levels: {', '.join(unexplained['where']['flagged'])}.")
+    adequacy = record.get("adequacy")
+    if adequacy:
+        after, before = adequacy["after"], adequacy["before"]
+        lines += ["", f"## Adequacy (does the model fit to the noise? variance ratio <= {after['max_variance_ratio']:g}"
+                      f" and Ljung-Box p >= {after['min_ljung_box_p']:g})", "",
+                  "| test | variance ratio before | Ljung-Box p before | after | p after | adequate after |",
+                  "|---|---:|---:|---:|---:|---|"]
+        for test, a in after["tests"].items():
+            b = before["tests"][test]
+            lines.append(f"| {test} | {b['variance_ratio']:.2f} | {b['ljung_box_p']:.2g} | {a['variance_ratio']:.2f} "
+                         f"| {a['ljung_box_p']:.2g} | {'yes' if a['adequate'] else 'no'} |")
+        lines.append(f"| pooled | {before['pooled_variance_ratio']:.2f} | | {after['pooled_variance_ratio']:.2f} | "
+                     f"| {'yes' if after['adequate'] else 'no'} |")
+    for effect, m in (record.get("materiality") or {}).items():
+        lines.append(f"\nMateriality of {effect}: fitted at {m['size_share']:.0%} of its material size, removing "
+                     f"{m['gap_share']:.0%} of the gap above the noise: {'material' if m['material'] else 'immaterial'}.")
     sep = record.get("separating_test")
     if sep:
         lines += ["", f"Next test: {sep['advice']}."]
