@@ -14,9 +14,10 @@ STAGED_TESTS := $(addprefix test,1 2 3 4 5 6 7 8 9 10)
 TABLE1_TESTS := $(addprefix experiments/test,1 2 3 4 5 6 7 8)
 RUN_OPTS     := --results $(RESULTS) --seed $(SEED) --n-jobs $(N_JOBS)
 T0           := $(shell date +%s)
+comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose clean table1 figures rerun event1 joint diagnose $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose clean table1 figures rerun event1 joint diagnose structures $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -70,6 +71,13 @@ diagnose: fmus  ## name what TG Type I misses on tests 1-10 (4 and 8 held out), 
 	$(RC) diagnose $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
 		--results $(RESULTS)/diagnose --json $(RESULTS)/diagnose/verdict.json --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make diagnose: $$(( $$(date +%s) - $(T0) )) s wall time"
+
+STRUCTURES := $(addprefix experiments/structures/,TGTypeI.toml TGOV1.toml IEEEG1.toml HYGOV.toml)
+
+structures: fmus  ## which governor structure (TG Type I, TGOV1, IEEEG1, HYGOV) fits tests 1-10 (4, 8 held out); identifiability
+	$(RC) structures $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
+		--structures $(subst $(eval) ,$(comma),$(STRUCTURES)) --results $(RESULTS)/structures --seed $(SEED) --n-jobs $(N_JOBS)
+	@echo "make structures: $$(( $$(date +%s) - $(T0) )) s wall time"
 
 bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5)
 	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS)

@@ -207,3 +207,35 @@ def _ar1_inflation(exp) -> float:
         return 1.0
     return max(ar1_inflation(noise_level(exp.data, col, exp.pre_step_end).phi) for col in exp.outputs.values())
 
+
+def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Path], *, holdout: Sequence[str],
+               results: str | Path, seed: int, n_jobs: int, package: str | Path, fmu_dir: str | Path,
+               log=print) -> tuple[str, list[Path]]:
+    """Calibrate each structure on the training tests, rank them, report identifiability
+    (``<results>/structures.md``, ``.json``, ``identifiability.png``)."""
+    import json
+
+    from .calibration import RunOptions
+    from .diagnose.structures import Structure, select_structure
+    from .diagnose.workflow import split_holdout
+    from .experiment import load_experiment
+    from .report.structures import identifiability_figure, markdown
+    from .staged import method
+
+    found = [Structure.load(f) for f in structure_files]  # every file checked before a run starts
+    training, heldout = split_holdout([load_experiment(c) for c in configs], holdout)
+    results = Path(results)
+    results.mkdir(parents=True, exist_ok=True)
+    options = method("pf10+nm").run_options(seed, n_jobs)
+    log(f"structures {', '.join(s.name for s in found)} on {', '.join(e.name for e in training)}"
+        + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
+    verdict = select_structure(found, training, heldout, workdir=results, options=options, package=package,
+                               fmu_dir=fmu_dir, log=log)
+    record = verdict.to_json()
+    js = results / "structures.json"
+    js.write_text(json.dumps(record, indent=2, default=float) + "\n")
+    md = results / "structures.md"
+    md.write_text(markdown(record))
+    png = identifiability_figure(record, results / "identifiability.png")
+    return md.read_text(), [md, js, png]
+

@@ -219,6 +219,18 @@ def cmd_diagnose(args) -> int:
     return 0
 
 
+def cmd_structures(args) -> int:
+    from .campaign import structures
+
+    text, files = structures(args.configs, args.structures.split(","), holdout=args.holdout or [],
+                             results=args.results, seed=args.seed, n_jobs=args.n_jobs, package=args.package,
+                             fmu_dir=args.fmus)
+    print()
+    print(text)
+    print(f"written: {', '.join(map(str, files))}")
+    return 0
+
+
 def cmd_demo(args) -> int:
     from .campaign import demo
 
@@ -355,6 +367,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model-name", help="class of the model written (default iGrGen.Diagnosed.Calibrated<Effects>)")
     p.add_argument("--results", default="results/diagnose", help="work and report folder (default %(default)s)")
     p.add_argument("--json", metavar="FILE", help="also write the verdict as JSON here")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s)")
+    model_options(p)
+
+    p = command("structures", cmd_structures, "which governor structure fits the unit: calibrate each, rank "
+                "them (BIC, held-out tests, adequacy), say which parameters the tests determine")
+    p.add_argument("configs", nargs="+", help="experiment configs (or their folders)")
+    p.add_argument("--structures", required=True,
+                   help="comma-separated structure files, e.g. experiments/structures/TGTypeI.toml,...")
+    p.add_argument("--holdout", action="append", metavar="EXPERIMENT", help="experiment kept out of the fits")
+    p.add_argument("--results", default="results/structures", help="work and report folder (default %(default)s)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s)")
     model_options(p)

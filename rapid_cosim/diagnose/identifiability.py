@@ -1,0 +1,151 @@
+"""Which estimated parameters do the tests determine? The Fisher information at the
+optimum, from the prewhitened residuals' sensitivities.
+
+For parameters ``theta`` (in the log of their value for log-scaled ones, so that a
+standard error reads as a relative one), ``J`` holds the derivatives of every test's
+residual, prewhitened with its noise ``phi`` and divided by the innovation level, by
+central differences (steps of 1 % of the value). ``F = J^T J`` is the information, its
+inverse the covariance of a least-squares estimate under the noise model (a lower bound:
+a structure that misfits has more), its condition number the spread of what is and is
+not determined. Each parameter is
+
+* **determined**: relative standard error under 10 %;
+* **weakly determined**: 10 to 50 %;
+* **not determined**: over 50 %, or F singular in its direction.
+
+Pairs whose estimates correlate beyond 0.9 in magnitude trade off: the tests move them
+together (e.g. a gain against a time constant); :func:`best_separating_step` proposes
+the staged step that most reduces the weakest parameter's error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..objective import evaluate_in_detail
+from ..simulator import get_simulator
+from .selection import prewhitened
+
+REL_DETERMINED = 0.10
+REL_WEAK = 0.50
+TRADE_OFF = 0.9
+STEP = 0.01
+
+
+@dataclass(frozen=True)
+class Identifiability:
+    names: tuple[str, ...]
+    relative_se: np.ndarray
+    correlation: np.ndarray
+    condition: float
+    information: np.ndarray  # F, per relative change of each parameter
+
+    def status(self, k: int) -> str:
+        r = self.relative_se[k]
+        return ("determined" if r < REL_DETERMINED else "weakly determined" if r < REL_WEAK
+                else "not determined")
+
+    @property
+    def trade_offs(self) -> list[tuple[str, str, float]]:
+        n = len(self.names)
+        return [(self.names[i], self.names[j], float(self.correlation[i, j])) for i in range(n)
+                for j in range(i + 1, n) if abs(self.correlation[i, j]) > TRADE_OFF]
+
+    def summary(self) -> str:
+        weak = [f"{n} {self.status(k)}" for k, n in enumerate(self.names) if self.status(k) != "determined"]
+        return ("every parameter determined" if not weak else "; ".join(weak)) + f" (condition {self.condition:.2g})"
+
+    def to_json(self) -> dict:
+        return {"parameters": {n: {"relative_se": float(self.relative_se[k]), "status": self.status(k)}
+                               for k, n in enumerate(self.names)},
+                "trade_offs": [{"a": a, "b": b, "correlation": c} for a, b, c in self.trade_offs],
+                "condition": self.condition, "correlation": self.correlation.tolist()}
+
+
+def _whitened(inputs, x, noise) -> np.ndarray:
+    parts = []
+    for r in evaluate_in_detail(inputs.problem, inputs.fmus, np.asarray(x, dtype=float)):
+        (column,) = r.fit.residuals
+        floor = noise[r.experiment.name]
+        res = np.nan_to_num(r.fit.residuals[column])  # masked samples: no information
+        parts.append(prewhitened(res, floor.phi) / (floor.sigma * np.sqrt(1 - floor.phi ** 2)))
+    return np.concatenate(parts)
+
+
+def identifiability(inputs, x: np.ndarray, noise) -> Identifiability:
+    """At ``x`` (the run's best point, physical units) for the run's estimated parameters."""
+    x = np.asarray(x, dtype=float)
+    cols = []
+    for k in range(x.size):
+        h = STEP * (abs(x[k]) if x[k] != 0 else 1.0)
+        up, down = x.copy(), x.copy()
+        up[k], down[k] = x[k] + h, x[k] - h
+        d = (_whitened(inputs, up, noise) - _whitened(inputs, down, noise)) / (2 * h)
+        cols.append(d * (abs(x[k]) if x[k] != 0 else 1.0))  # per relative change: d/d(log theta)
+    J = np.column_stack(cols)
+    F = J.T @ J
+    s = np.linalg.svd(F, compute_uv=False)
+    condition = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    cov = np.linalg.pinv(F)
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    se = np.where(np.diag(F) > 0, se, np.inf)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se, se)
+    corr = np.nan_to_num(corr)
+    np.fill_diagonal(corr, 1.0)
+    return Identifiability(tuple(inputs.problem.names), se, corr, condition, F)
+
+
+STEPS_HZ = (-0.4, -0.2, -0.1, 0.1, 0.2, 0.4)
+HOLD_S = 50.0
+
+
+def best_separating_step(inputs, x: np.ndarray, ident: Identifiability, noise) -> dict | None:
+    """The staged step (size, held HOLD_S and returned, at the first test's dispatch and
+    sampling) that most reduces the least determined parameter's relative error once
+    added to the tests; None when every parameter is determined."""
+    k = int(np.argmax(ident.relative_se))
+    if ident.status(k) == "determined":
+        return None
+    i = next((j for j, e in enumerate(inputs.problem.experiments) if not e.inputs), None)
+    if i is None:
+        return None
+    exp = inputs.problem.experiments[i]
+    sim = get_simulator(inputs.fmus[exp.model])
+    x = np.asarray(x, dtype=float)
+    t_step = float(exp.fixed.get("src.t_step", 10.0))
+    dt = float(np.median(np.diff(exp.data.time)))
+    times = np.arange(0.0, t_step + 2 * HOLD_S, dt)
+    floor = noise[exp.name]
+    innovation = floor.sigma * np.sqrt(1 - floor.phi ** 2)
+    rows = []
+    for df in STEPS_HZ:
+        cols = []
+        for j in range(x.size):
+            h = STEP * (abs(x[j]) if x[j] != 0 else 1.0)
+            ys = []
+            for sign in (1, -1):
+                xx = x.copy()
+                xx[j] += sign * h
+                params = {**inputs.problem.parameters_for(xx, i), "src.df": df, "src.t_step": t_step,
+                          "src.t_return": t_step + HOLD_S}
+                ys.append(sim.simulate(params, output_times=times, outputs=list(exp.outputs))[next(iter(exp.outputs))])
+            d = (ys[0] - ys[1]) / (2 * h) * (abs(x[j]) if x[j] != 0 else 1.0)
+            cols.append(prewhitened(d - d.mean(), floor.phi) / innovation)  # offsets are profiled
+        J = np.column_stack(cols)
+        se = np.sqrt(np.clip(np.diag(np.linalg.pinv(ident.information + J.T @ J)), 0, None))
+        rows.append({"df_hz": df, "relative_se": float(se[k])})
+    best = min(rows, key=lambda r: r["relative_se"])
+    name = ident.names[k]
+    now = f"{name} is {ident.status(k)} ({100 * ident.relative_se[k]:.0f} % relative error)"
+    step = f"df = {1000 * best['df_hz']:+.0f} mHz, held {HOLD_S:.0f} s and returned"
+    advice = (f"{now}: a staged test with {step}, brings it to {100 * best['relative_se']:.0f} %"
+              if best["relative_se"] < REL_WEAK else
+              f"{now}, and no staged step of {min(STEPS_HZ):+.1f} to {max(STEPS_HZ):+.1f} Hz determines it (the "
+              f"best, {step}, leaves {100 * best['relative_se']:.0f} %): fix it from the documentation or a test "
+              f"that engages it")
+    return {"parameter": name, "relative_se_now": float(ident.relative_se[k]), **best, "advice": advice,
+            "menu": rows}
+

@@ -1,0 +1,174 @@
+"""Which governor structure fits a unit: TG Type I, TGOV1, IEEEG1, HYGOV (iGrGen.Governors),
+each calibrated jointly on the training tests and ranked by the rules the effects obey.
+
+A structure is a small TOML file (``experiments/structures/TGOV1.toml``)::
+
+    [structure]
+    name = "TGOV1"
+    bench = "iGrGen.TestBenches.StagedTestTGOV1"        # a staged test's model
+    input_bench = "iGrGen.TestBenches.FrequencyInputTGOV1"  # a recorded event's (optional)
+
+    [fixed]        # what the plant documentation gives for this structure
+    "gov.VMAX" = 1.0
+    [estimate]     # what the tests must determine, with bounds
+    "gov.R" = { min = 0.02, max = 0.12, label = "R" }
+
+Each test's config keeps its data, source (``src.*``), dispatch (``gov.p_ref``), fitness
+and simulation settings; its governor constants and estimates are the structure's.
+
+Ranking: BIC on AR(1)-prewhitened residuals (:mod:`.selection`), one offset per test
+counted. A structure is named when it beats every other by the threshold (10), predicts
+the held-out tests at least as well as the runner-up, and is adequate
+(:mod:`.adequacy`); otherwise the verdict is ``ambiguous`` between those within the
+threshold, or ``unexplained`` when none fits to the noise. Each structure's
+identifiability at its optimum comes with it (:mod:`.identifiability`).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..calibration import RunOptions, ensure_run, inputs_from_experiments
+from ..errors import ConfigError
+from ..experiment import Experiment, parse_experiment, render_config
+from .adequacy import adequacy
+from .candidates import residuals_at
+from .identifiability import best_separating_step, identifiability
+from .selection import THRESHOLD, pooled_noise, score
+
+KEPT_FIXED = ("src.", "gov.p_ref", "f_nom")
+
+
+@dataclass(frozen=True)
+class Structure:
+    name: str
+    bench: str
+    input_bench: str | None
+    fixed: dict
+    estimate: dict
+    path: str
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Structure":
+        path = Path(path)
+        try:
+            raw = tomllib.loads(path.read_text())
+        except (OSError, tomllib.TOMLDecodeError) as e:
+            raise ConfigError(f"cannot read the structure file: {e}", str(path)) from None
+        head = raw.get("structure")
+        if not isinstance(head, dict) or "name" not in head or "bench" not in head:
+            raise ConfigError("needs [structure] with name and bench", str(path), "structure")
+        if not raw.get("estimate"):
+            raise ConfigError("estimates nothing: give [estimate] with the parameters the tests must determine",
+                              str(path), "estimate")
+        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), dict(raw.get("fixed", {})),
+                   dict(raw["estimate"]), str(path))
+
+    def experiment(self, exp: Experiment) -> Experiment:
+        """``exp`` with this structure as its model."""
+        raw = tomllib.loads(exp.config_text)
+        bench = self.input_bench if exp.inputs else self.bench
+        if bench is None:
+            raise ConfigError(f"{exp.name} is driven by recorded inputs; the structure {self.name} has no "
+                              "input_bench", self.path, "structure.input_bench")
+        fixed = {k: v for k, v in raw.get("fixed", {}).items() if k.startswith(KEPT_FIXED)}
+        data = dict(raw["data"])
+        data_file = Path(data["file"])
+        data["file"] = str(data_file if data_file.is_absolute() else (Path(exp.config_path).parent / data_file))
+        sections = {**raw, "experiment": {**raw["experiment"], "model": bench}, "data": data,
+                    "fixed": {**fixed, **self.fixed}, "estimate": self.estimate}
+        return parse_experiment(render_config(sections), exp.config_path, data=exp.data, files=exp.files)
+
+
+@dataclass
+class StructureFit:
+    name: str
+    bic: float
+    delta: float
+    fitness: float
+    parameters: dict[str, float]
+    n_estimated: int
+    adequate: bool
+    variance_ratio: float
+    heldout_score: float | None
+    identifiability: dict
+    separating_step: dict | None
+    archive: str
+
+
+@dataclass
+class StructureVerdict:
+    structure: str  # a name, "ambiguous" or "unexplained"
+    candidates: list[str]
+    reason: str
+    ranking: list[StructureFit] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return {"structure": self.structure, "candidates": self.candidates, "reason": self.reason,
+                "ranking": [asdict(r) for r in self.ranking]}
+
+
+def select_structure(structures: Sequence[Structure], training: Sequence[Experiment],
+                     heldout: Sequence[Experiment] = (), *, workdir: str | Path, options: RunOptions,
+                     package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus",
+                     threshold: float = THRESHOLD, log: Callable[[str], None] = print) -> StructureVerdict:
+    workdir = Path(workdir)
+    noise = pooled_noise([*training, *heldout])
+    fits = []
+    for s in structures:
+        log(f"  calibrating {s.name} ({', '.join(s.estimate)}) ...")
+        exps = [s.experiment(e) for e in training]
+        inputs = inputs_from_experiments(exps, package=package, fmu_dir=fmu_dir)
+        result, _ = ensure_run(inputs, options, workdir / f"{s.name}.h5", progress=False)
+        tests = residuals_at(inputs, result.x)
+        data_term, n = score(tests, noise)
+        k = len(result.names) + len(tests)
+        fit_ok = adequacy(tests, noise)
+        held_score = None
+        if heldout:
+            held_inputs = inputs_from_experiments([s.experiment(e) for e in heldout], package=package,
+                                                 fmu_dir=fmu_dir)
+            best = result.best()
+            x = np.array([best[name] for name in held_inputs.problem.names])
+            held_score = float(score(residuals_at(held_inputs, x), noise)[0])
+        ident = identifiability(inputs, np.asarray(result.x), noise)
+        step = best_separating_step(inputs, np.asarray(result.x), ident, noise)
+        fits.append(StructureFit(s.name, data_term + k * np.log(n), 0.0, float(result.fun), result.best(),
+                                 len(result.names), fit_ok.adequate, fit_ok.pooled_variance_ratio, held_score,
+                                 ident.to_json(), step, str(workdir / f"{s.name}.h5")))
+        log(f"    BIC {fits[-1].bic:.1f}, variance ratio {fit_ok.pooled_variance_ratio:.2f}, "
+            f"{ident.summary()}")
+    fits.sort(key=lambda f: f.bic)
+    for f in fits:
+        f.delta = f.bic - fits[0].bic
+    return _verdict(fits, threshold)
+
+
+def _verdict(fits: list[StructureFit], threshold: float) -> StructureVerdict:
+    best = fits[0]
+    rivals = [f.name for f in fits[1:] if f.delta < threshold]
+    if not any(f.adequate for f in fits):
+        margin = f", by {fits[1].delta:.1f} in BIC over {fits[1].name}" if len(fits) > 1 else ""
+        return StructureVerdict("unexplained", [f.name for f in fits],
+                                f"no structure fits to the noise (best {best.name}{margin}, variance ratio "
+                                f"{best.variance_ratio:.2f}): what is missing is missing from every structure "
+                                "tried, or is another structure; the effect catalogue (rapid-cosim diagnose) "
+                                "looks for it on TG Type I", fits)
+    if rivals:
+        return StructureVerdict("ambiguous", [best.name, *rivals],
+                                f"{best.name} and {', '.join(rivals)} are within {threshold:g} in BIC", fits)
+    reason = (f"{best.name} beats {fits[1].name} by {fits[1].delta:.1f} in BIC" if len(fits) > 1
+              else f"{best.name} is the only structure tried")
+    if best.heldout_score is not None and len(fits) > 1 and fits[1].heldout_score is not None:
+        if best.heldout_score > fits[1].heldout_score:
+            return StructureVerdict("ambiguous", [best.name, fits[1].name],
+                                    reason + f", but predicts the held-out tests worse than {fits[1].name}", fits)
+        reason += f"; confirmed on the held-out tests ({fits[1].heldout_score - best.heldout_score:+.1f})"
+    if not best.adequate:
+        reason += f"; it does not fit to the noise (variance ratio {best.variance_ratio:.2f}): an unexplained remainder"
+    return StructureVerdict(best.name, [best.name], reason, fits)
