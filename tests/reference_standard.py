@@ -1,9 +1,10 @@
-"""Independent reference for the standard governors (TGOV1, IEEEG1, HYGOV): their block
-diagrams in IEEE PES-TR1 (2013) and the PSS/E model library written out as numpy
+"""Independent reference for the standard governors (TGOV1, IEEEG1, GGOV1, HYGOV): their
+block diagrams in IEEE PES-TR1 (2013) and the PSS/E model library written out as numpy
 right-hand sides and integrated with scipy between the source's switching times.
 
 Limits use the smooth forms the models' documentation states (the non-windup gate and
-the rate limits rounded over eps); everything else is the textbook diagram. The input
+the rate limits rounded over eps, GGOV1's low-value gate as a soft minimum through
+scipy's logsumexp); everything else is the textbook diagram. The input
 is the staged test's speed deviation dw = w_ref - w = -df / f_nom.
 """
 
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from scipy.special import logsumexp
 
 SOURCE = {"src.df": -0.2, "src.f_nom": 50.0, "src.t_step": 10.0, "src.t_return": 1e9}
 DEFAULTS = {
@@ -21,6 +23,12 @@ DEFAULTS = {
     "IEEEG1": {"K": 20.0, "T1": 0.001, "T2": 0.0, "T3": 0.1, "Uo": 1.0, "Uc": -1.0, "PMAX": 1.0, "PMIN": 0.0,
                "T4": 0.3, "K1": 0.2, "T5": 7.0, "K3": 0.3, "T6": 0.6, "K5": 0.5, "T7": 0.05, "K7": 0.0,
                "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
+    "GGOV1": {"R": 0.04, "Rselect": 1.0, "Tpelec": 1.0, "maxerr": 0.05, "minerr": -0.05, "Kpgov": 10.0,
+              "Kigov": 2.0, "Kdgov": 0.0, "Tdgov": 1.0, "Vmax": 1.0, "Vmin": 0.15, "Tact": 0.5, "Kturb": 1.5,
+              "Wfnl": 0.2, "Tb": 0.5, "Tc": 0.0, "Flag": 1.0, "Tfload": 3.0, "Kpload": 2.0, "Kiload": 0.67,
+              "Ldref": 1.0, "Dm": 0.0, "Ropen": 0.1, "Rclose": -0.1, "Kimw": 0.0, "aset": 0.1, "Ka": 10.0,
+              "Ta": 0.1, "db": 0.0, "Tsa": 4.0, "Tsb": 5.0, "DELT": 0.005, "p_ref": 0.6, "eps_v": 1e-4,
+              "K_lim": 100.0, "K_track": 10.0},
 }
 
 
@@ -83,8 +91,43 @@ class Standard:
               (x4 - x5) / p["T5"], (x5 - x6) / p["T6"], (x6 - x7) / p["T7"]]
         return dx, p["K1"] * x4 + p["K3"] * x5 + p["K5"] * x6 + p["K7"] * x7
 
+    # ------------------------------------------------------------------ GGOV1
+    def _ggov1_feedback(self, pef, v):
+        p = self.p
+        return {1.0: pef, -1.0: v}.get(p["Rselect"], 0.0)
+
+    def _ggov1(self, dw, x):
+        p = self.p
+        e = p["eps_v"]
+        pef, xmw, xg, xd, xf, xs, xl, xa, z, v, xt = x
+        v0 = p["p_ref"] / p["Kturb"] + p["Wfnl"]
+        spd = -dw if p["db"] == 0 else -dw - np.clip(-dw, -p["db"], p["db"])  # db = 0 in every case
+        wf = v * (1 + spd if p["Flag"] == 1 else 1.0)
+        u_t = p["Kturb"] * (wf - p["Wfnl"])
+        pm = xt + p["Tc"] / p["Tb"] * (u_t - xt) - p["Dm"] * spd
+        pref = p["R"] * self._ggov1_feedback(p["p_ref"], v0)
+        err = pref + xmw - p["R"] * self._ggov1_feedback(pef, v) - spd
+        errl = err - sp(err - p["maxerr"], e) + sp(p["minerr"] - err, e)
+        fsrn = p["Kpgov"] * errl + xg + p["Kdgov"] * (errl - xd) / p["Tdgov"]
+        texm = xs + p["Tsa"] / p["Tsb"] * (xf - xs)
+        margin = p["Ldref"] / p["Kturb"] + p["Wfnl"] - texm
+        fsrt = p["Kpload"] * margin + xl
+        acc = (spd - xa) / p["Ta"]
+        fsra = z + p["Ka"] * p["DELT"] * (p["aset"] - acc)
+        fsr = -e * logsumexp([-fsrn / e, -fsrt / e, -fsra / e])
+        fsrl = fsr - sp(fsr - p["Vmax"], e) + sp(p["Vmin"] - fsr, e)
+        dl = p["Kiload"] * margin
+        dx = [(pm - pef) / p["Tpelec"], p["Kimw"] * (p["p_ref"] - pef),
+              p["Kigov"] * errl + p["K_track"] * (fsrl - fsrn), (errl - xd) / p["Tdgov"],
+              (wf - xf) / p["Tfload"], (xf - xs) / p["Tsb"],
+              dl - sp(dl - sp(p["K_lim"] * (fsrl - xl), e), e),  # min(dl, max(K_lim (fsrl - xl), 0))
+              acc, (fsrl - z) / p["DELT"], rate_limit((fsrl - v) / p["Tact"], p["Rclose"], p["Ropen"], e),
+              (u_t - xt) / p["Tb"]]
+        return dx, pm
+
     def _f(self, t, x):
-        return {"TGOV1": self._tgov1, "HYGOV": self._hygov, "IEEEG1": self._ieeeg1}[self.model](self.dw(t), x)
+        return {"TGOV1": self._tgov1, "HYGOV": self._hygov, "IEEEG1": self._ieeeg1,
+                "GGOV1": self._ggov1}[self.model](self.dw(t), x)
 
     def start(self):
         """The steady state at the dispatch, from the diagrams (dw = 0)."""
@@ -95,6 +138,9 @@ class Standard:
         if self.model == "HYGOV":
             q0 = p["p_ref"] / p["At"] + p["qNL"]
             return np.array([0.0, q0, q0, q0])
+        if self.model == "GGOV1":
+            v0 = p["p_ref"] / p["Kturb"] + p["Wfnl"]
+            return np.array([p["p_ref"], 0.0, v0, 0.0, v0, v0, v0, 0.0, v0, v0, p["p_ref"]])
         gv0 = p["p_ref"] / (p["K1"] + p["K3"] + p["K5"] + p["K7"])
         return np.array([0.0, gv0, gv0, gv0, gv0, gv0])
 

@@ -44,11 +44,11 @@ def test_line_map_points_into_the_right_file(package):
 
 def test_syntax_error_names_file_and_line(package):
     f = package / "Governors" / "TGTypeI.mo"
-    _edit(f, "xv = xg1;", "xv = xg1")  # missing semicolon: the parser trips on the next line
+    _edit(f, "der(xg1) = (pin - xg1) / Ts;", "der(xg1) = (pin - xg1) / Ts")  # no semicolon: the parser trips on the next line
     with pytest.raises(ModelicaSyntaxError) as info:
         _translate(package)
     assert info.value.file == str(f)
-    assert info.value.line == _line_of(f, "end TGTypeI;")
+    assert info.value.line == _line_of(f, "xv = xg1;")
     assert "TGTypeI.mo:" in str(info.value)
 
 

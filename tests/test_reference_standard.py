@@ -1,7 +1,7 @@
-"""The standard governors' bench FMUs (TGOV1, IEEEG1, HYGOV) against an independent scipy
-integration of their published block diagrams, on parameter sets that engage the
-limiters, the rate limits, the water-hammer zero and a return step; and each FMU
-against fmpy's validation."""
+"""The standard governors' bench FMUs (TGOV1, IEEEG1, GGOV1, HYGOV) against an independent
+scipy integration of their published block diagrams, on parameter sets that engage the
+limiters, the rate limits, the water-hammer zero, GGOV1's low-value gate and a return
+step; and each FMU against fmpy's validation."""
 
 from fmpy.validation import validate_fmu
 import numpy as np
@@ -30,6 +30,14 @@ CASES = {
         "lead-lag and four stages": {"gov.T1": 0.5, "gov.T2": 1.5, "gov.K": 25.0, "gov.K5": 0.4, "gov.K7": 0.1,
                                      "gov.T7": 2.0, "src.df": 0.2},
     },
+    "GGOV1": {
+        "down-step: the governor holds the gate": {},
+        "load limiter takes the gate, return": {"gov.Ldref": 0.66, "src.t_return": 35.0},
+        "acceleration limiter takes the gate": {"gov.aset": 0.01, "src.df": 0.2, "src.t_return": 30.0},
+        "valve-stroke droop, PID, rate limits, power controller": {
+            "gov.Rselect": -1.0, "gov.Kdgov": 0.5, "gov.Ropen": 0.02, "gov.Kimw": 0.01, "gov.Tc": 0.3,
+            "gov.Dm": 0.1, "src.t_return": 40.0},
+    },
 }
 
 
@@ -55,6 +63,18 @@ def test_the_cases_engage_what_they_name(fmus):
     limited = Simulator(fmus["StagedTestIEEEG1"]).simulate({"gov.Uo": 0.01}, stop_time=30.0, output_interval=0.05,
                                                           outputs=["gov.vl"])
     assert limited["gov.vl"].max() == pytest.approx(0.01, abs=1e-3)
+    gate = ["gov.fsr", "gov.fsrn", "gov.fsrt", "gov.fsra"]
+    ggov1 = Simulator(fmus["StagedTestGGOV1"])
+    load = ggov1.simulate(CASES["GGOV1"]["load limiter takes the gate, return"], stop_time=60.0,
+                          output_interval=0.05, outputs=["pm", *gate])
+    held = (np.abs(load["gov.fsrt"] - load["gov.fsr"]) < 1e-4) & (load["gov.fsrn"] - load["gov.fsr"] > 1e-4)
+    plateau = (load.time > 28.0) & (load.time < 34.0)
+    assert held[plateau].all()  # the load limiter holds the gate
+    np.testing.assert_allclose(load["pm"][plateau], 0.66, atol=1e-3)  # at Ldref, not the droop's 0.7
+    assert load["pm"][-1] == pytest.approx(0.6, abs=5e-3)  # and back after the return
+    acc = ggov1.simulate(CASES["GGOV1"]["acceleration limiter takes the gate"], stop_time=40.0,
+                         output_interval=0.01, outputs=gate)
+    assert ((acc["gov.fsrn"] - acc["gov.fsr"] > 1e-3) & (np.abs(acc["gov.fsra"] - acc["gov.fsr"]) < 1e-4)).any()
 
 
 @pytest.mark.parametrize("model", list(CASES))

@@ -143,6 +143,7 @@ def _assemble(directory: Path, chunks: list, files: list) -> None:
     tail = _last_end(text, directory.name)
     if tail is None:
         raise ModelicaError(f"'end {directory.name};' not found", file=str(pkg_file))
+    tail = _own_annotation(text, tail)
     head = text[:tail]
     chunks.append((pkg_file, 1, head))
     for child in _children(directory):
@@ -167,6 +168,16 @@ def _children(directory: Path) -> list[str]:
             raise ModelicaError(f"package.order lists {missing}, which have no file", file=str(order))
         return listed + sorted(present - set(listed))
     return sorted(present)
+
+
+def _own_annotation(text: str, end: int) -> int:
+    """Where the package's own annotation starts, if it closes the package (the classes
+    from files go before it: a class annotation is the last element of a class)."""
+    masked = _mask_comments_and_strings(text[:end])
+    found = list(re.finditer(r"\bannotation\s*\(", masked))
+    if found and masked[found[-1].start():].count(";") == 1:
+        return found[-1].start()
+    return end
 
 
 def _last_end(text: str, name: str) -> int | None:

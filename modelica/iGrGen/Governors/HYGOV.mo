@@ -1,32 +1,32 @@
 within iGrGen.Governors;
 block HYGOV "Hydro turbine-governor HYGOV with the water column (PSS/E; IEEE PES-TR1 2013, sec. 4.1)"
-  parameter Real R(unit="1", min=0.001, max=1) = 0.05 "permanent droop (pu)";
-  parameter Real r(unit="1", min=0.001, max=5) = 0.3 "temporary droop (pu)";
-  parameter Real Tr(unit="s", min=0.001, max=100) = 5.0 "governor (reset) time constant";
-  parameter Real Tf(unit="s", min=0.001, max=10) = 0.05 "filter time constant";
-  parameter Real Tg(unit="s", min=0.001, max=10) = 0.5 "gate servo time constant";
-  parameter Real VELM(unit="1/s", min=1e-4, max=10) = 0.2 "gate velocity limit (pu/s)";
-  parameter Real GMAX(unit="1", min=0, max=2) = 1.0 "maximum gate opening (pu)";
-  parameter Real GMIN(unit="1", min=0, max=2) = 0.0 "minimum gate opening (pu)";
-  parameter Real TW(unit="s", min=0.01, max=10) = 1.0 "water inertia time constant";
-  parameter Real At(unit="1", min=0.5, max=2) = 1.2 "turbine gain";
-  parameter Real Dturb(unit="1", min=0, max=5) = 0.5 "turbine damping (pu)";
-  parameter Real qNL(unit="1", min=0, max=0.5) = 0.08 "no-load water flow (pu)";
-  parameter Real p_ref(unit="1", min=0, max=2) = 0.6 "power at the dispatch (pu)";
-  parameter Real eps_v(unit="1/s", min=1e-9, max=1) = 1e-4 "sharpness: rounding of the velocity limit and the gate (pu/s)";
-  parameter Real K_lim(unit="1/s", min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
-  parameter Real q0 = p_ref / At + qNL "water flow at the dispatch, head 1 (pu)";
-  parameter Real nref = R * q0 "speed reference that holds the dispatch (pu)";
+  parameter Types.PerUnit R(min=0.001, max=1) = 0.05 "permanent droop (pu)";
+  parameter Types.PerUnit r(min=0.001, max=5) = 0.3 "temporary droop (pu)";
+  parameter Types.Time Tr(min=0.001, max=100) = 5.0 "governor (reset) time constant";
+  parameter Types.Time Tf(min=0.001, max=10) = 0.05 "filter time constant";
+  parameter Types.Time Tg(min=0.001, max=10) = 0.5 "gate servo time constant";
+  parameter Types.PerUnitRate VELM(min=1e-4, max=10) = 0.2 "gate velocity limit (pu/s)";
+  parameter Types.PerUnit GMAX(min=0, max=2) = 1.0 "maximum gate opening (pu)";
+  parameter Types.PerUnit GMIN(min=0, max=2) = 0.0 "minimum gate opening (pu)";
+  parameter Types.Time TW(min=0.01, max=10) = 1.0 "water inertia time constant";
+  parameter Types.PerUnit At(min=0.5, max=2) = 1.2 "turbine gain";
+  parameter Types.PerUnit Dturb(min=0, max=5) = 0.5 "turbine damping (pu)";
+  parameter Types.PerUnit qNL(min=0, max=0.5) = 0.08 "no-load water flow (pu)";
+  parameter Types.PerUnit p_ref(min=0, max=2) = 0.6 "power at the dispatch (pu)";
+  parameter Types.PerUnitRate eps_v(min=1e-9, max=1) = 1e-4 "sharpness: rounding of the velocity limit and the gate (pu/s)";
+  parameter Types.PerUnitRate K_lim(min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
+  final parameter Types.PerUnit q0 = p_ref / At + qNL "water flow at the dispatch, head 1 (pu)";
+  final parameter Types.PerUnit nref = R * q0 "speed reference that holds the dispatch (pu)";
   Interfaces.RealInput dw "speed deviation w_ref - w (pu): PSS/E's -SPEED";
   Interfaces.RealOutput pm "mechanical power (pu)";
-  Real e "filtered speed error (pu)";
-  Real xi "integral part of the desired gate (pu)";
-  Real c "desired gate opening (pu)";
-  Real g "gate opening (pu)";
-  Real q "water flow (pu)";
-  Real h "head at the turbine (pu)";
-  Real v "free speed of the integral part (pu/s)";
-  Real vl "velocity-limited speed (pu/s)";
+  Types.PerUnit e "filtered speed error (pu)";
+  Types.PerUnit xi "integral part of the desired gate (pu)";
+  Types.PerUnit c "desired gate opening (pu)";
+  Types.PerUnit g "gate opening (pu)";
+  Types.PerUnit q "water flow (pu)";
+  Types.PerUnit h "head at the turbine (pu)";
+  Types.PerUnitRate v "free speed of the integral part (pu/s)";
+  Types.PerUnitRate vl "velocity-limited speed (pu/s)";
 initial equation
   e = 0;
   xi = q0;
@@ -59,5 +59,6 @@ the water-hammer zero (power dips before it rises).</p>
 <p>Limits are smooth (eps_v; the non-windup limit holds a state within its speed / K_lim of the limit, as TGOV1's) as the embedded build has no state events; the
 velocity limit acts on the integral path, as in PSS/E's implementation.</p>
 <p>Initialisation: steady state at p_ref: q = g = c = p_ref / At + qNL, h = 1, and the
-speed reference n_ref = R q. Units: pu on the machine base, s.</p></html>"));
+speed reference n_ref = R q. Units: pu on the machine base, s.</p></html>",
+    revisions="<html><ul><li>2026-11-23: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li></ul></html>"));
 end HYGOV;

@@ -1,36 +1,36 @@
 within iGrGen.Governors;
 block IEEEG1 "Multi-stage steam turbine-governor IEEEG1 (IEEE 1973; IEEE PES-TR1 2013, sec. 2.2)"
-  parameter Real K(unit="1", min=1, max=100) = 20 "governor gain, 1/droop (pu)";
-  parameter Real T1(unit="s", min=0.001, max=100) = 0.001 "governor lag time constant (PSS/E's 0 is 0.001 here)";
-  parameter Real T2(unit="s", min=0, max=100) = 0.0 "governor lead time constant";
-  parameter Real T3(unit="s", min=0.001, max=10) = 0.1 "valve positioner time constant";
-  parameter Real Uo(unit="1/s", min=1e-4, max=10) = 1.0 "maximum valve opening rate (pu/s)";
-  parameter Real Uc(unit="1/s", min=-10, max=-1e-4) = -1.0 "maximum valve closing rate (pu/s, negative)";
-  parameter Real PMAX(unit="1", min=0, max=2) = 1.0 "maximum valve opening (pu)";
-  parameter Real PMIN(unit="1", min=0, max=2) = 0.0 "minimum valve opening (pu)";
-  parameter Real T4(unit="s", min=0.001, max=100) = 0.3 "inlet piping / steam bowl time constant";
-  parameter Real K1(unit="1", min=0, max=1) = 0.2 "fraction of the HP shaft power after the first stage";
-  parameter Real T5(unit="s", min=0.001, max=100) = 7.0 "second stage (reheater) time constant";
-  parameter Real K3(unit="1", min=0, max=1) = 0.3 "fraction of the HP shaft power after the second stage";
-  parameter Real T6(unit="s", min=0.001, max=100) = 0.6 "third stage time constant";
-  parameter Real K5(unit="1", min=0, max=1) = 0.5 "fraction of the HP shaft power after the third stage";
-  parameter Real T7(unit="s", min=0.001, max=100) = 0.05 "fourth stage (second reheater) time constant";
-  parameter Real K7(unit="1", min=0, max=1) = 0.0 "fraction of the HP shaft power after the fourth stage";
-  parameter Real p_ref(unit="1", min=0, max=2) = 0.6 "power at the dispatch (pu)";
-  parameter Real eps_v(unit="1/s", min=1e-9, max=1) = 1e-4 "sharpness: rounding of the rate limits and the gate (pu/s)";
-  parameter Real K_lim(unit="1/s", min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
-  parameter Real gv0 = p_ref / (K1 + K3 + K5 + K7) "valve opening at the dispatch (pu)";
+  parameter Types.PerUnit K(min=1, max=100) = 20 "governor gain, 1/droop (pu)";
+  parameter Types.Time T1(min=0.001, max=100) = 0.001 "governor lag time constant (PSS/E's 0 is 0.001 here)";
+  parameter Types.Time T2(min=0, max=100) = 0.0 "governor lead time constant";
+  parameter Types.Time T3(min=0.001, max=10) = 0.1 "valve positioner time constant";
+  parameter Types.PerUnitRate Uo(min=1e-4, max=10) = 1.0 "maximum valve opening rate (pu/s)";
+  parameter Types.PerUnitRate Uc(min=-10, max=-1e-4) = -1.0 "maximum valve closing rate (pu/s, negative)";
+  parameter Types.PerUnit PMAX(min=0, max=2) = 1.0 "maximum valve opening (pu)";
+  parameter Types.PerUnit PMIN(min=0, max=2) = 0.0 "minimum valve opening (pu)";
+  parameter Types.Time T4(min=0.001, max=100) = 0.3 "inlet piping / steam bowl time constant";
+  parameter Types.PerUnit K1(min=0, max=1) = 0.2 "fraction of the HP shaft power after the first stage";
+  parameter Types.Time T5(min=0.001, max=100) = 7.0 "second stage (reheater) time constant";
+  parameter Types.PerUnit K3(min=0, max=1) = 0.3 "fraction of the HP shaft power after the second stage";
+  parameter Types.Time T6(min=0.001, max=100) = 0.6 "third stage time constant";
+  parameter Types.PerUnit K5(min=0, max=1) = 0.5 "fraction of the HP shaft power after the third stage";
+  parameter Types.Time T7(min=0.001, max=100) = 0.05 "fourth stage (second reheater) time constant";
+  parameter Types.PerUnit K7(min=0, max=1) = 0.0 "fraction of the HP shaft power after the fourth stage";
+  parameter Types.PerUnit p_ref(min=0, max=2) = 0.6 "power at the dispatch (pu)";
+  parameter Types.PerUnitRate eps_v(min=1e-9, max=1) = 1e-4 "sharpness: rounding of the rate limits and the gate (pu/s)";
+  parameter Types.PerUnitRate K_lim(min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
+  final parameter Types.PerUnit gv0 = p_ref / (K1 + K3 + K5 + K7) "valve opening at the dispatch (pu)";
   Interfaces.RealInput dw "speed deviation w_ref - w (pu): PSS/E's -SPEED";
   Interfaces.RealOutput pm "mechanical power of the HP shaft (pu)";
-  Real xl "governor lead-lag state (pu)";
-  Real ysp "speed signal after K (1 + s T2) / (1 + s T1) (pu)";
-  Real v "valve speed the positioner asks for (pu/s)";
-  Real vl "rate-limited valve speed (pu/s)";
-  Real gv "valve opening (pu)";
-  Real x4 "first stage (pu)";
-  Real x5 "second stage (pu)";
-  Real x6 "third stage (pu)";
-  Real x7 "fourth stage (pu)";
+  Types.PerUnit xl "governor lead-lag state (pu)";
+  Types.PerUnit ysp "speed signal after K (1 + s T2) / (1 + s T1) (pu)";
+  Types.PerUnitRate v "valve speed the positioner asks for (pu/s)";
+  Types.PerUnitRate vl "rate-limited valve speed (pu/s)";
+  Types.PerUnit gv "valve opening (pu)";
+  Types.PerUnit x4 "first stage (pu)";
+  Types.PerUnit x5 "second stage (pu)";
+  Types.PerUnit x6 "third stage (pu)";
+  Types.PerUnit x7 "fourth stage (pu)";
 initial equation
   xl = 0;
   gv = gv0;
@@ -66,5 +66,6 @@ fractions K1, K3, K5, K7 make the power of the high-pressure shaft.</p>
 are not modelled. PSS/E allows T1 = 0 (no lag): here T1 is at least 0.001 s.</p>
 <p>Limits are smooth (eps_v; the non-windup limit holds a state within its speed / K_lim of the limit, as TGOV1's) as the embedded build has no state events.
 Initialisation: steady state at p_ref: every stage at p_ref / (K1 + K3 + K5 + K7).
-Units: pu on the machine base, s.</p></html>"));
+Units: pu on the machine base, s.</p></html>",
+    revisions="<html><ul><li>2026-11-23: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li></ul></html>"));
 end IEEEG1;

@@ -1,21 +1,21 @@
 within iGrGen.Governors;
 block TGOV1 "Steam turbine-governor TGOV1 (PSS/E; IEEE PES-TR1 2013, sec. 2.1)"
-  parameter Real R(unit="1", min=0.001, max=1) = 0.05 "permanent droop (pu)";
-  parameter Real T1(unit="s", min=0.001, max=100) = 0.5 "steam bowl / governor time constant";
-  parameter Real VMAX(unit="1", min=0, max=2) = 1.0 "maximum valve position (pu)";
-  parameter Real VMIN(unit="1", min=0, max=2) = 0.0 "minimum valve position (pu)";
-  parameter Real T2(unit="s", min=0, max=100) = 2.5 "numerator (lead) time constant of the reheater";
-  parameter Real T3(unit="s", min=0.001, max=100) = 7.5 "reheater time constant";
-  parameter Real Dt(unit="1", min=0, max=10) = 0.0 "turbine damping coefficient (pu)";
-  parameter Real p_ref(unit="1", min=0, max=2) = 0.6 "power reference, the dispatch (pu)";
-  parameter Real eps_v(unit="1/s", min=1e-9, max=1) = 1e-4 "sharpness: rounding of the non-windup gate in valve speed (pu/s)";
-  parameter Real K_lim(unit="1/s", min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
+  parameter Types.PerUnit R(min=0.001, max=1) = 0.05 "permanent droop (pu)";
+  parameter Types.Time T1(min=0.001, max=100) = 0.5 "steam bowl / governor time constant";
+  parameter Types.PerUnit VMAX(min=0, max=2) = 1.0 "maximum valve position (pu)";
+  parameter Types.PerUnit VMIN(min=0, max=2) = 0.0 "minimum valve position (pu)";
+  parameter Types.Time T2(min=0, max=100) = 2.5 "numerator (lead) time constant of the reheater";
+  parameter Types.Time T3(min=0.001, max=100) = 7.5 "reheater time constant";
+  parameter Types.PerUnit Dt(min=0, max=10) = 0.0 "turbine damping coefficient (pu)";
+  parameter Types.PerUnit p_ref(min=0, max=2) = 0.6 "power reference, the dispatch (pu)";
+  parameter Types.PerUnitRate eps_v(min=1e-9, max=1) = 1e-4 "sharpness: rounding of the non-windup gate in valve speed (pu/s)";
+  parameter Types.PerUnitRate K_lim(min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
   Interfaces.RealInput dw "speed deviation w_ref - w (pu): PSS/E's -SPEED";
   Interfaces.RealOutput pm "mechanical power (pu)";
-  Real u "valve command before the lag (pu)";
-  Real d "free valve speed (pu/s)";
-  Real x1 "valve position, the lag state (pu)";
-  Real x2 "reheater state (pu)";
+  Types.PerUnit u "valve command before the lag (pu)";
+  Types.PerUnitRate d "free valve speed (pu/s)";
+  Types.PerUnit x1 "valve position, the lag state (pu)";
+  Types.PerUnit x2 "reheater state (pu)";
 initial equation
   x1 = min(max(p_ref, VMIN), VMAX);
   x2 = x1;
@@ -43,5 +43,6 @@ capped by K_lim times its distance to the limit (a valve pushed outwards settles
 (its free speed) / K_lim of the limit, 6e-4 pu for 0.06 pu/s and the default 100/s), and
 the corners are rounded over eps_v; the formula is in the equations.</p>
 <p>Initialisation: steady state at the dispatch p_ref (x1 = x2 = p_ref, clamped to the
-valve limits). Units: pu on the machine base, s.</p></html>"));
+valve limits). Units: pu on the machine base, s.</p></html>",
+    revisions="<html><ul><li>2026-11-23: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li></ul></html>"));
 end TGOV1;

@@ -1,21 +1,18 @@
 within iGrGen.Governors;
 block TGTypeIRateLimit "TG Type I with separate opening and closing rate limits on the valve"
   extends PartialTGTypeI;
-  parameter Real rate_open(unit="1/s", min=1e-4, max=10) = 0.01 "largest opening speed of the valve (pu/s)";
-  parameter Real rate_close(unit="1/s", min=1e-4, max=10) = 0.02 "largest closing speed of the valve, a magnitude (pu/s)";
-  parameter Real eps_rate(unit="1/s", min=1e-9, max=1) = 1e-4 "sharpness: width of the rounded corners of the smooth limit (pu/s)";
-  Real v_free "valve speed the governor asks for (pu/s)";
-initial equation
-  xg1 = pin;
+  parameter Types.PerUnitRate rate_open(min=1e-4, max=10) = 0.01 "largest opening speed of the valve (pu/s)";
+  parameter Types.PerUnitRate rate_close(min=1e-4, max=10) = 0.02 "largest closing speed of the valve, a magnitude (pu/s)";
+  parameter Types.PerUnitRate eps_rate(min=1e-9, max=1) = 1e-4 "sharpness: width of the rounded corners of the smooth limit (pu/s)";
+  Effects.RateLimitedLag valve(final T = Ts, final rate_open = rate_open, final rate_close = rate_close,
+    final eps_rate = eps_rate) "(3) with the actuator's speed limits";
 equation
   pin_star = p_ref + dw.signal / R;                                        // (1)
-  v_free = (pin - xg1) / Ts;
-  // (3) through a smooth clamp to [-rate_close, rate_open]; the corrections vanish at
-  // v_free = 0 exactly, so the steady state is that of (3).
-  der(xg1) = v_free
-    - 0.5 * (v_free - rate_open + sqrt((v_free - rate_open) ^ 2 + eps_rate ^ 2))
-    + 0.5 * (-rate_open + sqrt(rate_open ^ 2 + eps_rate ^ 2))
-    + 0.5 * (-rate_close - v_free + sqrt((-rate_close - v_free) ^ 2 + eps_rate ^ 2))
-    - 0.5 * (-rate_close + sqrt(rate_close ^ 2 + eps_rate ^ 2));
+  valve.u.signal = pin;
+  xg1 = valve.y.signal;                                                    // (3), rate-limited
   xv = xg1;
+  annotation(Documentation(info="<html>
+<p>TG Type I (Bogodorova et al. 2016, eqs. 1-6) with the valve lag (3) limited in speed,
+opening and closing separately: the catalogue's <code>rate_limit</code> effect.</p></html>",
+    revisions="<html><ul><li>2026-11: the rate-limited lag is Effects.RateLimitedLag, shared with TGTypeIValveEffects.</li></ul></html>"));
 end TGTypeIRateLimit;

@@ -2,4 +2,7 @@ within iGrGen.Interfaces;
 partial block SISO "Single input, single output"
   RealInput u;
   RealOutput y;
+  annotation(Documentation(info="<html>
+<p>A block with one input u and one output y.</p></html>",
+    revisions="<html><ul><li>2026-11-21: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li></ul></html>"));
 end SISO;

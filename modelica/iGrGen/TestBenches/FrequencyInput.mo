@@ -1,10 +1,13 @@
 within iGrGen.TestBenches;
 model FrequencyInput "TG Type I driven by a recorded frequency deviation given as an input"
-  parameter Real f_nom(unit="Hz", min=1) = 50 "frequency base";
-  input Real f_dev(unit="Hz") "measured frequency minus nominal";
+  parameter Types.Frequency f_nom(min=1) = 50 "frequency base";
+  input Types.Frequency f_dev "measured frequency minus nominal";
   Governors.TGTypeI gov;
-  output Real pm "mechanical power (pu)";
+  output Types.PerUnit pm "mechanical power (pu)";
 equation
   gov.dw.signal = -f_dev / f_nom;
   pm = gov.pm.signal;
+  annotation(Documentation(info="<html>
+<p>TG Type I driven by a recorded frequency deviation (input f_dev, Hz): the bench of recorded disturbances. The governor sees -f_dev / f_nom.</p></html>",
+    revisions="<html><ul><li>2026-11-21: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li></ul></html>"));
 end FrequencyInput;

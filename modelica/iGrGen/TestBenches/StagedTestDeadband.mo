@@ -3,9 +3,12 @@ model StagedTestDeadband "Staged test with an intentional deadband on the freque
   Sources.FrequencyStep src;
   Effects.Deadband db;
   Governors.TGTypeI gov;
-  output Real pm "mechanical power (pu)";
+  output Types.PerUnit pm "mechanical power (pu)";
 equation
   connect(src.y, db.u);
   connect(db.y, gov.dw);
   pm = gov.pm.signal;
+  annotation(Documentation(info="<html>
+<p>The staged test of TestBenches.StagedTest with Effects.Deadband on the frequency path: the catalogue's single-effect bench (rapid_cosim.diagnose.catalogue).</p></html>",
+    revisions="<html><ul><li>2026-11-21: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li></ul></html>"));
 end StagedTestDeadband;

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import pymoca.ast
 import pymoca.parser
 import pymoca.tree
@@ -29,7 +31,40 @@ def flatten(source: PackageSource, class_name: str, tree=None):
         flat = pymoca.tree.flatten(tree, pymoca.ast.ComponentRef.from_string(class_name))
     except Exception as e:  # pymoca raises bare Exceptions for lookup failures
         raise ModelicaError(f"pymoca could not flatten {class_name}: {e}") from e
-    return list(flat.classes.values())[0]
+    flat_class = list(flat.classes.values())[0]
+    _restore_declarations(flat_class, copy.deepcopy(tree), class_name)
+    return flat_class
+
+
+def _restore_declarations(flat_class, tree, class_name: str) -> None:
+    """What pymoca 0.12 drops from a declaration whose type is a derived one
+    (``output Types.PerUnit pm "power"``): its description, and at the top level its
+    causality. Both are read back from the instance tree (instantiation writes into the
+    tree it is given, hence the copy)."""
+    comments: dict[str, str] = {}
+    causality: dict[str, str] = {}
+
+    def walk(instance, prefix: str, depth: int) -> None:
+        if depth > 20:  # a package's nesting, never a cycle
+            return
+        for name, sym in instance.symbols.items():
+            full = f"{prefix}.{name}" if prefix else name
+            if sym.comment:
+                comments.setdefault(full, sym.comment)
+            if not prefix:
+                causality.update({full: p for p in sym.prefixes if p in ("input", "output")})
+            if isinstance(sym.type, pymoca.tree.InstanceClass) and sym.type.type != "type":
+                walk(sym.type, full, depth + 1)
+        for extends in getattr(instance, "extends", []):
+            if isinstance(extends, pymoca.tree.InstanceClass):
+                walk(extends, prefix, depth + 1)
+
+    walk(pymoca.tree.instantiate(tree, class_name), "", 0)
+    for name, s in flat_class.symbols.items():
+        if not s.comment:
+            s.comment = comments.get(name, "")
+        if name in causality and causality[name] not in s.prefixes:
+            s.prefixes.insert(0, causality[name])
 
 
 def translate(source: PackageSource, class_name: str, tree=None) -> ExplicitModel:

@@ -1,0 +1,13 @@
+within iGrGen.TestBenches;
+model FrequencyInputGGOV1 "The standard GGOV1 model driven by a recorded frequency deviation given as an input"
+  parameter Types.Frequency f_nom(min=1) = 50 "frequency base";
+  input Types.Frequency f_dev "measured frequency minus nominal";
+  Governors.GGOV1 gov;
+  output Types.PerUnit pm "mechanical power (pu)";
+equation
+  gov.dw.signal = -f_dev / f_nom;
+  pm = gov.pm.signal;
+  annotation(Documentation(info="<html>
+<p>The standard GGOV1 (general gas turbine), Governors.GGOV1, driven by a recorded frequency deviation (input f_dev, Hz; the governor sees -f_dev / f_nom).</p></html>",
+    revisions="<html><ul><li>2026-11-24: first version.</li></ul></html>"));
+end FrequencyInputGGOV1;

@@ -1,0 +1,12 @@
+within iGrGen.TestBenches;
+model StagedTestGGOV1 "Staged test on the standard GGOV1 model: frequency step into the governor"
+  Sources.FrequencyStep src;
+  Governors.GGOV1 gov;
+  output Types.PerUnit pm "mechanical power (pu)";
+equation
+  connect(src.y, gov.dw);
+  pm = gov.pm.signal;
+  annotation(Documentation(info="<html>
+<p>The staged test (Sources.FrequencyStep) into the standard GGOV1 (general gas turbine), Governors.GGOV1 (IEEE PES, <i>Dynamic Models for Turbine-Governors in Power System Studies</i>, PES-TR1 (2013)).</p></html>",
+    revisions="<html><ul><li>2026-11-24: first version.</li></ul></html>"));
+end StagedTestGGOV1;
