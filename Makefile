@@ -17,7 +17,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose clean table1 figures rerun event1 joint diagnose structures $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures clean table1 figures rerun event1 joint diagnose structures $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -72,12 +72,15 @@ diagnose: fmus  ## name what TG Type I misses on tests 1-10 (4 and 8 held out), 
 		--results $(RESULTS)/diagnose --json $(RESULTS)/diagnose/verdict.json --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make diagnose: $$(( $$(date +%s) - $(T0) )) s wall time"
 
-STRUCTURES := $(addprefix experiments/structures/,TGTypeI.toml TGOV1.toml IEEEG1.toml HYGOV.toml)
+STRUCTURES := $(addprefix experiments/structures/,TGTypeI.toml TGOV1.toml IEEEG1.toml GGOV1.toml HYGOV.toml)
 
-structures: fmus  ## which governor structure (TG Type I, TGOV1, IEEEG1, HYGOV) fits tests 1-10 (4, 8 held out); identifiability
+structures: fmus  ## which governor structure (TG Type I, TGOV1, IEEEG1, GGOV1, HYGOV) fits tests 1-10 (4, 8 held out); identifiability
 	$(RC) structures $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
 		--structures $(subst $(eval) ,$(comma),$(STRUCTURES)) --results $(RESULTS)/structures --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make structures: $$(( $$(date +%s) - $(T0) )) s wall time"
+
+bench-structures: fmus  ## confusion matrix of structure selection on synthetic campaigns (SEEDS=3 per structure)
+	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),3) --n-jobs $(N_JOBS)
 
 bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5)
 	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS)

@@ -211,13 +211,13 @@ def _ar1_inflation(exp) -> float:
 def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Path], *, holdout: Sequence[str],
                results: str | Path, seed: int, n_jobs: int, package: str | Path, fmu_dir: str | Path,
                log=print) -> tuple[str, list[Path]]:
-    """Calibrate each structure on the training tests, rank them, report identifiability
-    (``<results>/structures.md``, ``.json``, ``identifiability.png``)."""
+    """Calibrate each structure on the training tests, rank them, report identifiability,
+    and run the effect catalogue on the winning structure (``<results>/structures.md``,
+    ``.json``, ``identifiability.png``)."""
     import json
 
-    from .calibration import RunOptions
-    from .diagnose.structures import Structure, select_structure
-    from .diagnose.workflow import split_holdout
+    from .diagnose.structures import Structure, effects_on, select_structure
+    from .diagnose.workflow import DiagnoseOptions, split_holdout
     from .experiment import load_experiment
     from .report.structures import identifiability_figure, markdown
     from .staged import method
@@ -231,6 +231,12 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
         + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
     verdict = select_structure(found, training, heldout, workdir=results, options=options, package=package,
                                fmu_dir=fmu_dir, log=log)
+    if verdict.winner is not None:
+        winner = next(s for s in found if s.name == verdict.winner)
+        log(f"the effect catalogue on {winner.name}:")
+        verdict.effects = effects_on(winner, training, heldout, workdir=results / f"effects-{winner.name}",
+                                     options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False),
+                                     package=package, fmu_dir=fmu_dir, log=log)
     record = verdict.to_json()
     js = results / "structures.json"
     js.write_text(json.dumps(record, indent=2, default=float) + "\n")

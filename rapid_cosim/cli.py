@@ -1,6 +1,10 @@
 """Command line: argument parsing over the Python API (:mod:`rapid_cosim.api`) and the
 staged-test campaign (:mod:`rapid_cosim.campaign`); every command calls one of them and
-prints what it returns."""
+prints what it returns.
+
+Kept whole (over 400 lines): one short parser per command; split, the commands' help
+would scatter.
+"""
 
 from __future__ import annotations
 
@@ -267,6 +271,15 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--quiet", action="store_true", help="no progress bar")
         model_options(p)
 
+    def selection_options(p, results):  # what diagnose and structures share
+        p.add_argument("configs", nargs="+", help="experiment configs (or their folders)")
+        p.add_argument("--holdout", action="append", metavar="EXPERIMENT",
+                       help="experiment kept out of the fits to confirm the verdict (repeatable)")
+        p.add_argument("--results", default=results, help="work and report folder (default %(default)s)")
+        p.add_argument("--seed", type=int, default=1)
+        p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s)")
+        model_options(p)
+
     p = command("build", cmd_build, "compile test benches into FMUs (only what changed)")
     p.add_argument("models", nargs="*", help="class names; default: every model in <package>.TestBenches")
     p.add_argument("--force", action="store_true", help="rebuild even if up to date")
@@ -355,9 +368,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("diagnose", cmd_diagnose, "find what the base model misses: try each named effect, rank, "
                 "write the winner into the Modelica package and re-calibrate")
-    p.add_argument("configs", nargs="+", help="experiment configs (or their folders)")
-    p.add_argument("--holdout", action="append", metavar="EXPERIMENT",
-                   help="experiment kept out of the fits to confirm the verdict (repeatable)")
+    selection_options(p, "results/diagnose")
     p.add_argument("--candidates", help="comma-separated effects to try (default: the whole catalogue)")
     p.add_argument("--max-effects", type=int, default=2, help="effects to add greedily (default %(default)s)")
     p.add_argument("--threshold", type=float, default=10.0,
@@ -365,22 +376,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-write-model", action="store_true",
                    help="do not write the named model into the package (nor re-calibrate with it)")
     p.add_argument("--model-name", help="class of the model written (default iGrGen.Diagnosed.Calibrated<Effects>)")
-    p.add_argument("--results", default="results/diagnose", help="work and report folder (default %(default)s)")
     p.add_argument("--json", metavar="FILE", help="also write the verdict as JSON here")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s)")
-    model_options(p)
 
     p = command("structures", cmd_structures, "which governor structure fits the unit: calibrate each, rank "
-                "them (BIC, held-out tests, adequacy), say which parameters the tests determine")
-    p.add_argument("configs", nargs="+", help="experiment configs (or their folders)")
+                "them (BIC, held-out tests, adequacy), say which parameters the tests determine, run the "
+                "effect catalogue on the winner")
+    selection_options(p, "results/structures")
     p.add_argument("--structures", required=True,
                    help="comma-separated structure files, e.g. experiments/structures/TGTypeI.toml,...")
-    p.add_argument("--holdout", action="append", metavar="EXPERIMENT", help="experiment kept out of the fits")
-    p.add_argument("--results", default="results/structures", help="work and report folder (default %(default)s)")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s)")
-    model_options(p)
 
     p = command("demo", cmd_demo, "build the FMUs, calibrate one staged test with both chains, "
                 "write its figure and table")

@@ -7,13 +7,18 @@ never reached) must be flagged as not determined, with a test that would pin it 
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
 
-from rapid_cosim.calibration import RunOptions
+from rapid_cosim.calibration import RunOptions, inputs_from_experiments
 from rapid_cosim.cli import main
 from rapid_cosim.compiler import ensure_fmu
+from rapid_cosim.campaign import structures as campaign_structures
+from rapid_cosim.diagnose.catalogue import bench_name, bench_source, composable, write_bench
+from rapid_cosim.diagnose.identifiability import best_separating_step, identifiability
+from rapid_cosim.diagnose.selection import pooled_noise
 from rapid_cosim.diagnose.structures import Structure, select_structure
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.experiment import load_experiment
@@ -24,22 +29,25 @@ PLANT = {"gov.R": 0.05, "gov.T1": 0.5, "gov.T2": 2.5, "gov.T3": 7.5, "gov.p_ref"
 NOISE = NoiseModel(white_sigma=1e-3, ar1_sigma=1e-3, phi=0.6, offset=0.001)
 
 
-@pytest.fixture(scope="module")
-def campaign(repo, tmp_path_factory):
-    """Three staged tests of the TGOV1 plant, as configs on TG Type I (as the field's)."""
-    work = tmp_path_factory.mktemp("structures")
-    fmu = ensure_fmu("iGrGen.TestBenches.StagedTestTGOV1", package=repo / "modelica" / "iGrGen",
-                     fmu_dir=work / "fmus")
-    rng = np.random.default_rng(11)
+def _campaign(package, work, bench="iGrGen.TestBenches.StagedTestTGOV1", extra=None, seed=11):
+    """Three staged tests of the plant, as configs on TG Type I (as the field's)."""
+    fmu = ensure_fmu(bench, package=package, fmu_dir=work / "fmus")
+    rng = np.random.default_rng(seed)
     configs = []
     for k, df in enumerate(STEPS):
         fixed = {"gov.p_ref": 0.6, "src.df": df, "src.t_step": 20.0, "src.t_return": 70.0}
-        t, y = synthesize(fmu, {**PLANT, **fixed}, duration=90.0, rate=5.0, noise=NOISE, rng=rng)
+        t, y = synthesize(fmu, {**PLANT, **fixed, **(extra or {})}, duration=90.0, rate=5.0, noise=NOISE, rng=rng)
         configs.append(write_experiment(work / f"step{k + 1}", model="iGrGen.TestBenches.StagedTest", time=t,
                                         values=y, fixed=fixed,
                                         estimate={"gov.R": {"min": 0.02, "max": 0.12}},
                                         fitness={"offset": True, "noise": "pre-step", "pre_step_end": 20.0}))
-    return work, configs
+    return configs
+
+
+@pytest.fixture(scope="module")
+def campaign(repo, tmp_path_factory):
+    work = tmp_path_factory.mktemp("structures")
+    return work, _campaign(repo / "modelica" / "iGrGen", work)
 
 
 def _structure(folder, name, text):
@@ -101,3 +109,62 @@ bench = "iGrGen.TestBenches.StagedTestTGOV1"
     assert step["parameter"] == "gov.VMAX" and "no staged step" in step["advice"]
     assert (out / "identifiability.png").stat().st_size > 0
     assert "not determined" in (out / "structures.md").read_text()
+
+
+def test_effects_compose_into_a_standard_structure_but_not_valve_variants(repo, tmp_path):
+    source = bench_source(("deadband", "measurement_lag"), "iGrGen.Diagnosed.StagedTestGGOV1DeadbandMeasurementLag",
+                          base="iGrGen.TestBenches.StagedTestGGOV1")
+    assert "Governors.GGOV1 gov" in source and "Effects.Deadband db" in source
+    with pytest.raises(ValueError, match="valve-side effects are TG Type I variants"):
+        bench_name(("rate_limit",), "iGrGen.TestBenches.StagedTestGGOV1")
+    assert not composable("backlash", "iGrGen.TestBenches.FrequencyInputTGOV1")
+    assert composable("output_limit", "iGrGen.TestBenches.FrequencyInputTGOV1")
+
+
+def test_the_catalogue_runs_on_the_winning_structure(repo, tmp_path):
+    """A TGOV1 plant behind a 30 mHz deadband (invented here): TGOV1 wins over TG Type I,
+    and the catalogue, run on TGOV1, names the deadband."""
+    package = tmp_path / "iGrGen"
+    shutil.copytree(repo / "modelica" / "iGrGen", package)
+    bench = "iGrGen.Diagnosed.StagedTestTGOV1Deadband"
+    write_bench(package, ("deadband",), bench, base="iGrGen.TestBenches.StagedTestTGOV1")
+    configs = _campaign(package, tmp_path, bench=bench, extra={"db.db": 0.03}, seed=5)
+    files = [repo / "experiments" / "structures" / f"{n}.toml" for n in ("TGTypeI", "TGOV1")]
+    text, written = campaign_structures(configs, files, holdout=["step3"], results=tmp_path / "out", seed=2,
+                                        n_jobs=1, package=package, fmu_dir=tmp_path / "fmus", log=lambda *_: None)
+    record = json.loads((tmp_path / "out" / "structures.json").read_text())
+    assert record["ranking"][0]["name"] == "TGOV1", record["reason"]
+    effects = record["effects"]
+    assert effects["structure"] == "TGOV1" and effects["effects"] == ["deadband"], effects["reason"]
+    assert "rate_limit" not in {r["label"] for r in effects["ranking"]}  # a TG Type I variant: not tried
+    assert "the effect catalogue on it" in text
+
+
+def test_two_ggov1_time_constants_the_tests_cannot_separate(repo, tmp_path):
+    """A GGOV1 unit (invented) whose actuator and turbine lags are equal, seen through
+    small steps that never reach the valve's rate limit: two lags in series are then
+    symmetric in their time constants, so the tests cannot tell Tact from Tb. The report
+    says so, and proposes the larger step that engages the rate limit and separates them."""
+    package = repo / "modelica" / "iGrGen"
+    plant = {"gov.Tact": 0.5, "gov.Tb": 0.5, "gov.Ropen": 0.05, "gov.Rclose": -0.05}
+    fmu = ensure_fmu("iGrGen.TestBenches.StagedTestGGOV1", package=package, fmu_dir=tmp_path / "fmus")
+    rng = np.random.default_rng(3)
+    exps = []
+    for k, df in enumerate((-0.05, 0.05)):
+        fixed = {"gov.p_ref": 0.6, "src.df": df, "src.t_step": 20.0, "src.t_return": 70.0}
+        t, y = synthesize(fmu, {**plant, **fixed}, duration=90.0, rate=5.0, noise=NOISE, rng=rng)
+        exps.append(load_experiment(write_experiment(
+            tmp_path / f"small{k + 1}", model="iGrGen.TestBenches.StagedTestGGOV1", time=t, values=y,
+            fixed={**fixed, "gov.Ropen": 0.05, "gov.Rclose": -0.05},
+            estimate={"gov.Tact": {"min": 0.05, "max": 5.0}, "gov.Tb": {"min": 0.05, "max": 5.0}},
+            fitness={"offset": True, "noise": "pre-step", "pre_step_end": 20.0})))
+    inputs = inputs_from_experiments(exps, package=package, fmu_dir=tmp_path / "fmus")
+    noise = pooled_noise(exps)
+    x = np.array([0.5, 0.5])
+    ident = identifiability(inputs, x, noise)
+    assert {ident.status(0), ident.status(1)} == {"not determined"}, ident.summary()
+    assert ident.trade_offs and ident.trade_offs[0][:2] == ("gov.Tact", "gov.Tb")
+    assert ident.trade_offs[0][2] < -0.9
+    step = best_separating_step(inputs, x, ident, noise)
+    assert abs(step["df_hz"]) == pytest.approx(0.4) and step["relative_se"] < ident.relative_se.max() / 10
+    assert "staged test with df" in step["advice"]

@@ -23,9 +23,15 @@ from typing import Mapping, Sequence
 
 BASE_BENCH = "iGrGen.TestBenches.StagedTest"
 INPUT_BENCH = "iGrGen.TestBenches.FrequencyInput"
+# The standard structures of iGrGen.Governors, each with the same two benches.
+STANDARD = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV")
 # The benches the effects are composed into: a staged step from a source block, or a
-# recorded frequency deviation (Hz) fed through the input f_dev.
-BASES = {BASE_BENCH: "StagedTest", INPUT_BENCH: "FrequencyInput"}
+# recorded frequency deviation (Hz) fed through the input f_dev; into TG Type I, or into a
+# standard structure, where only frequency-path and output effects apply (the valve-side
+# ones are TG Type I variants; the standard models carry their own valve limits).
+BASES = {BASE_BENCH: "StagedTest", INPUT_BENCH: "FrequencyInput",
+         **{f"iGrGen.TestBenches.{kind}{g}": f"{kind}{g}" for g in STANDARD
+            for kind in ("StagedTest", "FrequencyInput")}}
 NONE = "none"
 
 
@@ -122,9 +128,24 @@ def check_effects(effects: Sequence[str]) -> tuple[str, ...]:
 
 def check_base(model: str) -> str:
     if model not in BASES:
-        raise ValueError(f"diagnose composes effects into {' or '.join(BASES)}; {model} is neither (an "
-                         "experiment on another model can be calibrated, not diagnosed)")
+        raise ValueError(f"diagnose composes effects into the benches {', '.join(BASES)}; {model} is none of "
+                         "them (an experiment on another model can be calibrated, not diagnosed)")
     return model
+
+
+def governor(base: str) -> str:
+    """The governor class a base bench holds."""
+    return BASES[check_base(base)].removeprefix("StagedTest").removeprefix("FrequencyInput") or "TGTypeI"
+
+
+def is_staged(base: str) -> bool:
+    return BASES[check_base(base)].startswith("StagedTest")
+
+
+def composable(effect: str, base: str) -> bool:
+    """Whether ``effect`` can be composed into ``base``: every effect into TG Type I's
+    benches; into a standard structure's, those on the frequency path or the output."""
+    return governor(base) == "TGTypeI" or CATALOGUE[effect].site in ("frequency", "output")
 
 
 def bench_name(effects: Sequence[str], base: str = BASE_BENCH) -> str:
@@ -133,9 +154,17 @@ def bench_name(effects: Sequence[str], base: str = BASE_BENCH) -> str:
     effects = tuple(e for e in check_effects(effects) if not CATALOGUE[e].relative)  # freed constants: same bench
     if not effects:
         return check_base(base)
+    _check_composable(effects, base)
     if len(effects) == 1 and base == BASE_BENCH:
         return CATALOGUE[effects[0]].bench
     return f"iGrGen.Diagnosed.{BASES[check_base(base)]}" + "".join(camel(e) for e in effects)
+
+
+def _check_composable(effects: Sequence[str], base: str) -> None:
+    wrong = [e for e in effects if not composable(e, base)]
+    if wrong:
+        raise ValueError(f"{', '.join(wrong)} cannot be composed into {base}: valve-side effects are TG Type I "
+                         f"variants ({governor(base)} has its own valve limits among its parameters)")
 
 
 def is_generated(bench: str) -> bool:
@@ -156,12 +185,14 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
     """Modelica text of a bench: ``base`` with ``effects`` composed in, and ``values``
     (FMU names such as ``gov.R``) as modifiers, e.g. calibrated parameters."""
     effects = tuple(e for e in check_effects(effects) if not CATALOGUE[e].relative)
-    check_base(base)
+    _check_composable(effects, base)
     values = dict(values or {})
     short = class_name.rsplit(".", 1)[-1]
     within = class_name.rsplit(".", 1)[0] if "." in class_name else ""
     valve = [e for e in effects if e in _VALVE]
-    if not valve:
+    if governor(base) != "TGTypeI":
+        gov_class = governor(base)
+    elif not valve:
         gov_class = "TGTypeI"
     elif len(valve) == 1:
         gov_class = {"rate_limit": "TGTypeIRateLimit", "backlash": "TGTypeIBacklash",
@@ -170,17 +201,17 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
         gov_class = "TGTypeIValveEffects"
     if gov_class == "TGTypeIValveEffects" and "backlash" not in effects:
         values.setdefault("gov.T_bl", 1e-3)  # without backlash the valve should simply follow
-    kind = "staged test" if base == BASE_BENCH else "recorded-frequency bench"
+    kind = "staged test" if is_staged(base) else "recorded-frequency bench"
     lines = [f"within {within};" if within else "within;",
              f'model {short} "{description or kind + " with " + (", ".join(effects) or "no effect")}"']
     connects = []
-    if base == BASE_BENCH:
+    if is_staged(base):
         lines.append(f"  Sources.FrequencyStep src{_modifiers(values, 'src')};")
         path = "src.y"
     else:  # as TestBenches.FrequencyInput: the recorded deviation in Hz, on the f_nom base
         f_nom = values.pop("f_nom", 50.0)
-        lines += [f'  parameter Real f_nom(unit="Hz", min=1) = {f_nom:.10g} "frequency base";',
-                  '  input Real f_dev(unit="Hz") "measured frequency minus nominal";']
+        lines += [f'  parameter Types.Frequency f_nom(min=1) = {f_nom:.10g} "frequency base";',
+                  '  input Types.Frequency f_dev "measured frequency minus nominal";']
         path = None
 
     def feed(block: str) -> None:
@@ -207,11 +238,17 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
         connects.append(f"connect({out}, meas.u);")
         out = "meas.y"
     out += ".signal"
-    lines.append('  output Real pm "mechanical power as recorded (pu)";')
+    lines.append('  output Types.PerUnit pm "mechanical power as recorded (pu)";')
     lines.append("equation")
     lines += [f"  {c}" for c in connects]
     lines.append(f"  pm = {out};")
-    lines.append(f"end {short};")
+    named = ", ".join(effects) or "no effect"
+    lines += [f'  annotation(Documentation(info="<html><p>The {kind} ({base}) with {named}, composed from '
+              "iGrGen.Effects and iGrGen.Governors by rapid-cosim's discrepancy workflow "
+              '(rapid_cosim.diagnose.catalogue).</p></html>",',
+              '    revisions="<html><ul><li>Generated by rapid-cosim: rerun the diagnosis rather than edit it.'
+              '</li></ul></html>"));',
+              f"end {short};"]
     return "\n".join(lines) + "\n"
 
 

@@ -1,4 +1,4 @@
-"""Which governor structure fits a unit: TG Type I, TGOV1, IEEEG1, HYGOV (iGrGen.Governors),
+"""Which governor structure fits a unit: TG Type I, TGOV1, IEEEG1, GGOV1, HYGOV (iGrGen.Governors),
 each calibrated jointly on the training tests and ranked by the rules the effects obey.
 
 A structure is a small TOML file (``experiments/structures/TGOV1.toml``)::
@@ -22,6 +22,12 @@ the held-out tests at least as well as the runner-up, and is adequate
 (:mod:`.adequacy`); otherwise the verdict is ``ambiguous`` between those within the
 threshold, or ``unexplained`` when none fits to the noise. Each structure's
 identifiability at its optimum comes with it (:mod:`.identifiability`).
+
+Structures and effects combine: :func:`effects_on` runs the effect catalogue on the
+winning structure (:attr:`StructureVerdict.winner`: the one named, or the first by the
+threshold when none fits alone). On a standard structure only the frequency-path and
+output effects are composed; the valve-side ones are TG Type I variants, and the
+standard models carry valve limits among their own parameters.
 """
 
 from __future__ import annotations
@@ -99,6 +105,7 @@ class StructureFit:
     identifiability: dict
     separating_step: dict | None
     archive: str
+    at_bounds: list[str] = field(default_factory=list)  # estimates that ended on a bound of their range
 
 
 @dataclass
@@ -107,10 +114,37 @@ class StructureVerdict:
     candidates: list[str]
     reason: str
     ranking: list[StructureFit] = field(default_factory=list)
+    effects: dict | None = None  # the effect catalogue's verdict on the winning structure
+
+    @property
+    def winner(self) -> str | None:
+        """The structure the effect catalogue runs on: the one named, or, when none fits
+        to the noise, the first if it beats every other by the threshold (what is missing
+        may be an effect on top of it)."""
+        if self.structure not in ("ambiguous", "unexplained"):
+            return self.structure
+        if self.structure == "unexplained" and (len(self.ranking) == 1 or self.ranking[1].delta >= THRESHOLD):
+            return self.ranking[0].name
+        return None
 
     def to_json(self) -> dict:
         return {"structure": self.structure, "candidates": self.candidates, "reason": self.reason,
-                "ranking": [asdict(r) for r in self.ranking]}
+                "ranking": [asdict(r) for r in self.ranking], "effects": self.effects}
+
+
+def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Sequence[Experiment], *,
+               workdir: str | Path, options, package, fmu_dir, log: Callable[[str], None] = print) -> dict:
+    """The effect catalogue on ``structure`` (frequency-path and output effects on a
+    standard structure; all of them on TG Type I): the diagnosis's verdict, in short."""
+    from .workflow import diagnose
+
+    d = diagnose([structure.experiment(e) for e in training], [structure.experiment(e) for e in heldout],
+                 workdir=workdir, options=options, package=package, fmu_dir=fmu_dir, log=log)
+    return {"structure": structure.name, "effect": d.effect, "effects": d.effects, "verdict": d.verdict,
+            "adequate": d.adequate, "candidates": d.candidates, "reason": d.reason,
+            "ranking": [{"label": r["label"], "delta": r["delta"], "parameters": r["parameters"]}
+                        for r in d.ranking],
+            "variance_ratio_after": d.adequacy["after"]["pooled_variance_ratio"] if d.adequacy else None}
 
 
 def select_structure(structures: Sequence[Structure], training: Sequence[Experiment],
@@ -140,13 +174,27 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         step = best_separating_step(inputs, np.asarray(result.x), ident, noise)
         fits.append(StructureFit(s.name, data_term + k * np.log(n), 0.0, float(result.fun), result.best(),
                                  len(result.names), fit_ok.adequate, fit_ok.pooled_variance_ratio, held_score,
-                                 ident.to_json(), step, str(workdir / f"{s.name}.h5")))
+                                 ident.to_json(), step, str(workdir / f"{s.name}.h5"),
+                                 _at_bounds(s.estimate, result.best())))
         log(f"    BIC {fits[-1].bic:.1f}, variance ratio {fit_ok.pooled_variance_ratio:.2f}, "
             f"{ident.summary()}")
     fits.sort(key=lambda f: f.bic)
     for f in fits:
         f.delta = f.bic - fits[0].bic
     return _verdict(fits, threshold)
+
+
+def _at_bounds(estimate: dict, best: dict[str, float], share: float = 0.01) -> list[str]:
+    """Estimates within ``share`` of their range (in the log for log-scaled ones) of a
+    bound: the range, or the structure, holds them there."""
+    out = []
+    for name, spec in estimate.items():
+        lo, hi, x = float(spec["min"]), float(spec["max"]), best[name]
+        if spec.get("scale") == "log":
+            lo, hi, x = np.log(lo), np.log(hi), np.log(x)
+        if min(x - lo, hi - x) <= share * (hi - lo):
+            out.append(f"{name} = {best[name]:.4g} at its {'lower' if x - lo < hi - x else 'upper'} bound")
+    return out
 
 
 def _verdict(fits: list[StructureFit], threshold: float) -> StructureVerdict:
@@ -157,8 +205,7 @@ def _verdict(fits: list[StructureFit], threshold: float) -> StructureVerdict:
         return StructureVerdict("unexplained", [f.name for f in fits],
                                 f"no structure fits to the noise (best {best.name}{margin}, variance ratio "
                                 f"{best.variance_ratio:.2f}): what is missing is missing from every structure "
-                                "tried, or is another structure; the effect catalogue (rapid-cosim diagnose) "
-                                "looks for it on TG Type I", fits)
+                                "tried, or is another structure", fits)
     if rivals:
         return StructureVerdict("ambiguous", [best.name, *rivals],
                                 f"{best.name} and {', '.join(rivals)} are within {threshold:g} in BIC", fits)

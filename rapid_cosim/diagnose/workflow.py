@@ -4,6 +4,9 @@ write the named effect into the Modelica package, compile it and re-calibrate wi
 Everything runs through the project's own machinery: candidates are archived runs of
 the estimators (``candidates.py``), the verdict comes from ``selection.py``, the new
 model is Modelica text from the catalogue, built like any other bench.
+
+Kept whole (over 400 lines): the verdict's steps share one context and read in the order
+they run.
 """
 
 from __future__ import annotations
@@ -28,7 +31,8 @@ from ..engine import make_engine
 from ..objective import ProblemObjective
 from ..experiment import Experiment
 from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, residuals_at
-from .catalogue import BASE_BENCH, BASES, CATALOGUE, NONE, bench_name, camel, check_base, is_generated, write_bench
+from .catalogue import (BASES, CATALOGUE, NONE, bench_name, camel, check_base, composable, governor, is_generated,
+                        is_staged, write_bench)
 from .adequacy import adequacy
 from .features import Features, residual_features
 from .limits import check_material, inadequate, verdict_text
@@ -207,6 +211,11 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
             check_base(exp.model)
         except ValueError as e:
             raise ConfigError(str(e), str(exp.config_path), "experiment.model") from None
+    bases = {e.model for e in [*training, *heldout]}
+    apart = [c for c in options.candidates if not all(composable(c, b) for b in bases)]
+    if apart:  # the valve-side effects are TG Type I variants
+        log(f"not tried on {', '.join(sorted({governor(b) for b in bases}))}: {', '.join(apart)} (TG Type I variants)")
+        options = replace(options, candidates=tuple(c for c in options.candidates if c not in apart))
     undocumented = [c for c in options.candidates if CATALOGUE[c].relative
                     and not all(p.name in e.fixed for e in [*training, *heldout] for p in CATALOGUE[c].parameters)]
     if undocumented:  # a constant no config documents cannot be "documented wrong"
@@ -369,7 +378,7 @@ def _separating(ctx: _Context, verdict: Verdict, not_excluded: Sequence[str]) ->
         b = ctx.fits.get(CandidateSpec((other,), held).label)
     else:
         b = ctx.fits.get(other)
-    staged = [e for e in ctx.training if e.model == BASE_BENCH]
+    staged = [e for e in ctx.training if is_staged(e.model)]
     if a is None or b is None or not staged:
         if not staged:
             ctx.log("  no separating staged test proposed: no training experiment is a staged test to design "
@@ -381,13 +390,14 @@ def _separating(ctx: _Context, verdict: Verdict, not_excluded: Sequence[str]) ->
 def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: DiagnoseOptions):
     """The named model written into the package, compiled, and calibrated again."""
     effects = chosen.spec.effects
-    name = options.model_name or "iGrGen.Diagnosed.Calibrated" + "".join(camel(e) for e in effects)
+    held = sorted({governor(b) for b in ctx.bases} - {"TGTypeI"})  # a standard structure's name in the class
+    name = options.model_name or "iGrGen.Diagnosed.Calibrated" + "".join(held) + "".join(camel(e) for e in effects)
     if not re.fullmatch(r"iGrGen\.Diagnosed\.[A-Za-z_][A-Za-z0-9_]*", name):
         raise ValueError(f"model name {name!r} must be iGrGen.Diagnosed.<Identifier>")
     values = dict(chosen.parameters)
     package_dir = ctx.user_package
     # one class per base bench: the staged test's keeps the name, a recorded-frequency one adds "Input"
-    names = {base: name + ("" if base == BASE_BENCH else "Input") for base in ctx.bases}
+    names = {base: name + ("" if is_staged(base) else "Input") for base in ctx.bases}
     targets = []
     for base, cls in names.items():
         description = (f"{BASES[base]} with {', '.join(effects)}, calibrated on "

@@ -1,6 +1,7 @@
-"""The structure verdict as Markdown and a figure: the ranking, each structure's
-parameters with how well the tests determine them, the pairs that trade off, and the
-staged test that would pin down the least determined parameter."""
+"""The structure verdict as Markdown and a figure: the ranking, what the effect catalogue
+finds on the winner, each structure's parameters with how well the tests determine them,
+the pairs that trade off, and the staged test that would pin down the least determined
+parameter."""
 
 from __future__ import annotations
 
@@ -21,6 +22,16 @@ def markdown(record: dict) -> str:
         held = "-" if r["heldout_score"] is None else f"{r['heldout_score']:.1f}"
         lines.append(f"| {r['name']} | {r['delta']:.1f} | {r['fitness']:.3e} | "
                      f"{'yes' if r['adequate'] else 'no'} ({r['variance_ratio']:.2f}) | {held} | {params} |")
+    eff = record.get("effects")
+    if eff:
+        lines += ["", f"## What {eff['structure']} misses: the effect catalogue on it", "",
+                  f"**{eff['verdict']}** {eff['reason']}.", "",
+                  "| candidate | dBIC | parameters |", "|---|---:|---|"]
+        for r in eff["ranking"][:6]:
+            params = ", ".join(f"{k} = {v:.4g}" for k, v in r["parameters"].items())
+            lines.append(f"| {r['label']} | {r['delta']:.1f} | {params} |")
+    elif record["structure"] == "ambiguous":
+        lines += ["", "The effect catalogue was not run: no structure wins."]
     lines += ["", "## Identifiability at each optimum (Fisher information of the prewhitened residuals)", ""]
     for r in record["ranking"]:
         ident = r["identifiability"]
@@ -28,6 +39,9 @@ def markdown(record: dict) -> str:
         lines.append(f"- **{r['name']}** (condition number {ident['condition']:.2g}): {parts}.")
         for t in ident["trade_offs"]:
             lines.append(f"  - {t['a']} and {t['b']} trade off (correlation {t['correlation']:+.2f}).")
+        if r.get("at_bounds"):
+            lines.append(f"  - On a bound of its range: {'; '.join(r['at_bounds'])} (widen the range, or the "
+                         "structure cannot follow the data there).")
         if r.get("separating_step"):
             lines.append(f"  - Next test: {r['separating_step']['advice']}.")
     return "\n".join(lines) + "\n"

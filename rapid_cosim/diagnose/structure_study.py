@@ -1,0 +1,130 @@
+"""Synthetic study of structure selection (``make bench-structures``).
+
+The plants are invented here: for each structure of iGrGen.Governors (and TG Type I) a
+unit with parameters drawn at random around the models' documented defaults, GGOV1's
+held on its load limiter (Ldref 0.03 to 0.06 pu above the dispatch, so that every
+power-raising step ends on the temperature limit). Each campaign is three staged tests
+(-200, +100, -100 mHz, held 50 s and returned; 90 s at 5 Hz) with the discrepancy
+study's noise (white + AR(1) + a meter offset); the last test is held out. Every
+structure is calibrated on the campaign with the same estimated parameters whichever
+generated it (:data:`ESTIMATE`), the rest at the models' defaults, and the verdict is
+compared with the generating structure.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..calibration import RunOptions
+from ..compiler import ensure_fmu
+from ..experiment import load_experiment
+from ..synthetic import NoiseModel, synthesize, write_experiment
+from .structures import Structure, StructureVerdict, select_structure
+
+STEPS = ((-0.2, 70.0), (0.1, 70.0), (-0.1, 70.0))
+NOISE = NoiseModel(white_sigma=1e-3, ar1_sigma=1e-3, phi=0.6, offset=0.001)
+P_REF = 0.6
+
+# What each structure estimates (bounds), the same for every campaign.
+ESTIMATE: dict[str, dict[str, dict]] = {
+    "TGTypeI": {"gov.R": {"min": 0.02, "max": 0.12}, "gov.Ts": {"min": 0.1, "max": 20.0, "scale": "log"}},
+    "TGOV1": {"gov.R": {"min": 0.02, "max": 0.12}, "gov.T1": {"min": 0.05, "max": 20.0, "scale": "log"},
+              "gov.T2": {"min": 0.0, "max": 10.0}, "gov.T3": {"min": 0.5, "max": 30.0, "scale": "log"}},
+    "IEEEG1": {"gov.K": {"min": 8.0, "max": 50.0}, "gov.T3": {"min": 0.02, "max": 10.0, "scale": "log"},
+               "gov.T5": {"min": 1.0, "max": 30.0, "scale": "log"}, "gov.K1": {"min": 0.05, "max": 0.6}},
+    "GGOV1": {"gov.R": {"min": 0.02, "max": 0.12}, "gov.Kpgov": {"min": 1.0, "max": 40.0, "scale": "log"},
+              "gov.Kigov": {"min": 0.1, "max": 20.0, "scale": "log"},
+              "gov.Ldref": {"min": 0.61, "max": 1.2}},
+    "HYGOV": {"gov.R": {"min": 0.02, "max": 0.12}, "gov.r": {"min": 0.05, "max": 1.0, "scale": "log"},
+              "gov.Tr": {"min": 0.5, "max": 20.0, "scale": "log"}, "gov.TW": {"min": 0.1, "max": 4.0, "scale": "log"}},
+}
+BENCH = {"TGTypeI": "iGrGen.TestBenches.StagedTest", **{g: f"iGrGen.TestBenches.StagedTest{g}"
+                                                        for g in ("TGOV1", "IEEEG1", "GGOV1", "HYGOV")}}
+# The plants: random units around the defaults (their estimated parameters drawn here).
+PLANTS: dict[str, Callable[[np.random.Generator], dict[str, float]]] = {
+    "TGTypeI": lambda g: {"gov.R": g.uniform(0.04, 0.07), "gov.Ts": g.uniform(0.5, 5.0)},
+    "TGOV1": lambda g: {"gov.R": g.uniform(0.04, 0.07), "gov.T1": g.uniform(0.2, 2.0), "gov.T2": g.uniform(0.5, 3.0),
+                        "gov.T3": g.uniform(4.0, 10.0)},
+    "IEEEG1": lambda g: {"gov.K": g.uniform(15.0, 30.0), "gov.T3": g.uniform(0.1, 1.0), "gov.T5": g.uniform(4.0, 10.0),
+                         "gov.K1": g.uniform(0.2, 0.4)},
+    "GGOV1": lambda g: {"gov.R": g.uniform(0.04, 0.07), "gov.Kpgov": g.uniform(5.0, 20.0),
+                        "gov.Kigov": g.uniform(1.0, 5.0), "gov.Ldref": P_REF + g.uniform(0.03, 0.06)},
+    "HYGOV": lambda g: {"gov.R": g.uniform(0.04, 0.07), "gov.r": g.uniform(0.2, 0.6), "gov.Tr": g.uniform(2.0, 8.0),
+                        "gov.TW": g.uniform(0.5, 2.0)},
+}
+
+
+@dataclass
+class StructureCase:
+    truth: str
+    seed: int
+    plant: dict[str, float]
+    verdict: StructureVerdict | None = None
+    seconds: float = 0.0
+
+    @property
+    def named(self) -> str:
+        return self.verdict.structure if self.verdict else "?"
+
+    @property
+    def first(self) -> str:
+        return self.verdict.ranking[0].name if self.verdict else "?"
+
+
+def structure_files(folder: Path) -> list[Path]:
+    """One structure file per model, estimating :data:`ESTIMATE`."""
+    from ..experiment import render_config
+
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, estimate in ESTIMATE.items():
+        path = folder / f"{name}.toml"
+        path.write_text(render_config({"structure": {"name": name, "bench": BENCH[name]}, "fixed": {},
+                                       "estimate": estimate}))
+        paths.append(path)
+    return paths
+
+
+def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir) -> StructureCase:
+    rng = np.random.default_rng([seed, 104729, sorted(PLANTS).index(truth)])
+    case = StructureCase(truth, seed, PLANTS[truth](rng))
+    folder = work / f"{truth}-{seed}"
+    fmu = ensure_fmu(BENCH[truth], package=package, fmu_dir=fmu_dir)
+    configs = []
+    for k, (df, t_return) in enumerate(STEPS):
+        fixed = {"gov.p_ref": P_REF, "src.df": df, "src.t_step": 20.0, "src.t_return": t_return}
+        t, y = synthesize(fmu, {**case.plant, **fixed}, duration=90.0, rate=5.0, noise=NOISE, rng=rng)
+        configs.append(write_experiment(folder / f"step{k + 1}", model=BENCH["TGTypeI"], time=t, values=y,
+                                        fixed=fixed, estimate={"gov.R": {"min": 0.02, "max": 0.12}},
+                                        fitness={"offset": True, "noise": "pre-step", "pre_step_end": 20.0}))
+    structures = [Structure.load(p) for p in structure_files(folder / "structures")]
+    exps = [load_experiment(c) for c in configs]
+    start = time.perf_counter()
+    case.verdict = select_structure(structures, exps[:2], exps[2:], workdir=folder / "runs",
+                                    options=RunOptions(method="pf:10+nm", seed=seed), package=package,
+                                    fmu_dir=fmu_dir, log=lambda *_: None)
+    case.seconds = time.perf_counter() - start
+    return case
+
+
+def confusion_text(cases: list[StructureCase]) -> str:
+    names = list(ESTIMATE)
+    cols = [*names, "ambiguous", "unexplained"]
+    lines = ["true / named " + "".join(f"{c[:11]:>12}" for c in cols) + "     named   first"]
+    for truth in names:
+        mine = [c for c in cases if c.truth == truth]
+        if not mine:
+            continue
+        row = [sum(c.named == col for c in mine) for col in cols]
+        named = sum(c.named == truth for c in mine) / len(mine)
+        first = sum(c.first == truth for c in mine) / len(mine)
+        lines.append(f"{truth:<13}" + "".join(f"{n:>12}" for n in row) + f"  {named:7.0%} {first:7.0%}")
+    total = len(cases)
+    lines.append(f"named the generating structure: {sum(c.named == c.truth for c in cases)}/{total}; "
+                 f"ranked it first: {sum(c.first == c.truth for c in cases)}/{total}")
+    return "\n".join(lines)
