@@ -29,7 +29,7 @@ PAIRS = ("rate_limit+load_controller", "deadband+measurement_lag")
 
 def _seeds(spec: str) -> list[int]:
     out = []
-    for part in spec.split(","):
+    for part in filter(None, spec.split(",")):
         a, _, b = part.partition("-")
         out += list(range(int(a), int(b or a) + 1))
     return out
