@@ -4,6 +4,7 @@ only when the Modelica sources change)."""
 from __future__ import annotations
 
 import os
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -30,6 +31,39 @@ def fmus(repo) -> dict[str, Path]:
 
     outcomes = build_models(package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus", log=lambda *_: None)
     return {o.model.rsplit(".", 1)[-1]: o.fmu for o in outcomes}
+
+
+@pytest.fixture(scope="session")
+def study(repo, tmp_path_factory):
+    """(work folder, package copy, FMU folder) with the base bench and every catalogue
+    effect's bench built: what the synthetic diagnosis studies run on."""
+    from rapid_cosim.compiler import build_models
+    from rapid_cosim.diagnose.catalogue import BASE_BENCH, CATALOGUE
+
+    work = tmp_path_factory.mktemp("study")
+    package = work / "package" / "iGrGen"
+    shutil.copytree(repo / "modelica" / "iGrGen", package)
+    fmu_dir = work / "fmus"
+    build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in CATALOGUE.values())])), package=package,
+                 fmu_dir=fmu_dir, log=lambda *_: None)
+    return work, package, fmu_dir
+
+
+# A quick synthetic staged test (R 0.06, Ts 4 s, 25 s) for the run, fault and cluster tests.
+SYNTH_FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}
+SYNTH_ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"},
+                  "gov.Ts": {"min": 0.1, "max": 20.0, "label": "Ts"}}
+
+
+def synthetic_config(fmu, folder: Path, seed: int) -> Path:
+    import numpy as np
+
+    from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+
+    t, y = synthesize(fmu, {**SYNTH_FIXED, "gov.R": 0.06, "gov.Ts": 4.0}, duration=25.0,
+                      noise=NoiseModel(white_sigma=0.0008, offset=0.001), rng=np.random.default_rng(seed))
+    return write_experiment(folder, model="iGrGen.TestBenches.StagedTest", time=t, values=y, fixed=SYNTH_FIXED,
+                            estimate=SYNTH_ESTIMATE)
 
 
 BLOWUP = """package Bad

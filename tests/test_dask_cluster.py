@@ -19,10 +19,8 @@ import pytest
 
 from rapid_cosim.archive import RunArchive
 from rapid_cosim.calibration import RunOptions, inputs_from_configs, start_run
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
 
-FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}
-ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"}, "gov.Ts": {"min": 0.1, "max": 20.0, "label": "Ts"}}
+from conftest import synthetic_config
 METHOD, PARTICLES = "pf:10+nm", 40
 DASK = str(Path(sys.executable).with_name("dask"))
 
@@ -75,10 +73,7 @@ def cluster(tmp_path):
 
 @pytest.fixture(scope="module")
 def config(fmus, tmp_path_factory):
-    t, y = synthesize(fmus["StagedTest"], {**FIXED, "gov.R": 0.06, "gov.Ts": 4.0}, duration=25.0,
-                      noise=NoiseModel(white_sigma=0.0008, offset=0.001), rng=np.random.default_rng(3))
-    return write_experiment(tmp_path_factory.mktemp("dask") / "synth", model="iGrGen.TestBenches.StagedTest",
-                            time=t, values=y, fixed=FIXED, estimate=ESTIMATE)
+    return synthetic_config(fmus["StagedTest"], tmp_path_factory.mktemp("dask") / "synth", seed=3)
 
 
 @pytest.fixture(scope="module")

@@ -7,17 +7,15 @@ plants are its ``FOREIGN`` ones (a sagging boiler, a non-linear valve curve)."""
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from rapid_cosim.compiler import build_models
 from rapid_cosim.diagnose.adequacy import MAX_VARIANCE_RATIO, adequacy, ljung_box_p
 from rapid_cosim.diagnose.candidates import CandidateFit, CandidateSpec, ExperimentResiduals
-from rapid_cosim.diagnose.catalogue import BASE_BENCH, CATALOGUE, NONE
+from rapid_cosim.diagnose.catalogue import NONE
 from rapid_cosim.diagnose.limits import check_material
 from rapid_cosim.diagnose.materiality import MIN_GAP_SHARE, gap_share, size_share
 from rapid_cosim.diagnose.selection import NoiseFloor, Verdict
@@ -50,17 +48,6 @@ def test_materiality_measures_size_from_off_to_material():
     before = {"t": _residuals(np.full(100, np.sqrt(5.0)))}  # gap sqrt(5 - 1) = 2
     after = {"t": _residuals(np.full(100, np.sqrt(2.0)))}  # gap 1
     assert gap_share(before, after, floor) == pytest.approx(0.5)
-
-
-@pytest.fixture(scope="module")
-def study(repo, tmp_path_factory):
-    work = tmp_path_factory.mktemp("adequacy")
-    package = work / "package" / "iGrGen"
-    shutil.copytree(repo / "modelica" / "iGrGen", package)
-    fmu_dir = work / "fmus"
-    build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in CATALOGUE.values())])), package=package, fmu_dir=fmu_dir,
-                 log=lambda *_: None)
-    return work, package, fmu_dir
 
 
 @pytest.mark.parametrize("foreign", ["boiler_dip", "valve_curve"])

@@ -13,24 +13,11 @@ import shutil
 import joblib
 import pytest
 
-from rapid_cosim.compiler import build_models
 from rapid_cosim.cli import main
-from rapid_cosim.diagnose.catalogue import BASE_BENCH, CATALOGUE
 from rapid_cosim.diagnose.study import HIDDEN, SINGLE_SIZE, confusion_text, draw_case, run_case, write_campaign
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
 
 SEEDS = (1, 2)
-
-
-@pytest.fixture(scope="module")
-def study(repo, tmp_path_factory):
-    work = tmp_path_factory.mktemp("study")
-    package = work / "package" / "iGrGen"
-    shutil.copytree(repo / "modelica" / "iGrGen", package)
-    fmu_dir = work / "fmus"
-    build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in CATALOGUE.values())])), package=package, fmu_dir=fmu_dir,
-                 log=lambda *_: None)
-    return work, package, fmu_dir
 
 
 @pytest.fixture(scope="module")

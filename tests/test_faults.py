@@ -17,20 +17,15 @@ from rapid_cosim.archive import format as archive_format
 from rapid_cosim.calibration import RunOptions, inputs_from_configs, resume_run, start_run, summary_json
 from rapid_cosim.cli import main
 from rapid_cosim.errors import ArchiveFull
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
 
-FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}
-ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"}, "gov.Ts": {"min": 0.1, "max": 20.0, "label": "Ts"}}
+from conftest import synthetic_config
 # the Python runner keeps a run long enough (seconds) to be interrupted in the middle
 OPTIONS = dict(method="pf:8+nm", seed=4, runner="python", estimator_options={"pf": {"n_particles": 24}})
 
 
 @pytest.fixture(scope="module")
 def config(fmus, tmp_path_factory):
-    t, y = synthesize(fmus["StagedTest"], {**FIXED, "gov.R": 0.06, "gov.Ts": 4.0}, duration=25.0,
-                      noise=NoiseModel(white_sigma=0.0008, offset=0.001), rng=np.random.default_rng(7))
-    return write_experiment(tmp_path_factory.mktemp("faults") / "synth", model="iGrGen.TestBenches.StagedTest",
-                            time=t, values=y, fixed=FIXED, estimate=ESTIMATE)
+    return synthetic_config(fmus["StagedTest"], tmp_path_factory.mktemp("faults") / "synth", seed=7)
 
 
 @pytest.fixture(scope="module")

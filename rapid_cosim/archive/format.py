@@ -57,6 +57,9 @@ Method extras (``Iteration.extras``) are free-form, so each iteration's dict is 
 record: an 8-byte little-endian header length, a JSON header ``{"keys", "sizes"}``,
 then one ``.npy`` image per key (``numpy.save``, no pickles), which round-trips any
 non-object dtype and shape exactly.
+
+Kept whole (over 400 lines): the layout, its encodings and its checksums change
+together.
 """
 
 from __future__ import annotations

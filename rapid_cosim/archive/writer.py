@@ -1,5 +1,8 @@
 """Appending a run's iterations to its archive (see :mod:`.format` for the layout and
-why the writer never changes the structure of the live file)."""
+why the writer never changes the structure of the live file).
+
+Kept whole (over 400 lines): the writer's crash-safety steps are one sequence.
+"""
 
 from __future__ import annotations
 

@@ -62,6 +62,9 @@ must be declared identically everywhere (same bounds, label, scale, start); a
 
 Every mistake is a :class:`ConfigError` naming the file and the key (``estimate."gov.R".min``);
 unreadable measurements stay :class:`DataError` naming the data file and row.
+
+Kept whole (over 400 lines): the schema above and the check of each section it describes
+are read together.
 """
 
 from __future__ import annotations
