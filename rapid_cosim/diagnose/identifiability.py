@@ -4,8 +4,8 @@ optimum, from the prewhitened residuals' sensitivities.
 For parameters ``theta`` (in the log of their value for log-scaled ones, so that a
 standard error reads as a relative one), ``J`` holds the derivatives of every test's
 residual, prewhitened with its noise ``phi`` and divided by the innovation level, by
-central differences (steps of 1 % of the value). ``F = J^T J`` is the information, its
-inverse the covariance of a least-squares estimate under the noise model (a lower bound:
+central differences (steps of 1 % of the value, one-sided at a bound). ``F = J^T J``
+is the information, its inverse the covariance of a least-squares estimate under the noise model (a lower bound:
 a structure that misfits has more), its condition number the spread of what is and is
 not determined. Each parameter is
 
@@ -74,15 +74,23 @@ def _whitened(inputs, x, noise) -> np.ndarray:
     return np.concatenate(parts)
 
 
+def _pair(inputs, x: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """The points either side of ``x`` along parameter ``k`` (a 1 % step, kept inside
+    the declared bounds: one-sided at a bound) and their distance."""
+    h = STEP * (abs(x[k]) if x[k] != 0 else 1.0)
+    space = inputs.problem.space
+    up, down = x.copy(), x.copy()
+    up[k], down[k] = min(x[k] + h, space.upper[k]), max(x[k] - h, space.lower[k])
+    return up, down, up[k] - down[k]
+
+
 def identifiability(inputs, x: np.ndarray, noise) -> Identifiability:
     """At ``x`` (the run's best point, physical units) for the run's estimated parameters."""
     x = np.asarray(x, dtype=float)
     cols = []
     for k in range(x.size):
-        h = STEP * (abs(x[k]) if x[k] != 0 else 1.0)
-        up, down = x.copy(), x.copy()
-        up[k], down[k] = x[k] + h, x[k] - h
-        d = (_whitened(inputs, up, noise) - _whitened(inputs, down, noise)) / (2 * h)
+        up, down, width = _pair(inputs, x, k)
+        d = (_whitened(inputs, up, noise) - _whitened(inputs, down, noise)) / width
         cols.append(d * (abs(x[k]) if x[k] != 0 else 1.0))  # per relative change: d/d(log theta)
     J = np.column_stack(cols)
     F = J.T @ J
@@ -124,15 +132,13 @@ def best_separating_step(inputs, x: np.ndarray, ident: Identifiability, noise) -
     for df in STEPS_HZ:
         cols = []
         for j in range(x.size):
-            h = STEP * (abs(x[j]) if x[j] != 0 else 1.0)
+            *points, width = _pair(inputs, x, j)
             ys = []
-            for sign in (1, -1):
-                xx = x.copy()
-                xx[j] += sign * h
+            for xx in points:
                 params = {**inputs.problem.parameters_for(xx, i), "src.df": df, "src.t_step": t_step,
                           "src.t_return": t_step + HOLD_S}
                 ys.append(sim.simulate(params, output_times=times, outputs=list(exp.outputs))[next(iter(exp.outputs))])
-            d = (ys[0] - ys[1]) / (2 * h) * (abs(x[j]) if x[j] != 0 else 1.0)
+            d = (ys[0] - ys[1]) / width * (abs(x[j]) if x[j] != 0 else 1.0)
             cols.append(prewhitened(d - d.mean(), floor.phi) / innovation)  # offsets are profiled
         J = np.column_stack(cols)
         se = np.sqrt(np.clip(np.diag(np.linalg.pinv(ident.information + J.T @ J)), 0, None))
