@@ -128,19 +128,23 @@ class Reference:
         return x0
 
     def simulate(self, t_out):
-        """Output at ``t_out``, integrating each interval between switching times apart."""
-        p = self.p
-        cuts = sorted({0.0, p["src.t_step"], p["src.t_return"], float(t_out[-1])})
-        cuts = [c for c in cuts if c <= t_out[-1]]
-        x = self.steady_start()
-        y = np.full(len(t_out), np.nan)
-        for a, b in zip(cuts[:-1], cuts[1:]):
-            mask = (t_out >= a) & (t_out < b) if b < t_out[-1] else (t_out >= a) & (t_out <= b)
-            # max_step keeps the integrator from stepping over the smooth corners
-            sol = solve_ivp(lambda t, s: self.rhs(t if t < b else np.nextafter(b, a), s), (a, b), x,
-                            method="LSODA", rtol=1e-10, atol=1e-12, dense_output=True, max_step=0.05)
-            if mask.any():
-                states = sol.sol(t_out[mask])
-                y[mask] = [self.output(t, states[:, k]) for k, t in enumerate(t_out[mask])]
-            x = sol.y[:, -1]
-        return y
+        return integrate_between_switches(self.rhs, self.output, self.steady_start(), self.p, t_out)
+
+
+def integrate_between_switches(rhs, output, x0, p, t_out):
+    """Output at ``t_out`` of ``x' = rhs(t, x)`` from ``x0``, integrating each interval
+    between the source's switching times (``src.t_step``, ``src.t_return``) apart."""
+    cuts = sorted({0.0, p["src.t_step"], p["src.t_return"], float(t_out[-1])})
+    cuts = [c for c in cuts if c <= t_out[-1]]
+    x = x0
+    y = np.full(len(t_out), np.nan)
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        mask = (t_out >= a) & (t_out < b) if b < t_out[-1] else (t_out >= a) & (t_out <= b)
+        # max_step keeps the integrator from stepping over the smooth corners
+        sol = solve_ivp(lambda t, s: rhs(t if t < b else np.nextafter(b, a), s), (a, b), x,
+                        method="LSODA", rtol=1e-10, atol=1e-12, dense_output=True, max_step=0.05)
+        if mask.any():
+            states = sol.sol(t_out[mask])
+            y[mask] = [output(t, states[:, k]) for k, t in enumerate(t_out[mask])]
+        x = sol.y[:, -1]
+    return y

@@ -11,7 +11,7 @@ is the staged test's speed deviation dw = w_ref - w = -df / f_nom.
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import solve_ivp
+from reference_models import integrate_between_switches
 from scipy.special import logsumexp
 
 SOURCE = {"src.df": -0.2, "src.f_nom": 50.0, "src.t_step": 10.0, "src.t_return": 1e9}
@@ -145,17 +145,5 @@ class Standard:
         return np.array([0.0, gv0, gv0, gv0, gv0, gv0])
 
     def simulate(self, t_out):
-        p = self.p
-        cuts = sorted({0.0, p["src.t_step"], p["src.t_return"], float(t_out[-1])})
-        cuts = [c for c in cuts if c <= t_out[-1]]
-        x = self.start()
-        y = np.full(len(t_out), np.nan)
-        for a, b in zip(cuts[:-1], cuts[1:]):
-            mask = (t_out >= a) & (t_out < b) if b < t_out[-1] else (t_out >= a) & (t_out <= b)
-            sol = solve_ivp(lambda t, s: np.asarray(self._f(t if t < b else np.nextafter(b, a), s)[0]), (a, b), x,
-                            method="LSODA", rtol=1e-10, atol=1e-12, dense_output=True, max_step=0.05)
-            if mask.any():
-                states = sol.sol(t_out[mask])
-                y[mask] = [self._f(t, states[:, k])[1] for k, t in enumerate(t_out[mask])]
-            x = sol.y[:, -1]
-        return y
+        return integrate_between_switches(lambda t, x: np.asarray(self._f(t, x)[0]), lambda t, x: self._f(t, x)[1],
+                                          self.start(), self.p, t_out)
