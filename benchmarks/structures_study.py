@@ -30,6 +30,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--seeds", type=int, default=3, help="campaigns per structure")
     parser.add_argument("--structures", default=",".join(ESTIMATE))
     parser.add_argument("--n-jobs", type=int, default=2, help="campaigns in parallel")
+    parser.add_argument("--method", default="pf:10+nm", help="calibration method of every structure")
     parser.add_argument("--keep", help="work folder to keep (default: a temporary one)")
     args = parser.parse_args(argv)
     truths = [s for s in args.structures.split(",") if s]
@@ -47,13 +48,17 @@ def main(argv: list[str]) -> int:
           f"work folder {work}")
     t0 = time.perf_counter()
     cases = joblib.Parallel(n_jobs=args.n_jobs)(
-        joblib.delayed(run_structure_case)(t, s, work / "cases", package=package, fmu_dir=fmu_dir) for t, s in jobs)
+        joblib.delayed(run_structure_case)(t, s, work / "cases", package=package, fmu_dir=fmu_dir,
+                                            method=args.method) for t, s in jobs)
     elapsed = time.perf_counter() - t0
     print()
     print(confusion_text(cases))
     for c in cases:
         if c.named != c.truth:
             print(f"  {c.truth}-{c.seed}: {c.named} ({c.verdict.reason[:160]})")
+            if c.followup is not None:
+                print(f"    {c.verdict.separating_test['advice']}; with it: {c.followup.structure} "
+                      f"({c.followup.reason[:120]})")
     print(f"time: {elapsed:.0f} s in all, {sorted(c.seconds for c in cases)[len(cases) // 2]:.0f} s per campaign "
           "(median, one process each)")
     return 0

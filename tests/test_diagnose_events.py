@@ -17,7 +17,7 @@ import pytest
 from rapid_cosim.compiler import build_models
 from rapid_cosim.data.comtrade import write_comtrade
 from rapid_cosim.diagnose import DiagnoseOptions, diagnose
-from rapid_cosim.diagnose.catalogue import INPUT_BENCH, bench_name, bench_source, write_bench
+from rapid_cosim.diagnose.catalogue import INPUT_BENCH, bench_name, write_bench
 from rapid_cosim.experiment import load_experiment
 from rapid_cosim.simulator import Simulator
 from rapid_cosim.synthetic import NoiseModel, synthesize_event

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from rapid_cosim.estimators import (GDOptions, NMOptions, PFOptions, PSOOptions, SearchSpace,
+from rapid_cosim.estimators import (GDOptions, NMOptions, PFOptions, PSOOptions, ScanOptions, SearchSpace,
                                     SMCOptions, Evaluations, Stage, parse_method,
                                     particle_filter, run_chain)
 
@@ -83,7 +83,7 @@ def unit_error(x, x_star=X_STAR):
     return float(np.max(np.abs(SPACE.to_unit(x) - SPACE.to_unit(x_star))))
 
 
-ALL_METHODS = ["pf", "pso", "nm", "gd", "smc", "pf:10+nm", "pso:10+nm", "pf:5+pso:5+gd"]
+ALL_METHODS = ["pf", "pso", "nm", "gd", "smc", "pf:10+nm", "pso:10+nm", "pf:5+pso:5+gd", "pso:5+nm+scan+nm"]
 
 # tolerance on the optimum in unit coordinates (fraction of each parameter's range)
 RECOVERY = [("pf", 0.01), ("pso", 1e-4), ("nm", 1e-5), ("gd", 1e-5),
@@ -155,7 +155,7 @@ def test_every_evaluated_point_is_inside_the_bounds(method):
     res = run(method, rec)
     assert np.all(SPACE.contains(rec.rows))
     assert all(np.all(SPACE.contains(it.x)) for it in res.history)
-    if method in ("nm", "gd", "pf:10+nm", "pso:10+nm", "pf:5+pso:5+gd"):
+    if method in ("nm", "gd", "pf:10+nm", "pso:10+nm", "pf:5+pso:5+gd", "pso:5+nm+scan+nm"):
         assert unit_error(res.x, corner) < 1e-4
 
 
@@ -262,6 +262,30 @@ def test_pf_stops_on_spread_and_fitness_tol():
     assert "fitness_tol" in res.stop_reason and res.fun <= 1e-2
 
 
+def limit_values(X):
+    """A limit that acts only when Ts (standing in for it) is below 6: above, a plateau on
+    which Ts does not matter; below, a narrow valley (5 % of the range) down to 0 at
+    (0.05, 5.5), walled at Ts = 5."""
+    ts = X[:, 1]
+    r = ((X[:, 0] - 0.05) / 0.01) ** 2
+    valley = np.where(ts < 5.0, 1.0 + 10.0 * (5.0 - ts), 4.0 * (ts - 5.5) ** 2)
+    return r + np.where(ts >= 6.0, 1.0, valley)
+
+
+def test_scan_steps_off_a_plateau_into_the_valley_where_a_limit_acts():
+    objective = lambda X: Evaluations.from_fitness(limit_values(X))  # noqa: E731
+    on_plateau = np.array([0.06, 15.0])
+    stuck = run("nm", objective, x0=on_plateau)
+    assert stuck.x[1] > 6.0 and stuck.fun == pytest.approx(1.0, abs=1e-6)
+    found = run("nm+scan+nm", objective, x0=on_plateau)
+    assert found.fun < 1e-8 and found.x == pytest.approx([0.05, 5.5], rel=1e-4)
+    scans = [it for it in found.history if it.stage == "scan"]
+    # one iteration per parameter and sweep, every sweep over the whole range in one call
+    assert [int(it.extras["parameter"]) for it in scans][:2] == [0, 1]
+    assert all(len(it.x) == ScanOptions().n_points for it in scans)
+    assert scans[1].x[:, 1].min() == pytest.approx(0.1) and scans[1].x[:, 1].max() == pytest.approx(20.0)
+
+
 def test_pso_stops_on_stagnation():
     flat = lambda X: Evaluations.from_fitness(np.ones(len(X)))  # noqa: E731
     res = run("pso", flat, options={"pso": PSOOptions(stall_iter=5)})
@@ -334,6 +358,8 @@ def test_run_chain_argument_errors():
     (lambda: SMCOptions(level=0.0), "level"),
     (lambda: NMOptions(initial_step=0.7), "initial_step"),
     (lambda: GDOptions(difference="backward"), "difference='backward'.*forward.*central"),
+    (lambda: ScanOptions(n_points=1), "n_points=1"),
+    (lambda: ScanOptions(max_iter=0), "max_iter=0"),
     (lambda: GDOptions(fd_step="0.1"), "fd_step='0.1' is not a number"),
 ])
 def test_options_are_validated(make, message):

@@ -19,8 +19,9 @@ from rapid_cosim.campaign import structures as campaign_structures
 from rapid_cosim.diagnose.catalogue import bench_name, bench_source, composable, write_bench
 from rapid_cosim.diagnose.identifiability import best_separating_step, identifiability
 from rapid_cosim.diagnose.selection import pooled_noise
-from rapid_cosim.diagnose.structures import Structure, select_structure
+from rapid_cosim.diagnose.structures import Structure, StructureFit, _verdict, select_structure
 from rapid_cosim.errors import ConfigError
+from rapid_cosim.report.structures import markdown as structures_markdown
 from rapid_cosim.experiment import load_experiment
 from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
 
@@ -168,3 +169,39 @@ def test_two_ggov1_time_constants_the_tests_cannot_separate(repo, tmp_path):
     step = best_separating_step(inputs, x, ident, noise)
     assert abs(step["df_hz"]) == pytest.approx(0.4) and step["relative_se"] < ident.relative_se.max() / 10
     assert "staged test with df" in step["advice"]
+
+
+def _fit(name, bic, n_estimated, adequate=True):
+    return StructureFit(name, bic, 0.0, 0.0, {}, n_estimated, adequate, 1.0, None, {}, None, "")
+
+
+@pytest.mark.parametrize("rival_parameters,verdict", [(4, "TGTypeI"), (2, "ambiguous"), (1, "ambiguous")])
+def test_a_richer_structure_must_win_by_the_threshold(rival_parameters, verdict):
+    """Within the threshold, a rival with more estimated parameters has not earned them
+    (as an effect must beat none); one as simple or simpler leaves the verdict open."""
+    fits = [_fit("TGTypeI", 100.0, 2), _fit("IEEEG1", 104.0, rival_parameters), _fit("GGOV1", 160.0, 4)]
+    for f in fits:
+        f.delta = f.bic - fits[0].bic
+    result = _verdict(fits, 10.0)
+    assert result.structure == verdict, result.reason
+    if verdict == "TGTypeI":
+        assert "IEEEG1 come within 10 with more estimated parameters" in result.reason
+        assert "beats GGOV1 by 60.0" in result.reason
+
+
+def test_an_ambiguous_verdict_proposes_the_test_that_would_separate(repo, campaign, tmp_path):
+    """Two structures that are one model under two names cannot be told apart: the verdict
+    is ambiguous, and the separating test says their responses do not differ."""
+    work, configs = campaign
+    text = (repo / "experiments" / "structures" / "TGOV1.toml").read_text()
+    twin = _structure(tmp_path, "TGOV1twin", text.replace('name = "TGOV1"', 'name = "TGOV1twin"'))
+    structures = [Structure.load(repo / "experiments" / "structures" / "TGOV1.toml"), Structure.load(twin)]
+    verdict = select_structure(structures, [load_experiment(c) for c in configs[:2]], workdir=tmp_path / "run",
+                               options=RunOptions(method="pf:10+nm", seed=3), package=repo / "modelica" / "iGrGen",
+                               fmu_dir=work / "fmus", searches=(), log=lambda *_: None)
+    assert verdict.structure == "ambiguous" and set(verdict.candidates) == {"TGOV1", "TGOV1twin"}
+    sep = json.loads(json.dumps(verdict.to_json(), default=float))["separating_test"]
+    assert set(sep["between"]) == {"TGOV1", "TGOV1twin"} and len(sep["menu"]) == 8
+    assert sep["rms_over_noise"] < 0.05 and sep["expected_bic"] < 1.0
+    assert sep["advice"].startswith("no staged step of the menu separates")
+    assert f"Next test: {sep['advice']}." in structures_markdown(verdict.to_json())

@@ -1,8 +1,10 @@
 """Which staged test would tell two candidate explanations apart?
 
-Both fitted candidates are simulated on a menu of feasible staged tests (step sizes and
-directions, with a return), at the dispatch of the data; the test whose responses differ
-most, relative to the noise, is the one to run next.
+Both fitted candidates (two effects, or two governor structures) are simulated on a menu
+of feasible staged tests (step sizes and directions, with a return), at the dispatch of
+the data; the test whose responses differ most, relative to the noise, is the one to run
+next, if what it would add to their BIC difference reaches the threshold; otherwise no
+step separates them.
 """
 
 from __future__ import annotations
@@ -13,17 +15,14 @@ from ..experiment import Experiment
 from ..simulator import Simulator, get_simulator
 from .candidates import CandidateFit
 from .catalogue import CATALOGUE
-from .selection import NoiseFloor
+from .selection import THRESHOLD, NoiseFloor
 
 STEPS_HZ = (-0.4, -0.2, -0.1, -0.05, 0.05, 0.1, 0.2, 0.4)
 HOLD_S = 50.0  # how long each step is held before the return
 
 
-def _response(sim: Simulator, fit: CandidateFit, template: Experiment, df: float) -> np.ndarray:
-    t_step = float(template.fixed.get("src.t_step", 10.0))
-    held = {k: v * (template.fixed.get(k, 1.0) if _relative(k) else 1.0) for k, v in fit.spec.held}
-    params = {**template.fixed, **held, **fit.parameters,
-              "src.df": df, "src.t_step": t_step, "src.t_return": t_step + HOLD_S}
+def _response(sim: Simulator, parameters: dict, t_step: float, df: float) -> np.ndarray:
+    params = {**parameters, "src.df": df, "src.t_step": t_step, "src.t_return": t_step + HOLD_S}
     return sim.simulate(params, stop_time=t_step + 2 * HOLD_S, output_interval=0.1, outputs=["pm"])["pm"]
 
 
@@ -33,23 +32,45 @@ def _relative(name: str) -> bool:
 
 def separating_test(a: CandidateFit, b: CandidateFit, template: Experiment, noise: NoiseFloor) -> dict:
     """The menu test with the largest RMS difference between ``a`` and ``b`` (in noise units)."""
+    def parameters(fit: CandidateFit) -> dict:
+        held = {k: v * (template.fixed.get(k, 1.0) if _relative(k) else 1.0) for k, v in fit.spec.held}
+        return {**template.fixed, **held, **fit.parameters}
+
     # each fit carries the FMU it was calibrated with
-    sim_a, sim_b = (get_simulator(f.inputs.fmus[f.model]) for f in (a, b))
+    return separating_menu((a.spec.label, get_simulator(a.inputs.fmus[a.model]), parameters(a)),
+                           (b.spec.label, get_simulator(b.inputs.fmus[b.model]), parameters(b)), template, noise)
+
+
+def separating_menu(a: tuple[str, Simulator, dict], b: tuple[str, Simulator, dict], template: Experiment,
+                    noise: NoiseFloor) -> dict:
+    """The menu test with the largest RMS difference between two fitted models, each
+    ``(label, simulator, all its parameters)``, stepped when ``template``'s test steps."""
+    (label_a, sim_a, par_a), (label_b, sim_b, par_b) = a, b
+    t_step = float(template.fixed.get("src.t_step", 10.0))
     rows = []
     for df in STEPS_HZ:
-        d = _response(sim_a, a, template, df) - _response(sim_b, b, template, df)
+        d = _response(sim_a, par_a, t_step, df) - _response(sim_b, par_b, t_step, df)
         d = d - d.mean()  # a constant offset is not evidence: it is profiled out
         rows.append({"df_hz": df, "rms_difference": float(np.sqrt(np.mean(d ** 2))),
                      "rms_over_noise": float(np.sqrt(np.mean(d ** 2)) / noise.sigma)})
     best = max(rows, key=lambda r: r["rms_over_noise"])
+    # What the test would add to the BIC difference: its samples, as many independent ones
+    # as AR(1) noise of this phi leaves, times the squared difference in noise units.
+    dt = float(np.median(np.diff(template.data.time)))
+    independent = (t_step + 2 * HOLD_S) / dt * (1 - noise.phi) / (1 + noise.phi)
+    evidence = independent * best["rms_over_noise"] ** 2
+    test = f"a staged test with df = {1000 * best['df_hz']:+.0f} mHz, held {HOLD_S:.0f} s and returned"
+    differ = (f"their responses differ by {best['rms_over_noise']:.2f} x the noise level (RMS), worth about "
+              f"{evidence:.1f} in BIC")
     return {
-        "between": [a.spec.label, b.spec.label],
-        "test": {"df_hz": best["df_hz"], "t_step_s": float(template.fixed.get("src.t_step", 10.0)),
-                 "t_return_s": float(template.fixed.get("src.t_step", 10.0)) + HOLD_S,
+        "between": [label_a, label_b],
+        "test": {"df_hz": best["df_hz"], "t_step_s": t_step, "t_return_s": t_step + HOLD_S,
                  "p_ref": float(template.fixed.get("gov.p_ref", np.nan))},
         "rms_over_noise": best["rms_over_noise"],
-        "advice": (f"a staged test with df = {1000 * best['df_hz']:+.0f} mHz, held {HOLD_S:.0f} s and returned, "
-                   f"separates {a.spec.label} from {b.spec.label}: their responses differ by "
-                   f"{best['rms_over_noise']:.1f} x the noise level (RMS)"),
+        "expected_bic": float(evidence),
+        "advice": (f"{test} separates {label_a} from {label_b}: {differ}" if evidence >= THRESHOLD else
+                   f"no staged step of the menu separates {label_a} from {label_b} by the threshold: on the "
+                   f"best, {test}, {differ}; on such tests they are the same model, and the documentation of "
+                   "the unit must decide"),
         "menu": rows,
     }

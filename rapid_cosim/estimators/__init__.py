@@ -1,7 +1,7 @@
-"""Estimators: particle filter, SMC, PSO, Nelder-Mead and gradient descent, each a plain
-function ``method(objective, space, *, options, rng, callback, x0)`` returning one
-:class:`EstimationResult`, and :func:`run_chain` to run them in sequence from a method
-string such as ``"pf:10+nm"``."""
+"""Estimators: particle filter, SMC, PSO, Nelder-Mead, gradient descent and a coordinate
+scan, each a plain function ``method(objective, space, *, options, rng, callback, x0)``
+returning one :class:`EstimationResult`, and :func:`run_chain` to run them in sequence
+from a method string such as ``"pf:10+nm"``."""
 
 from .base import (EstimationResult, Evaluations, Iteration, IterationCallback, Objective,
                    SearchSpace)
@@ -10,6 +10,7 @@ from .gradient import GDOptions, gradient_descent
 from .nelder_mead import NMOptions, nelder_mead
 from .pf import PFOptions, particle_filter
 from .pso import PSOOptions, pso
+from .scan import ScanOptions, coordinate_scan
 from .smc import SMCOptions, smc
 from .uncertainty import Uncertainty
 
@@ -21,5 +22,6 @@ __all__ = [
     "NMOptions", "nelder_mead",
     "PFOptions", "particle_filter",
     "PSOOptions", "pso",
+    "ScanOptions", "coordinate_scan",
     "SMCOptions", "smc",
 ]

@@ -1,7 +1,7 @@
 """Chains of methods, the paper's two-step scheme (section 3): a global stage for a few
 iterations, then a local one from its best point, written as a method string::
 
-    pf:10+nm    pso:10+nm    smc    gd    pf:5+pso:5+gd
+    pf:10+nm    pso:10+nm    smc    gd    pf:5+pso:5+gd    pso:10+nm+scan+nm
 
 ``A:n`` caps stage A at n iterations (its options' ``max_iter``); a stage without ``:n``
 runs with its own options. Each stage starts from the best point found so far (``x0``).
@@ -22,6 +22,7 @@ from .gradient import GDOptions, gradient_descent
 from .nelder_mead import NMOptions, nelder_mead
 from .pf import PFOptions, particle_filter
 from .pso import PSOOptions, pso
+from .scan import ScanOptions, coordinate_scan
 from .smc import LogLikelihood, SMCOptions, smc
 
 REGISTRY: dict[str, tuple[Callable[..., EstimationResult], type]] = {
@@ -30,6 +31,7 @@ REGISTRY: dict[str, tuple[Callable[..., EstimationResult], type]] = {
     "pso": (pso, PSOOptions),
     "nm": (nelder_mead, NMOptions),
     "gd": (gradient_descent, GDOptions),
+    "scan": (coordinate_scan, ScanOptions),
 }
 
 _SYNTAX = "write stages as NAME or NAME:N joined by '+', e.g. 'pf:10+nm'"

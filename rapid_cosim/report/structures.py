@@ -15,6 +15,7 @@ from .figures import plt, save
 def markdown(record: dict) -> str:
     lines = ["# Which structure fits the unit", "",
              f"**Verdict: {record['structure']}.** {record['reason']}.", "",
+             *([f"Next test: {record['separating_test']['advice']}.", ""] if record.get("separating_test") else []),
              "| structure | dBIC | fitness | adequate (variance ratio) | held-out score | parameters |",
              "|---|---:|---:|---|---:|---|"]
     for r in record["ranking"]:
