@@ -55,12 +55,12 @@ SYNTH_ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"},
                   "gov.Ts": {"min": 0.1, "max": 20.0, "label": "Ts"}}
 
 
-def synthetic_config(fmu, folder: Path, seed: int) -> Path:
+def synthetic_config(fmu, folder: Path, seed: int, duration: float = 25.0) -> Path:
     import numpy as np
 
     from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
 
-    t, y = synthesize(fmu, {**SYNTH_FIXED, "gov.R": 0.06, "gov.Ts": 4.0}, duration=25.0,
+    t, y = synthesize(fmu, {**SYNTH_FIXED, "gov.R": 0.06, "gov.Ts": 4.0}, duration=duration,
                       noise=NoiseModel(white_sigma=0.0008, offset=0.001), rng=np.random.default_rng(seed))
     return write_experiment(folder, model="iGrGen.TestBenches.StagedTest", time=t, values=y, fixed=SYNTH_FIXED,
                             estimate=SYNTH_ESTIMATE)
