@@ -79,8 +79,8 @@ structures: fmus  ## which governor structure (TG Type I, TGOV1, IEEEG1, GGOV1, 
 		--structures $(subst $(eval) ,$(comma),$(STRUCTURES)) --results $(RESULTS)/structures --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make structures: $$(( $$(date +%s) - $(T0) )) s wall time"
 
-bench-structures: fmus  ## confusion matrix of structure selection on synthetic campaigns (SEEDS=3 per structure)
-	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),3) --n-jobs $(N_JOBS)
+bench-structures: fmus  ## confusion matrix of structure selection on synthetic campaigns (SEEDS=5 per structure)
+	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),5) --n-jobs $(N_JOBS)
 
 bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5)
 	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rapid_cosim.archive import RunArchive
-from rapid_cosim.calibration import RunOptions, inputs_from_configs, rerun, resume_run, start_run
+from rapid_cosim.calibration import RunOptions, best_run, inputs_from_configs, rerun, resume_run, start_run
 from rapid_cosim.archive.format import text_crc
 from rapid_cosim.archive.seal import seal
 from rapid_cosim.cli import main
@@ -187,3 +187,15 @@ def test_an_archive_from_before_the_runner_option_reruns_with_the_python_loop(co
     assert RunOptions.from_json(options).runner == "python"
     report = rerun(archive, progress=False)
     assert report.identical, report.first_difference
+
+
+def test_best_run_keeps_the_better_search_and_archives_each(config, tmp_path):
+    inputs = inputs_from_configs([config])
+    weak = RunOptions(method="pso:1", seed=5, estimator_options={"pso": {"n_particles": 2}})
+    result, archive = best_run(inputs, weak, tmp_path / "fit.h5", ("pso:3+nm+scan+nm",))
+    assert archive == tmp_path / "fit.pso3-nm-scan-nm.h5"  # two particles once cannot beat the chain
+    assert {p.name for p in tmp_path.glob("*.h5")} == {"fit.h5", "fit.pso3-nm-scan-nm.h5"}
+    with RunArchive(tmp_path / "fit.h5") as first:
+        assert first.result().fun > result.fun
+    again, same = best_run(inputs, weak, tmp_path / "fit.h5", ("pso:3+nm+scan+nm",))  # both archived: reused
+    assert same == archive and again.fun == result.fun

@@ -6,8 +6,8 @@ cache and comparison that make resume and re-run exact) and ``runs`` (the entry 
 
 from .inputs import RunInputs, inputs_from_archive, inputs_from_configs, inputs_from_experiments, log_likelihood_for
 from .options import RunOptions, parse_option_overrides
-from .runs import RerunReport, ensure_run, rerun, resume_run, start_run, summary_json
+from .runs import SEARCHES, RerunReport, best_run, ensure_run, rerun, resume_run, start_run, summary_json
 
 __all__ = ["RunInputs", "inputs_from_archive", "inputs_from_configs", "inputs_from_experiments", "log_likelihood_for",
-           "RunOptions", "parse_option_overrides", "RerunReport", "ensure_run", "rerun", "resume_run", "start_run",
+           "RunOptions", "parse_option_overrides", "SEARCHES", "RerunReport", "best_run", "ensure_run", "rerun", "resume_run", "start_run",
            "summary_json"]

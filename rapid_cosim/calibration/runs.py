@@ -286,3 +286,26 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
     if finished:
         return result, "archived"
     return resume_run(archive, n_jobs=options.n_jobs, backend=options.backend, progress=progress), "resumed"
+
+
+# Searches run besides a run's own method when results are compared (structures,
+# candidate effects), the best kept: a model must not lose for its search's failure. A
+# swarm explores differently from a particle filter, and the scan stage finds limits
+# that act only in a narrow valley of their range (see rapid_cosim.estimators.scan).
+SEARCHES = ("pso:10+nm+scan+nm",)
+
+
+def best_run(inputs: RunInputs, options: RunOptions, archive: str | Path, searches=SEARCHES, *,
+             progress: bool = False) -> tuple[EstimationResult, Path]:
+    """The best of ``options.method`` (in ``archive``) and each of ``searches`` (in
+    ``<archive stem>.<search>.h5``), every one an archived run; returns the best result
+    and its archive."""
+    archive = Path(archive)
+    runs = []
+    for method in dict.fromkeys([options.method, *searches]):
+        path = archive if method == options.method else \
+            archive.with_name(f"{archive.stem}.{method.replace(':', '').replace('+', '-')}.h5")
+        result, _ = ensure_run(inputs, replace(options, method=method), path, progress=progress)
+        runs.append((float(result.fun), result, path))
+    _, result, path = min(runs, key=lambda r: r[0])
+    return result, path
