@@ -17,7 +17,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..calibration import RunOptions, ensure_run, inputs_from_experiments
+from ..calibration import SEARCHES, RunOptions, best_run, ensure_run, inputs_from_experiments
 from ..objective import ProblemObjective, evaluate_in_detail
 from ..experiment import Experiment, parse_experiment, render_config
 from ..simulator import FmuRef
@@ -66,17 +66,19 @@ class CandidateFit:
     inputs: object = field(default=None, repr=False)  # the RunInputs it was fitted on
 
 
-def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, float], *,
-                     model: str | Mapping[str, str] | None = None) -> str:
+def candidate_config(exp: Experiment, spec: CandidateSpec, *, model: str | Mapping[str, str] | None = None) -> str:
     """The TOML of ``exp`` turned into a candidate's experiment, on the candidate's bench
     for the experiment's base (``model``: another class, or one per base bench, such as
     the calibrated model written from it).
 
-    ``start`` (the base model's optimum) narrows the governor's bounds around it but is
-    not given as a starting point: a particle at the base optimum with the effect off
-    becomes the elite of the first iterations and holds the search in the basin where
-    the effect does nothing (measured: a rate limit's basin missed in a third of the
-    runs with it, in none of eight without).
+    The governor keeps the experiment's own bounds. The base model's optimum is neither
+    a starting point (a particle at the base optimum with the effect
+    off becomes the elite of the first iterations and holds the search in the basin
+    where the effect does nothing: a rate limit's basin was missed in a third of the
+    runs with it, in none of eight without) nor a centre for narrower bounds: an effect
+    can move the base model's optimum far, to a bound even (an output limit 0.02 pu
+    above the dispatch drove R from 0.049 to 0.12; a load controller drove Ts from 1.75
+    s to 0.1 s), and bounds of a factor 4 around it left the plant's values outside.
     """
     raw = tomllib.loads(exp.config_text)
     data = dict(raw["data"])
@@ -98,12 +100,6 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, f
             fixed[p.name] = held[p.name] * doc
         else:
             estimate[p.name] = {"min": p.min * doc, "max": p.max * doc, "label": p.label, "scale": p.scale}
-    for name, (low, high, scale) in _AROUND_BASE.items():
-        if name in estimate and name in start and spec.effects:
-            # the effects move the governor's parameters by a factor, not across the range
-            estimate[name]["min"] = max(estimate[name]["min"], low * start[name])
-            estimate[name]["max"] = min(estimate[name]["max"], high * start[name])
-            estimate[name]["scale"] = scale
     if isinstance(model, Mapping):
         model = model.get(exp.model)
     sections = {**raw, "experiment": {**raw["experiment"], "model": model or bench_name(spec.effects, exp.model),
@@ -113,9 +109,6 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, start: Mapping[str, f
     return render_config(sections)
 
 
-# Bounds of a candidate's governor parameters, as factors of the base model's optimum:
-# an effect explains part of the response, shifting R and Ts by a factor, not by decades.
-_AROUND_BASE = {"gov.R": (0.6, 1.6, "linear"), "gov.Ts": (0.25, 4.0, "log")}
 
 
 def default_start(spec: CandidateSpec, base: Mapping[str, float] | None) -> dict[str, float]:
@@ -127,13 +120,13 @@ def default_start(spec: CandidateSpec, base: Mapping[str, float] | None) -> dict
     return start
 
 
-def candidate_experiments(experiments: Sequence[Experiment], spec: CandidateSpec, start: Mapping[str, float],
+def candidate_experiments(experiments: Sequence[Experiment], spec: CandidateSpec,
                           polish_from: Mapping[str, float] | None = None, *,
                           model: str | Mapping[str, str] | None = None) -> list[Experiment]:
     """The experiments as the candidate's, in memory: each one's measurements reused."""
     out = []
     for exp in experiments:
-        text = candidate_config(exp, spec, start, model=model)
+        text = candidate_config(exp, spec, model=model)
         if polish_from is not None:
             text = _with_start(text, polish_from)
         out.append(parse_experiment(text, exp.config_path, data=exp.data, files=exp.files))
@@ -153,12 +146,12 @@ def record_configs(folder: Path, experiments: Sequence[Experiment]) -> list[Path
 
 
 def candidate_inputs(folder: Path, experiments: Sequence[Experiment], spec: CandidateSpec,
-                     start: Mapping[str, float], polish_from: Mapping[str, float] | None = None, *,
+                     polish_from: Mapping[str, float] | None = None, *,
                      model: str | Mapping[str, str] | None = None, package, fmu_dir,
                      fmus: dict[str, FmuRef] | None = None):
     """The candidate's run inputs, its configs recorded in ``folder``; ``fmus`` caches the
     FMUs by model across candidates (each is built or loaded once)."""
-    exps = candidate_experiments(experiments, spec, start, polish_from, model=model)
+    exps = candidate_experiments(experiments, spec, polish_from, model=model)
     record_configs(folder, exps)
     inputs = inputs_from_experiments(exps, package=package, fmu_dir=fmu_dir, fmus=fmus)
     if fmus is not None:
@@ -176,21 +169,24 @@ def _with_start(text: str, start: Mapping[str, float]) -> str:
 
 def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdir: Path, *,
                   options: RunOptions, start: Mapping[str, float] | None = None, package: str | Path,
-                  fmu_dir: str | Path, progress: bool = False, fmus: dict[str, FmuRef] | None = None) -> CandidateFit:
-    """Calibrate the candidate (archived); if the search ends worse than the point where
-    its effects are switched off at ``start`` (the base optimum), which it nests, it
-    missed that basin: Nelder-Mead polishes from there, also archived, and the better
-    of the two stands."""
+                  fmu_dir: str | Path, progress: bool = False, fmus: dict[str, FmuRef] | None = None,
+                  searches: Sequence[str] = SEARCHES) -> CandidateFit:
+    """Calibrate the candidate by ``options.method`` and each of ``searches``, the best
+    kept (a candidate must not lose for its search's failure: an output limit, like a
+    load limit, acts only in a narrow valley of its range). If that ends worse than the
+    point where its effects are switched off at ``start`` (the base optimum), which it
+    nests, it missed that basin: Nelder-Mead polishes from there, also archived, and the
+    better of the two stands."""
     start = dict(start or {})
-    inputs = candidate_inputs(workdir / "candidates" / spec.slug, experiments, spec, start, package=package,
+    inputs = candidate_inputs(workdir / "candidates" / spec.slug, experiments, spec, package=package,
                               fmu_dir=fmu_dir, fmus=fmus)
     archive = workdir / "candidates" / f"{spec.slug}.h5"
-    result, _ = ensure_run(inputs, options, archive, progress=progress)
+    result, archive = best_run(inputs, options, archive, searches, progress=progress)
     if spec.effects and all(n in start for n in inputs.problem.names):
         nested = inputs.problem.space.clip(np.array([start[n] for n in inputs.problem.names]))
         if ProblemObjective(inputs.problem, inputs.fmus)(nested[None]).fitness[0] < result.fun:
             polish = f"{spec.slug}-from-base"
-            polished_inputs = candidate_inputs(workdir / "candidates" / polish, experiments, spec, start,
+            polished_inputs = candidate_inputs(workdir / "candidates" / polish, experiments, spec,
                                                polish_from=start, package=package, fmu_dir=fmu_dir, fmus=fmus)
             polished, _ = ensure_run(polished_inputs, replace(options, method="nm"),
                                      workdir / "candidates" / f"{polish}.h5", progress=progress)

@@ -22,7 +22,7 @@ from typing import Callable, Sequence
 import h5py
 import numpy as np
 
-from ..calibration import RunOptions, ensure_run, log_likelihood_for
+from ..calibration import SEARCHES, RunOptions, ensure_run, log_likelihood_for
 from ..compiler import build_models
 from ..data import ar1_inflation
 from ..errors import ConfigError, RapidCosimError
@@ -47,6 +47,7 @@ class DiagnoseOptions:
                                                              "nm": {"xatol": 1e-4, "fatol": 1e-10}})
     seed: int = 1
     n_jobs: int = 1
+    searches: tuple[str, ...] = SEARCHES  # run besides ``method`` on every candidate, the best kept
     threshold: float = THRESHOLD
     max_effects: int = 2
     candidates: tuple[str, ...] = tuple(CATALOGUE)
@@ -171,7 +172,8 @@ class _Context:
             self.log(f"  fitting {spec.label} ...")
             fit = fit_candidate(spec, self.training, self.workdir, options=self.run_options,
                                 start=start if start is not None else default_start(spec, self.base_parameters()),
-                                package=self.package, fmu_dir=self.fmu_dir, fmus=self.fmus)
+                                package=self.package, fmu_dir=self.fmu_dir, fmus=self.fmus,
+                                searches=self.options.searches)
             self.fits[spec.label] = fit
             self.log(f"    fitness {fit.fitness:.4g}, BIC {bic(fit, self.noise):.1f}, {fit.nfev} evaluations")
         return self.fits[spec.label]
@@ -195,7 +197,7 @@ class _Context:
         return self._predictions[key]
 
     def _predict(self, fit: CandidateFit) -> dict:
-        inputs = candidate_inputs(self.workdir / "heldout" / fit.spec.slug, self.heldout, fit.spec, fit.parameters,
+        inputs = candidate_inputs(self.workdir / "heldout" / fit.spec.slug, self.heldout, fit.spec,
                                   package=self.package, fmu_dir=self.fmu_dir, fmus=self.fmus)
         x = np.array([fit.parameters[n] for n in inputs.problem.names])
         return residuals_at(inputs, x)
@@ -407,7 +409,7 @@ def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: Diagnos
     target = targets[0]
     ctx.log(f"  wrote {', '.join(map(str, targets))} and compiled; re-calibrating with it ...")
     spec = CandidateSpec(effects)
-    inputs = candidate_inputs(ctx.workdir / "recalibrated", ctx.training, spec, values, model=names,
+    inputs = candidate_inputs(ctx.workdir / "recalibrated", ctx.training, spec, polish_from=values, model=names,
                               package=package_dir, fmu_dir=ctx.user_fmu_dir)
     archive = ctx.workdir / "recalibrated.h5"
     result, _ = ensure_run(inputs, replace(ctx.run_options, method="nm"), archive, progress=False)
