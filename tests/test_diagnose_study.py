@@ -73,7 +73,7 @@ def test_named_effect_is_written_compiled_recalibrated_through_the_cli(study, tm
     case = draw_case("backlash", 3, package=package, fmu_dir=fmu_dir)
     configs = write_campaign(case, tmp_path / "data", package=package, fmu_dir=fmu_dir)
     verdict = tmp_path / "verdict.json"
-    assert main(["diagnose", *map(str, configs), "--holdout", "step3", "--results", str(tmp_path / "diagnosis"),
+    assert main(["diagnose", *map(str, configs), "--holdout", "step4", "--results", str(tmp_path / "diagnosis"),
                  "--json", str(verdict), "--max-effects", "1", "--package", str(own),
                  "--fmus", str(tmp_path / "fmus"), "--compiler", "embedded"]) == 0
     record = json.loads(verdict.read_text())

@@ -6,9 +6,10 @@ noise floor. Otherwise it is "detectable but immaterial" and the verdict stays `
 Why these two, and these values: on long, quiet records the criterion detects effects
 far below what an engineer acts on (a 2 mHz deadband beat the base model by ΔBIC 10.8
 while changing RMSE/noise by 0.001). In the synthetic study (``make bench-diagnose``, 5
-seeds) every correctly named single effect was fitted at 0.75 to several times its
-material size (median 1.16) and removed 55 % or more of the gap (median 93 %); a quarter
-of the material size, or a third of the gap, keeps every one of them with margin, and
+seeds, field-shaped campaigns) every correctly named single effect was fitted at 0.72 to
+several times its material size (median 1.16) and removed 59 % or more of the gap
+(median 91 %); a quarter of the material size, or a third of the gap, keeps every one of
+them with margin, and
 drops effects that are only statistically there (the test suite's 2 mHz deadband on
 quiet records: 7 % of the material size).
 
