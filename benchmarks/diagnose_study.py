@@ -124,7 +124,7 @@ def main(argv: list[str]) -> int:
           + (f" between {' and '.join(d.candidates)}" if d.effect == "ambiguous" else "")
           + (f"; next: {d.separating_test['advice']}" if d.separating_test else ""))
     for r in results:
-        if r.correct and r.case.effects and r.gap_shrink is not None and r.gap_shrink < 0.5:
+        if r.correct and r.gap_shrink is not None and r.gap_shrink < 0.5:
             print(f"  named right, gap shrank by {r.gap_shrink:.0%} only: {r.case.label} "
                   f"(RMSE/noise before {_rmse_ratio(r.diagnosis.gap_before):.2f}, "
                   f"after {_rmse_ratio(r.diagnosis.gap_after):.2f})")

@@ -290,8 +290,10 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
 
 # Searches run besides a run's own method when results are compared (structures,
 # candidate effects), the best kept: a model must not lose for its search's failure. A
-# swarm explores differently from a particle filter, and the scan stage finds limits
-# that act only in a narrow valley of their range (see rapid_cosim.estimators.scan).
+# swarm explores differently from a particle filter (in the structure study a PF chain
+# collapsed onto a wrong mode of GGOV1's surface, integral gain 0.27 against 5, where a
+# PSO chain found the plant's), and the scan stage finds limits that act only in a
+# narrow valley of their range (see rapid_cosim.estimators.scan).
 SEARCHES = ("pso:10+nm+scan+nm",)
 
 

@@ -26,8 +26,9 @@ ratios 0.92 to 1.15: on 1100-sample records the test sees that white plus AR(1) 
 not AR(1)), so whiteness alone would have raised a false alarm on most campaigns. With
 the bounds (1.5; 0.001 with 1.25) no effect-free campaign failed: 0/20, under the 5 %
 asked; nor did any of 60 more (``--null-seeds 21-80``: variance ratio at most 1.21,
-Ljung-Box p under 0.001 on 98 of 240 tests, at variance ratios up to 1.21). The out-of-catalogue plants of the study left the base model
-pooled variance ratios of 4.1 to 9.5 (10 campaigns, every one failing).
+Ljung-Box p under 0.001 on 98 of 240 tests, at variance ratios up to 1.21). The
+out-of-catalogue plants of the study left the base model pooled variance ratios of 4.1
+to 9.5 (10 campaigns, every one failing).
 
 :func:`misfit_locations` splits the remaining residual by phase (before the step,
 after power-raising and power-lowering moves, in steady state, after the return) and

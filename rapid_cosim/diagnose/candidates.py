@@ -109,11 +109,10 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, *, model: str | Mappi
     return render_config(sections)
 
 
-
-
 def default_start(spec: CandidateSpec, base: Mapping[str, float] | None) -> dict[str, float]:
-    """The base model's optimum (with the effects switched off): where the candidate's
-    governor parameters are searched around."""
+    """The base model's optimum with the effects switched off: the nested point a
+    candidate must do at least as well as (:func:`fit_candidate` polishes from there
+    when its searches end worse)."""
     start = dict(base or {})
     for p in effect_parameters(spec.effects):
         start.setdefault(p.name, p.off)

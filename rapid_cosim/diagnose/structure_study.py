@@ -128,9 +128,9 @@ def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir,
     proposed = case.verdict.separating_test
     if proposed is not None:  # the engineer runs the test the tool proposes, and asks again
         step = proposed["test"]
-        template = STEPS[0]  # the separating test is designed from the first training test
+        rate = STEPS[0][4]  # recorded like the first training test, which the test was designed from
         extra = _staged_test(fmu, case.plant, step["p_ref"], step["df_hz"], step["t_return_s"],
-                             2 * step["t_return_s"] - step["t_step_s"], template[4], folder / "proposed", rng)
+                             2 * step["t_return_s"] - step["t_step_s"], rate, folder / "proposed", rng)
         case.followup = select_structure(structures, [*training, extra], heldout, workdir=folder / "runs2",
                                          options=options, package=package, fmu_dir=fmu_dir, log=lambda *_: None)
     case.seconds = time.perf_counter() - start

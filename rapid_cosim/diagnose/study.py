@@ -219,7 +219,8 @@ class CaseResult:
     def __post_init__(self):
         d = self.diagnosis
         self.named_first = d.effects[0] if d.effects else d.effect
-        self.gap_shrink = None if d.effect in (NONE, "ambiguous") else _shrink(d, self.case.noise.sigma)
+        # no model was added for these verdicts, so there is no shrink to measure
+        self.gap_shrink = None if d.effect in (NONE, "ambiguous", "unexplained") else _shrink(d, self.case.noise.sigma)
 
     @property
     def outcome(self) -> str:
@@ -294,7 +295,7 @@ def confusion_text(results: Sequence[CaseResult]) -> str:
                      f"{sum(r.correct for r in right) / len(right):9.0%}")
     n_ok = sum(r.correct for r in results)
     lines.append(f"overall: {n_ok}/{len(results)} correct ({n_ok / len(results):.0%})")
-    shrinks = [r.gap_shrink for r in results if r.gap_shrink is not None and r.correct and r.case.effects]
+    shrinks = [r.gap_shrink for r in results if r.gap_shrink is not None and r.correct]
     if shrinks:
         lines.append(f"gap shrink when the effect is added: median {np.median(shrinks):.0%}, "
                      f"min {min(shrinks):.0%} (over {len(shrinks)} correctly named cases)")
