@@ -49,6 +49,14 @@ def study(repo, tmp_path_factory):
     return work, package, fmu_dir
 
 
+# Python source that slows every objective call of the process it runs in by ``delay``
+# seconds, so that a run in a subprocess lasts long enough to be interrupted or killed in
+# the middle on any machine, however loaded; the results are those of an unslowed run.
+def slow_objective(delay: float) -> str:
+    return (f"import time\nfrom rapid_cosim.objective import ProblemObjective\n_call = ProblemObjective.__call__\n"
+            f"ProblemObjective.__call__ = lambda self, X: (time.sleep({delay!r}), _call(self, X))[1]\n")
+
+
 # A quick synthetic staged test (R 0.06, Ts 4 s, 25 s) for the run, fault and cluster tests.
 SYNTH_FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}
 SYNTH_ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"},

@@ -11,6 +11,7 @@ import time
 import numpy as np
 import pytest
 from archive_fuzz import expected_of, fuzz
+from conftest import slow_objective
 
 from rapid_cosim.archive import RunArchive
 from rapid_cosim.calibration import RunOptions, inputs_from_configs, start_run
@@ -20,15 +21,9 @@ FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 2.0}
 ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12}, "gov.Ts": {"min": 0.1, "max": 20.0}}
 OPTIONS = dict(method="pso:4+nm", seed=3, estimator_options={"pso": {"n_particles": 8}, "nm": {"max_iter": 15}})
 
-WRITER = """
-import sys, time
+WRITER = slow_objective(0.05) + """
+import sys
 from rapid_cosim.calibration import RunOptions, inputs_from_configs, start_run
-from rapid_cosim.objective import ProblemObjective
-real = ProblemObjective.__call__
-def slow(self, X):
-    time.sleep(0.05)
-    return real(self, X)
-ProblemObjective.__call__ = slow
 start_run(inputs_from_configs([sys.argv[1]]), RunOptions(**{options!r}), sys.argv[2], progress=False)
 """
 

@@ -18,7 +18,7 @@ from rapid_cosim.calibration import RunOptions, inputs_from_configs, resume_run,
 from rapid_cosim.cli import main
 from rapid_cosim.errors import ArchiveFull
 
-from conftest import synthetic_config
+from conftest import slow_objective, synthetic_config
 # The Python runner on a 120 s record with 80 particles keeps a run going for seconds
 # (each iteration a few tenths), long enough to be interrupted in the middle: with 24
 # particles on 25 s a whole run took 0.3 s, and a signal or a kill could come too late.
@@ -26,6 +26,11 @@ N_PARTICLES = 80
 OPTIONS = dict(method="pf:10+nm", seed=4, runner="python", estimator_options={"pf": {"n_particles": N_PARTICLES}})
 CLI_OPTIONS = ["--method", OPTIONS["method"], "--seed", "4", "--runner", "python", "--option",
                f"pf.n_particles={N_PARTICLES}"]
+# The command line in a subprocess, each objective call 0.1 s slower: a run lasts several
+# seconds after the iterations a test waits for, however loaded the machine (on a loaded
+# one the archive, rewritten as it grows, could first be read once the run had finished,
+# and a signal sent then met a process already on its way out with status 0).
+SLOW_CLI = slow_objective(0.1) + "import sys\nfrom rapid_cosim.cli import main\nsys.exit(main(sys.argv[1:]))\n"
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +55,7 @@ def _wait_for_iterations(archive, n, proc, timeout=60):
         time.sleep(0.05)
         try:
             with RunArchive(archive) as view:
-                if view.n_iterations >= n:
+                if view.n_iterations >= n and view.status == "running":
                     return
         except Exception:
             pass
@@ -60,8 +65,7 @@ def _wait_for_iterations(archive, n, proc, timeout=60):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_an_interrupt_closes_the_archive_and_says_how_to_resume(config, expected, tmp_path, repo, sig):
     archive = tmp_path / "run.h5"
-    cmd = [sys.executable, "-m", "rapid_cosim.cli", "estimate", str(config), *CLI_OPTIONS, "--archive", str(archive),
-           "--quiet"]
+    cmd = [sys.executable, "-c", SLOW_CLI, "estimate", str(config), *CLI_OPTIONS, "--archive", str(archive), "--quiet"]
     proc = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     _wait_for_iterations(archive, 3, proc)
     proc.send_signal(sig)
@@ -154,8 +158,7 @@ def test_a_killed_worker_costs_a_retry_not_the_run(config, expected, tmp_path):
 
 def test_show_counts_what_a_live_run_has_done(config, tmp_path, repo):
     archive = tmp_path / "live.h5"
-    cmd = [sys.executable, "-m", "rapid_cosim.cli", "estimate", str(config), *CLI_OPTIONS, "--archive", str(archive),
-           "--quiet"]
+    cmd = [sys.executable, "-c", SLOW_CLI, "estimate", str(config), *CLI_OPTIONS, "--archive", str(archive), "--quiet"]
     proc = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         _wait_for_iterations(archive, 3, proc)
