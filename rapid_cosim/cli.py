@@ -260,9 +260,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help="Modelica-to-FMU compiler; auto = OpenModelica where omc exists (default %(default)s)")
 
     def runner_option(p):
-        p.add_argument("--runner", default="compiled", choices=["compiled", "python"],
-                       help="simulation runner: the compiled batch runner, or the Python reference loop "
-                            "(default %(default)s; an archive records it, and rerun/resume use it)")
+        from .simulator import DEFAULT_RUNNER, RUNNERS
+
+        p.add_argument("--runner", default=DEFAULT_RUNNER, choices=list(RUNNERS),
+                       help="simulation runner: the exponential integrator (one model evaluation per sample, CVODE "
+                            "where its error estimate asks), CVODE in the compiled batch runner, or the Python "
+                            "reference loop (default %(default)s; an archive records it, and rerun/resume use it)")
 
     def campaign_options(p, n_jobs=2):
         p.add_argument("--results", default="results", help="results folder (default %(default)s)")

@@ -1,7 +1,8 @@
 """FMU -> trajectories.
 
-``fmu`` checks and extracts an FMU; ``inputs`` holds input tables; ``compiled`` is the C
-batch runner (the default) and ``reference`` the Python loop it is checked against;
+``fmu`` checks and extracts an FMU; ``inputs`` holds input tables; ``compiled`` drives the
+C batch runners (CVODE, the default, and the exponential integrator of ``expint.c`` for
+recorded inputs) and ``reference`` is the Python loop they are checked against;
 ``simulation`` puts them behind one :class:`Simulator` per FMU and process.
 """
 

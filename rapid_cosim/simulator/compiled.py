@@ -1,8 +1,12 @@
-"""The compiled batch runner (``runner.c``): built once per machine, driven by ctypes.
+"""The compiled batch runners (``runner.c``, ``expint.c``): built once per machine,
+driven by ctypes.
 
+One library holds both: ``expint.c`` (the exponential integrator of the "exponential"
+runner) includes ``runner.c`` (CVODE, the "compiled" runner), whose path it falls back
+to, so the two are one translation unit and ``runner.c``'s code is compiled unchanged.
 The library is compiled with the system C compiler (``$CC``, default ``cc``, as the
 embedded FMUs are) against the FMI 2.0 headers that fmpy ships, and cached by the hash
-of its source, the compiler and the platform, under ``$RAPID_COSIM_CACHE`` (default
+of its sources, the compiler and the platform, under ``$RAPID_COSIM_CACHE`` (default
 ``~/.cache/rapid-cosim``, or the temporary folder where the home is not writable). It
 is built to a side file and renamed into place, so workers starting at once are safe
 (``rapid_cosim.compiler.embedded.cache_dir``).
@@ -24,6 +28,7 @@ import hashlib
 import os
 import platform
 import subprocess
+import weakref
 from ctypes import POINTER, c_char_p, c_double, c_int, c_uint, c_void_p
 from pathlib import Path
 
@@ -34,7 +39,8 @@ from ..errors import BuildError, SimulationError
 from .fmu import LoadedFmu
 from .inputs import InputTable
 
-SOURCE = Path(__file__).with_name("runner.c")
+SOURCE = Path(__file__).with_name("expint.c")  # includes runner.c
+SOURCES = (Path(__file__).with_name("runner.c"), SOURCE)
 
 # Set status codes of runner.c
 OK, SOLVER, FMI, NONFINITE, TIMEOUT, TERMINATED = range(6)
@@ -43,7 +49,7 @@ STATUS_NAMES = ("ok", "solver failure", "FMI error", "non-finite output", "time-
 
 class _Batch(ctypes.Structure):
     _fields_ = [
-        ("n_sets", c_int), ("n_params", c_int), ("param_vrs", POINTER(c_uint)), ("param_values", POINTER(c_double)),
+        ("n_sets", c_int), ("n_params", c_int), ("param_vrs", POINTER(c_uint)), ("param_values", c_void_p),
         ("n_times", c_int), ("times", POINTER(c_double)),
         ("n_out", c_int), ("out_vrs", POINTER(c_uint)), ("out_types", POINTER(c_int)),
         ("n_inputs", c_int), ("input_vrs", POINTER(c_uint)), ("n_rows", c_int),
@@ -67,7 +73,7 @@ def library_path() -> Path:
     from ..compiler.embedded import c_compiler, cache_dir  # one place says which compiler builds C here
 
     cc = c_compiler()
-    source = SOURCE.read_bytes()
+    source = b"".join(p.read_bytes() for p in SOURCES)
     key = hashlib.sha256(source + f"|{cc}|{platform.machine()}|{fmpy.__version__}".encode()).hexdigest()[:16]
     folder = cache_dir()
     lib = folder / f"rapid_cosim_runner-{key}{fmpy.sharedLibraryExtension}"
@@ -104,10 +110,19 @@ def _library() -> ctypes.CDLL:
                                 POINTER(c_char_p), c_char_p, c_int]
         lib.rc_close.argtypes = [c_void_p]
         lib.rc_close.restype = None
-        lib.rc_run.argtypes = [c_void_p, POINTER(_Batch), POINTER(c_double), POINTER(c_int), POINTER(c_double),
-                               c_char_p]
+        # arrays go by address (see _address): converting them to ctypes pointers costs a
+        # good part of a short simulation
+        lib.rc_run.argtypes = [c_void_p, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p]
         lib.rc_run.restype = c_int
         lib.rc_msg_len.restype = c_int
+        lib.rc_plan_new.restype = c_void_p
+        lib.rc_plan_new.argtypes = [c_void_p, POINTER(_Batch), POINTER(c_uint), c_char_p, c_int]
+        lib.rc_plan_free.argtypes = [c_void_p]
+        lib.rc_plan_free.restype = None
+        lib.rc_run_exp.argtypes = [c_void_p, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p]
+        lib.rc_run_exp.restype = c_int
+        lib.rc_plan_counters.argtypes = [c_void_p, POINTER(ctypes.c_longlong)]
+        lib.rc_plan_counters.restype = c_int
         _LIBRARY = lib
     return _LIBRARY
 
@@ -116,10 +131,22 @@ def _ptr(a: np.ndarray, ctype):
     return a.ctypes.data_as(POINTER(ctype))
 
 
-class CompiledRunner:
-    """One FMU instance and one CVODE solver in C, for any number of batches."""
+def _address(a: np.ndarray) -> int:
+    """The address of a C-contiguous array's data: through ctypes.from_buffer, three times
+    quicker than ``a.ctypes.data`` (a few microseconds a call matter for short runs); read-only
+    arrays take the slow way."""
+    try:
+        return ctypes.addressof(ctypes.c_char.from_buffer(a))
+    except (TypeError, ValueError):
+        return a.ctypes.data
 
-    def __init__(self, fmu: LoadedFmu, relative_tolerance: float):
+
+class CompiledRunner:
+    """One FMU instance and one CVODE solver in C, for any number of batches;
+    ``method="exponential"`` runs them with the exponential integrator of ``expint.c``
+    (CVODE where it does not apply)."""
+
+    def __init__(self, fmu: LoadedFmu, relative_tolerance: float, method: str = "cvode"):
         lib = _library()
         self.fmu = fmu
         self._lib = lib
@@ -132,12 +159,32 @@ class CompiledRunner:
         if not self._handle:
             raise SimulationError(f"{fmu.name}: the compiled runner could not open the FMU: {err.value.decode()}")
         self._msg_len = lib.rc_msg_len()
+        self.method = method
+        self._plans: set[int] = set()  # exponential plans on this handle, freed before it is
+
+    def _new_plan(self, batch: "_Batch", der_vrs: np.ndarray | None) -> int:
+        err = ctypes.create_string_buffer(256)
+        plan = self._lib.rc_plan_new(self._handle, ctypes.byref(batch),
+                                     None if der_vrs is None else _ptr(der_vrs, c_uint), err, len(err))
+        if not plan:
+            raise SimulationError(f"{self.fmu.name}: the exponential runner could not plan the batch: "
+                                  f"{err.value.decode()}")
+        self._plans.add(plan)
+        return plan
+
+    def _free_plan(self, plan: int) -> None:
+        if plan in self._plans:
+            self._plans.remove(plan)
+            self._lib.rc_plan_free(plan)
 
     def prepare(self, param_names: list[str], names: list[str], types: list[int], start_time: float,
                 times: np.ndarray, inputs: InputTable | None, timeout: float | None) -> "PreparedRun":
-        return PreparedRun(self, param_names, names, types, start_time, times, inputs, timeout)
+        kind = ExponentialRun if self.method == "exponential" else PreparedRun
+        return kind(self, param_names, names, types, start_time, times, inputs, timeout)
 
     def close(self) -> None:
+        for plan in list(getattr(self, "_plans", ())):
+            self._free_plan(plan)
         if self._handle:
             self._lib.rc_close(self._handle)
             self._handle = None
@@ -179,16 +226,71 @@ class PreparedRun:
         values = np.ascontiguousarray(values, dtype=float)
         n = values.shape[0]
         b = self._batch
-        b.n_sets, b.param_values = n, _ptr(values, c_double)
+        b.n_sets, b.param_values = n, _address(values) if values.size else None
         out = np.empty((n, self.n_times, self.n_out))
         status = np.zeros(n, dtype=np.int32)
-        reached = np.zeros(n)
+        reached = np.empty(n)
         size = self.runner._msg_len
-        messages = ctypes.create_string_buffer(size * max(n, 1))
-        failed = self.runner._lib.rc_run(self.runner._handle, ctypes.byref(b), _ptr(out, c_double),
-                                         _ptr(status, c_int), _ptr(reached, c_double), messages)
+        if self._messages is None or len(self._messages) < size * max(n, 1):
+            self._messages = ctypes.create_string_buffer(size * max(n, 1))
+        messages = self._messages
+        failed = self._run(_address(out) if out.size else None, _address(status), _address(reached),
+                           ctypes.addressof(messages))
         texts = [""] * n
         if failed:
             raw = messages.raw
             texts = [raw[i * size:(i + 1) * size].split(b"\0", 1)[0].decode(errors="replace") for i in range(n)]
         return out, status, texts
+
+    _messages = None  # the message buffer, kept from call to call
+
+    def _run(self, out: int, status: int, reached: int, messages: int) -> int:
+        return self.runner._lib.rc_run(self.runner._handle, self._batch_address, out, status, reached, messages)
+
+    @property
+    def _batch_address(self) -> int:
+        return ctypes.addressof(self._batch)
+
+
+# What rc_plan_counters reports, in its order (expint.c's EX_SETS ...).
+COUNTERS = ("sets", "sets_cvode", "switched_to_cvode", "steps", "evaluations", "misses", "corrected",
+            "cvode_intervals", "relinearisations")
+
+
+class ExponentialRun(PreparedRun):
+    """A prepared batch run by ``expint.c``'s exponential integrator. Its plan (the grid
+    of output times and input rows, the integrator's work space) is made once here.
+
+    ``counters`` says what the integrator did over the calls so far: sets it ran and sets
+    it left to CVODE, steps, model evaluations, steps whose error estimate missed, and
+    how they were mended."""
+
+    def __init__(self, runner: CompiledRunner, *args):
+        super().__init__(runner, *args)
+        fmu = runner.fmu
+        vr = fmu.value_references
+        ders = [d.variable.name for d in fmu.model_description.derivatives]
+        der_vrs = np.array([vr[d] for d in ders], dtype=np.uint32) if len(ders) == fmu.n_states else None
+        self._keep.append(der_vrs)
+        if not runner._handle:
+            raise SimulationError(f"{fmu.name}: the runner was closed (the FMU was reloaded)")
+        self._plan = runner._new_plan(self._batch, der_vrs)
+        weakref.finalize(self, runner._free_plan, self._plan)
+
+    def _run(self, out: int, status: int, reached: int, messages: int) -> int:
+        runner = self.runner
+        if self._plan not in runner._plans:
+            raise SimulationError(f"{runner.fmu.name}: the runner was closed (the FMU was reloaded)")
+        failed = runner._lib.rc_run_exp(runner._handle, ctypes.addressof(self._batch), self._plan, out, status,
+                                        reached, messages)
+        if failed == -2:  # the plan is not the batch's: a bug, not a set's failure
+            raise SimulationError(f"{runner.fmu.name}: the exponential runner's plan does not fit the batch")
+        return failed
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """What the integrator did over the calls so far (see ``COUNTERS``)."""
+        counts = (ctypes.c_longlong * len(COUNTERS))()
+        if self._plan in self.runner._plans:
+            self.runner._lib.rc_plan_counters(self._plan, counts)
+        return dict(zip(COUNTERS, counts))

@@ -1,10 +1,14 @@
 """FMU -> trajectories: one simulator per FMU and process, single runs and batches.
 
-Two runners do the work: ``"compiled"`` (:mod:`.compiled`, the default: a whole batch in
-one C call) and ``"python"`` (:mod:`.reference`, the Python loop it is checked against,
-and what archives made before the compiled runner record). Both record outputs at given
-times (the measured samples, so no interpolation stands between model and data) or on a
-grid, with values at a time event being those after it.
+Three runners do the work: ``"compiled"`` (:mod:`.compiled`, the default: a whole batch in
+one C call, CVODE), ``"python"`` (:mod:`.reference`, the Python loop it is checked against,
+and what archives made before the compiled runner record) and ``"exponential"`` (the same
+C library's exponential integrator, ``expint.c``: one model evaluation per input sample
+for models driven by recorded inputs, exact for their linear part, CVODE wherever its error
+estimate or the FMU asks for it). All record outputs at given times (the measured samples,
+so no interpolation stands between model and data) or on a grid, with values at a time
+event being those after it. Archives record the runner that made them, and each runner
+repeats its own numbers bit for bit.
 
 A failed set is never an exception inside a batch: it gets a status and a message (and
 NaN outputs), and the rest of the batch runs. :meth:`Simulator.simulate` runs one set
@@ -25,7 +29,7 @@ from . import compiled
 from .fmu import FmuRef, LoadedFmu, ParameterInfo, cache_key
 from .inputs import InputTable
 
-RUNNERS = ("compiled", "python")
+RUNNERS = ("compiled", "python", "exponential")  # archives record these names
 DEFAULT_RUNNER = "compiled"
 
 
@@ -103,8 +107,9 @@ class Simulator:
     def _runner(self, runner: str | None):
         name = check_runner(runner or self.runner)
         if name not in self._runners:
-            if name == "compiled":
-                self._runners[name] = compiled.CompiledRunner(self.fmu, self.relative_tolerance)
+            if name in ("compiled", "exponential"):
+                method = "exponential" if name == "exponential" else "cvode"
+                self._runners[name] = compiled.CompiledRunner(self.fmu, self.relative_tolerance, method)
             else:
                 from .reference import ReferenceLoop
 
@@ -138,7 +143,7 @@ class Simulator:
         table = self._input_table(input_time, inputs)
         kind, run = self._runner(runner)
         names = list(names)
-        if kind == "compiled":
+        if kind in ("compiled", "exponential"):
             call = run.prepare(names, record, types, start_time, times, table, self.timeout)
         else:
             def call(values):
