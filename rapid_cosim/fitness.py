@@ -16,6 +16,16 @@ Measurement offset: with ``offset=True`` a constant offset ``c`` per output
 profiled out in closed form, ``c = mean(y - yhat)``, and the RSSD is that of
 ``y - yhat - c``.
 
+Whitened fitness: an experiment whose config gives the recorder's noise model
+(``[noise]``, :mod:`rapid_cosim.noise`) is scored by generalised least squares instead.
+Its residual is whitened by that model (standardised Kalman innovations, each run of
+consecutive valid samples from the stationary prior), the offset is the GLS one (the
+whitened residual projected off the whitened constant), and the experiment's value is
+the mean squared whitened residual: 1 for a model that leaves only the noise described.
+A problem of such experiments weights them by their sample counts
+(:func:`combination_weights`), so the fitness is the Gaussian deviance per sample. The
+paper's RSSD path is untouched, so archived runs re-run bit for bit.
+
 This module receives arrays only; it knows nothing of simulators or FMUs. A simulated
 value that is not finite where it is scored is a :class:`SimulationError`, as is a
 simulation that does not cover the measured samples (it stopped early): the evaluator
@@ -24,7 +34,8 @@ counts both as failed runs.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import weakref
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -109,6 +120,105 @@ def _batch_fit(y, yhat, ok, w, offset: bool, residuals: bool = False):
     return total, per_output, c, residual
 
 
+class Whitening:
+    """One output's whitening on an experiment's valid samples (inside the window): runs
+    of consecutive samples (a masked sample, or a step over three sample intervals,
+    breaks one) and the whitened constant the GLS offset is projected off."""
+
+    def __init__(self, model, time: np.ndarray):
+        self.whitener = model.whitener()
+        dt = float(np.median(np.diff(time))) if time.size > 1 else 1.0
+        breaks = np.flatnonzero(np.diff(time) > 3.0 * dt) + 1
+        edges = np.concatenate([[0], breaks, [time.size]])
+        self.runs = [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+        self.ones = self.whiten(np.ones((1, time.size)))[0]
+        self.ones_norm2 = float(self.ones @ self.ones)
+
+    def whiten(self, r: np.ndarray) -> np.ndarray:
+        """Standardised innovations of residual rows ``r`` (rows, valid samples)."""
+        out = np.empty_like(r)
+        for a, b in self.runs:
+            out[:, a:b] = self.whitener.whiten_runs(r[:, a:b])
+        return out
+
+    def residual(self, r: np.ndarray, offset: bool) -> np.ndarray:
+        """Whitened residual rows, the GLS offset projected out when ``offset``."""
+        e = self.whiten(r)
+        if offset:
+            e -= np.outer(e @ self.ones / self.ones_norm2, self.ones)
+        return e
+
+    def offset(self, r: np.ndarray) -> np.ndarray:
+        """The GLS offset of each row of ``r``."""
+        return self.whiten(r) @ self.ones / self.ones_norm2
+
+
+_WHITENINGS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def whitenings(exp: Experiment) -> dict[int, Whitening]:
+    """Per output column of positive weight: its :class:`Whitening` (made once per
+    experiment, as every batch needs them)."""
+    cached = _WHITENINGS.get(exp)
+    if cached is None:
+        t = exp.windowed_data().time
+        cached = {j: Whitening(exp.noise_models[exp.scored.outputs[j]], t[index])
+                  for j, index, _ in exp.scored.columns}
+        _WHITENINGS[exp] = cached
+    return cached
+
+
+def is_whitened(exp: Experiment) -> bool:
+    return bool(getattr(exp, "noise_models", None))
+
+
+def combination_weights(experiments) -> np.ndarray | None:
+    """How a problem's fitness weighs its experiments: equally (None: the paper's ARSSD),
+    or, for whitened experiments, by their scored samples (the deviance per sample).
+    Mixing the two in one problem is refused."""
+    kinds = {is_whitened(e) for e in experiments}
+    if len(kinds) > 1:
+        first = next(e for e in experiments if is_whitened(e))
+        other = next(e for e in experiments if not is_whitened(e))
+        raise ConfigError(f"{first.name} gives a [noise] model (whitened fitness) but {other.name} does not; a "
+                          "joint fit scores every experiment the same way", str(other.config_path), "noise")
+    if not kinds.pop():
+        return None
+    return np.array([sum(index.size for _, index, _ in e.scored.columns) for e in experiments], dtype=float)
+
+
+def batch_residuals(exp: Experiment, simulated: np.ndarray) -> np.ndarray:
+    """Residual rows of a batch whose squares sum to each set's :func:`batch_rssd`
+    value: whitened (GLS offset projected out) for a whitened experiment, the plain
+    offset-removed residual otherwise; outputs concatenated, each scaled by its weight
+    and sample count. Non-finite where a set's simulation is not finite."""
+    scored = exp.scored
+    yhat = np.asarray(simulated, dtype=np.float64)
+    total_w = np.sum(scored.weights[scored.weights > 0])
+    parts = []
+    w = whitenings(exp) if is_whitened(exp) else None
+    for j, index, y in scored.columns:
+        r = y - np.take(yhat[:, :, j], index, axis=1)
+        if w is not None:
+            r = w[j].residual(r, exp.offset)
+        elif exp.offset:
+            r = r - r.mean(axis=1)[:, None]
+        parts.append(r * np.sqrt(scored.weights[j] / (total_w * index.size)))
+    return np.concatenate(parts, axis=1)
+
+
+def _batch_whitened(exp: Experiment, yhat: np.ndarray) -> np.ndarray:
+    scored = exp.scored
+    w = whitenings(exp)
+    total = np.zeros(yhat.shape[0])
+    for j, index, y in scored.columns:
+        e = w[j].residual(y - np.take(yhat[:, :, j], index, axis=1), exp.offset)
+        total += scored.weights[j] * np.mean(e * e, axis=1)
+    total /= np.sum(scored.weights[scored.weights > 0])
+    total[~np.isfinite(total)] = np.inf
+    return total
+
+
 def batch_rssd(exp: Experiment, simulated: np.ndarray) -> np.ndarray:
     """RSSD of each simulation of ``exp`` in a batch: ``simulated`` is (sets, samples,
     outputs) at the measured samples inside the window, outputs in ``exp.outputs``
@@ -123,6 +233,9 @@ def batch_rssd(exp: Experiment, simulated: np.ndarray) -> np.ndarray:
     if yhat.ndim != 3 or yhat.shape[1:] != scored.measured.shape:
         raise ValueError(f"{exp.name}: simulated {yhat.shape}, expected (sets, {scored.measured.shape[0]}, "
                          f"{scored.measured.shape[1]})")
+    if is_whitened(exp):
+        with np.errstate(invalid="ignore", over="ignore"):
+            return _batch_whitened(exp, yhat)
     total = np.zeros(yhat.shape[0])
     for j, index, y in scored.columns:
         r = y - np.take(yhat[:, :, j], index, axis=1)
@@ -141,8 +254,9 @@ def rssd(measured, simulated, valid, weights=None, offset: bool = False) -> floa
     return fit_outputs(measured, simulated, valid, weights, offset).rssd
 
 
-def arssd(values):
-    """The paper's ARSSD: mean of the experiments' RSSDs along the last axis.
+def arssd(values, weights: np.ndarray | None = None):
+    """The paper's ARSSD: mean of the experiments' RSSDs along the last axis (weighted by
+    ``weights`` when given: :func:`combination_weights`).
 
     A float for a 1-D input (one value per experiment); an (n,) array for an (n, E)
     batch. An infinite (failed) RSSD makes the average infinite.
@@ -150,7 +264,7 @@ def arssd(values):
     v = np.asarray(values, dtype=np.float64)
     if v.ndim == 0 or v.shape[-1] == 0:
         raise ValueError("arssd needs at least one experiment's RSSD")
-    mean = v.mean(axis=-1)
+    mean = v.mean(axis=-1) if weights is None else (v @ weights) / np.sum(weights)
     return float(mean) if v.ndim == 1 else mean
 
 
@@ -161,7 +275,9 @@ class ExperimentFit:
     ``time`` holds the measured times inside the fitness window; ``residuals`` are
     ``y - yhat - offset`` on it (NaN where masked); ``n_samples`` is the number of
     valid samples scored, summed over outputs of positive weight (the ``M`` of the
-    likelihood).
+    likelihood). For a whitened experiment ``rssd`` is the mean squared whitened
+    residual, the offsets are the GLS ones, and ``whitened`` holds the whitened residuals
+    (empty otherwise).
     """
 
     experiment: str
@@ -172,6 +288,7 @@ class ExperimentFit:
     time: np.ndarray
     n_valid: dict[str, int]
     n_samples: int
+    whitened: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def experiment_fitness(exp: Experiment, t_sim, y_sim: dict[str, np.ndarray]) -> ExperimentFit:
@@ -202,6 +319,8 @@ def experiment_fitness(exp: Experiment, t_sim, y_sim: dict[str, np.ndarray]) -> 
         simulated = sample_onto(t_sim, simulated, t_meas)
     fit = fit_outputs(scored.measured, simulated, scored.valid, scored.weights, exp.offset)
     n_valid = {o: int(n) for o, n in zip(outputs, fit.n_valid)}
+    if is_whitened(exp):
+        return _whitened_fit(exp, simulated, fit, n_valid)
     return ExperimentFit(
         experiment=exp.name,
         rssd=fit.rssd,
@@ -212,6 +331,31 @@ def experiment_fitness(exp: Experiment, t_sim, y_sim: dict[str, np.ndarray]) -> 
         n_valid=n_valid,
         n_samples=sum(n for o, n in n_valid.items() if exp.weights[o] > 0),
     )
+
+
+def _whitened_fit(exp: Experiment, simulated: np.ndarray, fit: Fit, n_valid: dict[str, int]) -> ExperimentFit:
+    """:func:`experiment_fitness` of a whitened experiment (GLS offsets, whitened value)."""
+    scored = exp.scored
+    w = whitenings(exp)
+    residuals, whitened, offsets, per_output = {}, {}, {}, {}
+    for j, index, y in scored.columns:
+        out = scored.outputs[j]
+        r = (y - simulated[index, j])[None]
+        c = float(w[j].offset(r)[0]) if exp.offset else 0.0
+        e = w[j].residual(r, exp.offset)[0]
+        full_r, full_e = np.full(simulated.shape[0], np.nan), np.full(simulated.shape[0], np.nan)
+        full_r[index], full_e[index] = r[0] - c, e
+        residuals[out], whitened[out], offsets[out] = full_r, full_e, c
+        per_output[out] = float(np.mean(e * e))
+    used = scored.weights > 0
+    value = float(sum(scored.weights[j] * per_output[scored.outputs[j]] for j, _, _ in scored.columns)
+                  / np.sum(scored.weights[used]))
+    for j, out in enumerate(scored.outputs):  # outputs of weight zero: plain residuals, as unscored
+        residuals.setdefault(out, fit.residual[:, j])
+        offsets.setdefault(out, float(fit.offset[j]))
+        per_output.setdefault(out, float(fit.per_output[j]))
+    return ExperimentFit(exp.name, value, per_output, offsets, residuals, exp.windowed_data().time, n_valid,
+                         sum(n for o, n in n_valid.items() if exp.weights[o] > 0), whitened)
 
 
 def gaussian_log_likelihood(rssd, n_samples, sigma) -> np.ndarray:

@@ -12,6 +12,7 @@ fixed penalty fitness and ``failed=True``; the run goes on.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 from typing import Mapping
@@ -22,7 +23,7 @@ from .engine import Engine, SequentialEngine
 from .search import Evaluations
 from .experiment import Experiment
 from .problem import Problem
-from .fitness import ExperimentFit, arssd, batch_rssd, experiment_fitness
+from .fitness import ExperimentFit, arssd, batch_residuals, batch_rssd, combination_weights, experiment_fitness
 from .simulator import DEFAULT_RUNNER, FmuRef, Trajectory, check_runner, get_simulator
 
 PENALTY = 1.0  # pu^2: ~10^4 times a poor fit of a 0.08 pu step, finite for every method
@@ -87,17 +88,21 @@ class ExperimentBatch:
         return self.prepared.run(values)
 
 
-def _score_chunk(payload: Payload, X: np.ndarray, batches: list[ExperimentBatch] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Worker: (rssd (n, E), failed (n,), failure messages). A set that fails in one
-    experiment is not simulated in the next. ``batches`` are the prepared experiments
-    when the caller keeps them (in-process calls); a worker prepares its own."""
+def _score_chunk(payload: Payload, X: np.ndarray, batches: list[ExperimentBatch] | None = None,
+                 residuals: bool = False) -> tuple:
+    """Worker: (rssd (n, E), failed (n,), failure messages), and with ``residuals`` the
+    residual rows of each experiment (:func:`~rapid_cosim.fitness.batch_residuals`, NaN
+    for a failed set). A set that fails in one experiment is not simulated in the next.
+    ``batches`` are the prepared experiments when the caller keeps them (in-process
+    calls); a worker prepares its own."""
     if batches is None:
         batches = _prepare(payload)
     n, n_exp = X.shape[0], len(payload.experiments)
     rssd = np.full((n, n_exp), np.inf)
     failed = np.zeros(n, dtype=bool)
     messages: list[str] = []
+    blocks = [np.full((n, sum(ix.size for _, ix, _ in e.scored.columns)), np.nan) for e in payload.experiments] \
+        if residuals else None
     alive = np.arange(n)
     for i, exp in enumerate(payload.experiments):
         if not alive.size:
@@ -105,6 +110,8 @@ def _score_chunk(payload: Payload, X: np.ndarray, batches: list[ExperimentBatch]
         batch = batches[i](X[alive])
         scores = batch_rssd(exp, batch.values)
         ok = batch.ok & np.isfinite(scores)
+        if residuals and ok.any():
+            blocks[i][alive[ok]] = batch_residuals(exp, batch.values[ok])
         if ok.all():
             rssd[alive, i] = scores
             continue
@@ -114,6 +121,8 @@ def _score_chunk(payload: Payload, X: np.ndarray, batches: list[ExperimentBatch]
         failed[alive[~ok]] = True
         alive = alive[ok]
     rssd[failed] = np.inf
+    if residuals:
+        return rssd, failed, messages, blocks
     return rssd, failed, messages
 
 
@@ -137,31 +146,47 @@ class ProblemObjective:
         self.payload = Payload(problem.experiments, tuple(fmus[e.model] for e in problem.experiments),
                                problem.assignments, check_runner(runner))
         self.failures = FailureLog()
+        self.weights = combination_weights(problem.experiments)  # None: the paper's plain ARSSD
         self._batches: list[ExperimentBatch] | None = None  # prepared once for in-process calls
         self.n_evaluations = 0
         self.simulation_seconds = 0.0  # wall time spent inside evaluation calls
 
     def __call__(self, X: np.ndarray) -> Evaluations:
+        return self._evaluate(X, residuals=False)[0]
+
+    def residuals(self, X: np.ndarray) -> tuple[Evaluations, np.ndarray]:
+        """The evaluations and, per row, the residual vector over all experiments whose
+        squares sum to the row's fitness (whitened for whitened experiments; NaN rows for
+        failed sets): what a least-squares method needs."""
+        ev, blocks = self._evaluate(X, residuals=True)
+        scale = np.ones(len(blocks)) / len(blocks) if self.weights is None else self.weights / self.weights.sum()
+        return ev, np.concatenate([b * np.sqrt(w) for b, w in zip(blocks, scale)], axis=1)
+
+    def _evaluate(self, X: np.ndarray, residuals: bool):
         X = np.atleast_2d(np.asarray(X, dtype=float))
         t0 = time.perf_counter()
-        rssd, failed, messages = self._score(X)
+        rssd, failed, messages, *blocks = self._score(X, residuals)
         self.simulation_seconds += time.perf_counter() - t0
         self.n_evaluations += X.shape[0]
         for m in messages:
             self.failures.add(m)
-        fitness = np.where(failed, self.penalty, arssd(rssd))
-        return Evaluations(fitness, rssd, failed)
+        fitness = np.where(failed, self.penalty, arssd(rssd, self.weights))
+        return Evaluations(fitness, rssd, failed), (blocks[0] if blocks else None)
 
-    def _score(self, X: np.ndarray):
+    def _score(self, X: np.ndarray, residuals: bool = False):
         workers = 1 if X.shape[0] == 1 else self.engine.workers
         if workers == 1:
             if self._batches is None:
                 self._batches = _prepare(self.payload)
-            return _score_chunk(self.payload, X, self._batches)
+            return _score_chunk(self.payload, X, self._batches, residuals)
         chunks = [c for c in np.array_split(np.arange(X.shape[0]), min(workers, X.shape[0])) if c.size]
-        parts = self.engine.map(_score_chunk, self.payload, [X[c] for c in chunks])
-        return (np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
-                [m for p in parts for m in p[2]])
+        parts = self.engine.map(functools.partial(_score_chunk, residuals=residuals) if residuals else _score_chunk,
+                                self.payload, [X[c] for c in chunks])
+        out = (np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+               [m for p in parts for m in p[2]])
+        if residuals:
+            out += ([np.vstack([p[3][i] for p in parts]) for i in range(len(self.payload.experiments))],)
+        return out
 
 
 @dataclass(frozen=True)

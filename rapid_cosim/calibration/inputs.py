@@ -14,7 +14,7 @@ from ..compiler import ensure_fmu
 from ..data import MeasuredData
 from ..errors import ConfigError, FmuError
 from ..experiment import Experiment, load_experiment, parse_experiment
-from ..fitness import gaussian_log_likelihood
+from ..fitness import combination_weights, gaussian_log_likelihood
 from ..problem import Problem, build_problem, check_parameters, check_signals
 from ..search import Evaluations
 from ..simulator import FmuRef, get_simulator
@@ -96,7 +96,12 @@ def inputs_from_archive(archive: RunArchive) -> RunInputs:
 
 def log_likelihood_for(problem: Problem) -> Callable[[Evaluations], np.ndarray] | None:
     """Gaussian likelihood with each experiment's configured noise level, or None if an
-    experiment has none (then the Bayesian method cannot run)."""
+    experiment has none (then the Bayesian method cannot run). Whitened experiments
+    (``[noise]``) carry their likelihood in their value: ``-n/2`` times the mean squared
+    whitened residual."""
+    weights = combination_weights(problem.experiments)
+    if weights is not None:
+        return lambda ev: np.where(np.all(np.isfinite(ev.rssd), axis=1), -0.5 * (ev.rssd @ weights), -np.inf)
     sigma, counts = [], []
     for exp in problem.experiments:
         if not exp.noise_sigma:

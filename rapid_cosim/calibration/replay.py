@@ -34,6 +34,17 @@ class RecordingObjective:
         return Evaluations(np.array([r[0] for r in rows]), np.vstack([r[2] for r in rows]),
                            np.array([r[1] for r in rows], dtype=bool))
 
+    def residuals(self, X: np.ndarray) -> tuple[Evaluations, np.ndarray]:
+        """Evaluations with residual vectors (least-squares methods). The archive keeps no
+        residual vectors, so these rows are simulated even on a replay; they are
+        deterministic, so a resumed run still ends where the uninterrupted one would."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        ev, R = self.objective.residuals(X)
+        self.simulated += X.shape[0]
+        for j, row in enumerate(X):
+            self.known.setdefault(row.tobytes(), (float(ev.fitness[j]), bool(ev.failed[j]), ev.rssd[j].copy()))
+        return ev, R
+
     def rssd_of(self, X: np.ndarray) -> np.ndarray:
         return np.vstack([self.known[row.tobytes()][2] for row in np.atleast_2d(X)])
 

@@ -189,11 +189,27 @@ class Tracker:
 
     def evaluate(self, U: np.ndarray) -> Evaluations:
         """Score the rows of ``U`` (unit coordinates, (n, d)) in one objective call."""
+        U = self._check(U)
+        return self._book(U, self.objective(self.to_physical(U)))
+
+    def evaluate_residuals(self, U: np.ndarray) -> tuple[Evaluations, np.ndarray]:
+        """As :meth:`evaluate`, with each row's residual vector (the objective's
+        ``residuals``: squares summing to the fitness), for least-squares methods."""
+        U = self._check(U)
+        residuals = getattr(self.objective, "residuals", None)
+        if residuals is None:
+            raise ValueError("this objective gives no residual vectors; a least-squares method needs them")
+        ev, R = residuals(self.to_physical(U))
+        return self._book(U, ev), np.asarray(R, dtype=float)
+
+    def _check(self, U: np.ndarray) -> np.ndarray:
         U = np.asarray(U, dtype=float)
         if U.ndim != 2 or U.shape[1] != self.space.dim or U.shape[0] == 0:
             raise ValueError(f"internal: bad batch shape {U.shape}")
+        return U
+
+    def _book(self, U: np.ndarray, ev: Evaluations) -> Evaluations:
         n = U.shape[0]
-        ev = self.objective(self.to_physical(U))
         fitness = np.asarray(ev.fitness, dtype=float).reshape(-1)
         failed = np.asarray(ev.failed, dtype=bool).reshape(-1)
         rssd = np.asarray(ev.rssd, dtype=float)

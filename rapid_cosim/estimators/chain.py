@@ -19,6 +19,7 @@ import numpy as np
 
 from .base import EstimationResult, Iteration, IterationCallback, Objective, SearchSpace
 from .gradient import GDOptions, gradient_descent
+from .multistart import MSOptions, multistart
 from .nelder_mead import NMOptions, nelder_mead
 from .pf import PFOptions, particle_filter
 from .pso import PSOOptions, pso
@@ -32,6 +33,7 @@ REGISTRY: dict[str, tuple[Callable[..., EstimationResult], type]] = {
     "nm": (nelder_mead, NMOptions),
     "gd": (gradient_descent, GDOptions),
     "scan": (coordinate_scan, ScanOptions),
+    "ms": (multistart, MSOptions),
 }
 
 _SYNTAX = "write stages as NAME or NAME:N joined by '+', e.g. 'pf:10+nm'"

@@ -38,6 +38,11 @@ Schema (keys not shown here are rejected, with a suggestion when one is close)::
                              # for every output, or a table { pm = 0.0013 }. Default: none.
     pre_step_end = 10.0      # end of the quiet pre-step window; required with "pre-step"
 
+    [noise.pm]               # the recorder's noise model of output pm (optional; see
+    white = 0.00118          # rapid_cosim.experiment.recorder): the fitness is then the
+    dt = 0.1                 # least squares of residuals whitened by it
+    components = [{ sigma = 0.00076, tau = 0.9 }]
+
     [simulation]
     start_time = 0.0         # default 0.0; must not be after the first sample used
     stop_time = 90.0         # default: the last measured time inside the window
@@ -82,6 +87,7 @@ from ..data import split_hdf5_path
 from ..errors import ConfigError, DataError
 from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, EstimateSpec, Experiment,
                          SimulationSettings)
+from .recorder import read_noise_models
 from .signals import read_inputs, read_outputs
 from .toml_writer import config_key
 
@@ -93,6 +99,7 @@ _SECTIONS: dict[str, frozenset[str] | None] = {
     "estimate": None,
     "fitness": frozenset({"window", "weights", "offset", "noise", "pre_step_end"}),
     "simulation": frozenset({"start_time", "stop_time", "output_interval", "timeout"}),
+    "noise": None,  # output names (rapid_cosim.experiment.recorder)
 }
 _REQUIRED_SECTIONS = ("experiment", "data")
 _SPEC_KEYS = frozenset({"min", "max", "label", "scale", "start", "per_experiment"})
@@ -199,6 +206,7 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
     noise, noise_sigma = _read_noise(f, outputs, data, pre_step_end, cfg)
     if noise_sigma is not None and noise == NOISE_PRE_STEP:  # the level of the compared, converted values
         noise_sigma = {out: sigma * output_specs[out].conversion.gain for out, sigma in noise_sigma.items()}
+    noise_models = read_noise_models(sections["noise"], outputs, weights, inside, cfg)
     simulation = _read_simulation(sections["simulation"], inside, cfg)
     inputs = read_inputs(sections["inputs"], cfg, pre_step_end)
     files = dict(files or {})
@@ -214,7 +222,7 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         window=window, offset=offset, noise=noise, noise_sigma=noise_sigma,
         pre_step_end=pre_step_end, simulation=simulation, time_column=time_column,
         conversions={o: s.conversion for o, s in output_specs.items() if not s.conversion.identity},
-        inputs=inputs, files=files,
+        inputs=inputs, files=files, noise_models=noise_models,
     )
 
 

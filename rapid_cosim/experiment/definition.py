@@ -16,6 +16,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..data import MeasuredData
+from ..noise import RecorderNoise
 from ..simulator import InputTable
 from .signals import Conversion, InputSpec
 
@@ -93,6 +94,7 @@ class Experiment:
     conversions: dict[str, Conversion] = field(default_factory=dict)  # outputs compared after a conversion
     inputs: tuple[InputSpec, ...] = ()  # model inputs driven by measured columns
     files: dict[str, MeasuredData] = field(default_factory=dict)  # inputs' other data files, by name
+    noise_models: dict[str, RecorderNoise] = field(default_factory=dict)  # [noise]: whitened fitness
 
     def measured(self, output: str, data: MeasuredData | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The values ``output`` is compared with (converted as configured) and their mask."""

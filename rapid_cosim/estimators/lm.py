@@ -1,0 +1,226 @@
+"""Bounded Levenberg-Marquardt on residual vectors, many starting points in lockstep.
+
+Why our own and not ``scipy.optimize.least_squares``: a calibration's cost is its
+simulations, and the runner is fastest on large batches. scipy's solver asks for one
+point (or one Jacobian) at a time; here every iteration gathers, over all starts still
+running, the trial steps into one objective call and the finite-difference Jacobians
+(``d`` points per start) into another, so a multistart of 20 starts costs two batched
+calls per iteration, which a parallel engine spreads over its workers.
+
+The method, per start, in unit coordinates (each parameter scaled to [0, 1] by its
+bounds, log-scaled ones by their logarithm):
+
+* Jacobian ``J`` of the residual vector by forward differences of ``fd_step`` (backward
+  at the upper bound);
+* steps ``(J'J + lam diag(J'J)) delta = -J' r`` for three damping values ``lam/10, lam,
+  10 lam`` at once, clipped into the box; a coordinate on a bound whose gradient points
+  out of the box is held there for the step;
+* the best trial is taken if it lowers the fitness (``lam`` follows it), else ``lam``
+  grows tenfold; a start stops when the fitness falls by less than ``ftol`` (relative)
+  in an accepted step, the step is shorter than ``xtol``, ``lam`` exceeds ``lam_max``, or
+  after ``max_iter`` iterations;
+* two running starts closer than ``merge_tol`` (largest coordinate difference) are in
+  one basin: the worse stops, merged into the better, and shares its end point.
+
+Coordinates listed in ``fixed`` are never moved (a profile holds one parameter at each
+value of a grid). Deterministic: no randomness, ties broken by start index.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .base import Tracker, check_option
+
+
+@dataclass(frozen=True)
+class LMOptions:
+    max_iter: int = 40
+    fd_step: float = 1e-3
+    ftol: float = 1e-6
+    xtol: float = 1e-6
+    lam0: float = 1e-3
+    lam_max: float = 1e8
+    merge_tol: float = 0.02
+
+    def __post_init__(self):
+        check_option("max_iter", self.max_iter, low=1, integer=True)
+        check_option("fd_step", self.fd_step, low=0.0, high=0.1, low_open=True)
+        check_option("ftol", self.ftol, low=0.0)
+        check_option("xtol", self.xtol, low=0.0)
+        check_option("lam0", self.lam0, low=0.0, low_open=True)
+        check_option("lam_max", self.lam_max, low=0.0, low_open=True)
+        check_option("merge_tol", self.merge_tol, low=0.0)
+
+
+RUNNING, CONVERGED, STALLED, MERGED, FAILED, MAX_ITER = range(6)
+STATUS = ("running", "converged", "no descent", "merged", "failed", "iteration limit")
+
+
+@dataclass
+class LMRun:
+    """What happened to each start: its end point, fitness and status (``merged_into``
+    is the start whose basin it joined, -1 otherwise)."""
+
+    u: np.ndarray  # (starts, d) end points, unit coordinates
+    f: np.ndarray  # (starts,)
+    status: np.ndarray  # (starts,) codes of STATUS
+    merged_into: np.ndarray  # (starts,)
+    iterations: np.ndarray  # (starts,)
+
+
+def _jacobians(t: Tracker, U: np.ndarray, R: np.ndarray, idx: list[int], free: np.ndarray, h: float,
+               stage_points: list, stage_f: list, stage_failed: list) -> dict[int, np.ndarray]:
+    """Forward-difference Jacobians at the points ``U[idx]`` (residuals ``R[idx]``), all in
+    one objective call; a start whose stencil fails gets None."""
+    points, owners, dirs = [], [], []
+    for s in idx:
+        for j in np.flatnonzero(free[s]):
+            step = h if U[s, j] + h <= 1.0 else -h
+            p = U[s].copy()
+            p[j] += step
+            points.append(p)
+            owners.append((s, j))
+            dirs.append(step)
+    out: dict[int, np.ndarray] = {s: np.zeros((R.shape[1], U.shape[1])) for s in idx}
+    if not points:
+        return out
+    P = np.array(points)
+    ev, RP = t.evaluate_residuals(P)
+    stage_points.append(P), stage_f.append(ev.fitness), stage_failed.append(ev.failed)
+    bad = set()
+    for k, (s, j) in enumerate(owners):
+        if ev.failed[k] or not np.all(np.isfinite(RP[k])):
+            bad.add(s)
+            continue
+        out[s][:, j] = (RP[k] - R[s]) / dirs[k]
+    for s in bad:
+        out[s] = None
+    return out
+
+
+def _step(J: np.ndarray, r: np.ndarray, u: np.ndarray, free: np.ndarray, lam: float) -> np.ndarray:
+    g = J.T @ r
+    move = free.copy()
+    move &= ~((u <= 0.0) & (g > 0)) & ~((u >= 1.0) & (g < 0))  # held on a bound it pushes against
+    delta = np.zeros_like(u)
+    if not move.any():
+        return delta
+    A = J[:, move].T @ J[:, move]
+    D = np.maximum(np.diag(A), 1e-12 * max(float(np.max(np.diag(A))), 1e-300))
+    try:
+        delta[move] = np.linalg.solve(A + lam * np.diag(D), -g[move])
+    except np.linalg.LinAlgError:
+        delta[move] = -g[move] / (D * (1 + lam))
+    return delta
+
+
+def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptions(),
+                        fixed: np.ndarray | None = None, extras_every=None) -> LMRun:
+    """Run LM from every row of ``U0`` (unit coordinates) in lockstep, recording one
+    iteration per lockstep step through the tracker. ``fixed`` (starts, d) marks
+    coordinates held at their start value. ``extras_every(run)`` may add arrays to each
+    recorded iteration (``run`` as it stands, merged starts at their basin's point)."""
+    o = options
+    n, d = U0.shape
+    U = np.clip(np.array(U0, dtype=float), 0.0, 1.0)
+    free = ~np.asarray(fixed, dtype=bool) if fixed is not None else np.ones((n, d), dtype=bool)
+    lam = np.full(n, o.lam0)
+    status = np.full(n, RUNNING)
+    merged = np.full(n, -1)
+    iters = np.zeros(n, dtype=int)
+    pts, fs, fails = [], [], []
+    ev, R = t.evaluate_residuals(U)
+    pts.append(U.copy()), fs.append(ev.fitness), fails.append(ev.failed)
+    f = np.array(ev.fitness, dtype=float)
+    status[ev.failed | ~np.all(np.isfinite(R), axis=1)] = FAILED
+    live = [s for s in range(n) if status[s] == RUNNING]
+    J = _jacobians(t, U, R, live, free, o.fd_step, pts, fs, fails)
+    for s in live:
+        if J[s] is None:
+            status[s] = FAILED
+    run = LMRun(U, f, status, merged, iters)
+
+    def record():
+        u_end, f_end = _shared(U, f, merged)
+        extras = {"start_u": u_end, "start_fun": f_end, "start_status": status.copy()}
+        if extras_every is not None:
+            extras.update(extras_every(LMRun(u_end, f_end, status.copy(), merged.copy(), iters.copy())))
+        t.record(np.vstack(pts), np.concatenate(fs), np.concatenate(fails), None, extras)
+        pts.clear(), fs.clear(), fails.clear()
+
+    record()
+    for _ in range(o.max_iter):
+        live = [s for s in range(n) if status[s] == RUNNING]
+        if not live:
+            break
+        trials, owner, lams = [], [], []
+        for s in live:
+            for factor in (0.1, 1.0, 10.0):
+                delta = _step(J[s], R[s], U[s], free[s], lam[s] * factor)
+                trials.append(np.clip(U[s] + delta, 0.0, 1.0))
+                owner.append(s)
+                lams.append(lam[s] * factor)
+        T = np.array(trials)
+        ev, RT = t.evaluate_residuals(T)
+        pts.append(T), fs.append(ev.fitness), fails.append(ev.failed)
+        moved = []
+        for s in live:
+            iters[s] += 1
+            rows = [k for k, o_ in enumerate(owner) if o_ == s and not ev.failed[k] and np.all(np.isfinite(RT[k]))]
+            best = min(rows, key=lambda k: (ev.fitness[k], k)) if rows else None
+            if best is not None and ev.fitness[best] < f[s]:
+                gain = f[s] - ev.fitness[best]
+                short = np.max(np.abs(T[best] - U[s])) < o.xtol
+                U[s], f[s], R[s] = T[best], ev.fitness[best], RT[best]
+                lam[s] = max(lams[best] * 0.3, 1e-12)
+                if gain <= o.ftol * max(abs(f[s]), 1e-300) or short:
+                    status[s] = CONVERGED
+                else:
+                    moved.append(s)
+            else:
+                lam[s] *= 100.0  # the largest trial (10 lam) failed too
+                if lam[s] > o.lam_max or (rows and max(np.max(np.abs(T[k] - U[s])) for k in rows) < o.xtol):
+                    status[s] = STALLED
+            if status[s] == RUNNING and iters[s] >= o.max_iter:
+                status[s] = MAX_ITER
+        _merge(U, f, status, merged, o.merge_tol)
+        moved = [s for s in moved if status[s] == RUNNING]
+        if moved:
+            newJ = _jacobians(t, U, R, moved, free, o.fd_step, pts, fs, fails)
+            for s in moved:
+                if newJ[s] is None:
+                    status[s] = FAILED
+                else:
+                    J[s] = newJ[s]
+        record()
+    status[status == RUNNING] = MAX_ITER
+    run.u, run.f = _shared(U, f, merged)
+    return run
+
+
+def _shared(U, f, merged):
+    """End points and fitness with each merged start given those of the start it joined."""
+    U, f = U.copy(), f.copy()
+    for s in range(len(f)):
+        k = s
+        while merged[k] >= 0:
+            k = merged[k]
+        U[s], f[s] = U[k], f[k]
+    return U, f
+
+
+def _merge(U, f, status, merged, tol: float) -> None:
+    live = [s for s in range(len(f)) if status[s] == RUNNING or status[s] in (CONVERGED, STALLED, MAX_ITER)]
+    running = [s for s in live if status[s] == RUNNING]
+    for a in running:
+        if status[a] != RUNNING:
+            continue
+        for b in live:
+            if b == a or status[b] == MERGED:
+                continue
+            if np.max(np.abs(U[a] - U[b])) < tol and (f[b], b) < (f[a], a):
+                status[a], merged[a] = MERGED, b
+                break
