@@ -27,11 +27,11 @@ from .calibration import RunInputs, RunOptions, inputs_from_archive, inputs_from
 from .calibration import rerun as _rerun
 from .calibration import resume_run, start_run
 from .compiler import ensure_fmu
-from .errors import ArchiveError, ConfigError
+from .errors import ArchiveError, ConfigError, ParameterError
 from .estimators.base import EstimationResult
 from .estimators.uncertainty import Uncertainty
 from .experiment import Experiment, load_experiment
-from .simulator import DEFAULT_RUNNER, Simulator, Trajectory
+from .simulator import DEFAULT_RUNNER, BatchResult, Trajectory, get_simulator
 
 PACKAGE = "modelica/iGrGen"
 FMU_DIR = "fmus"
@@ -224,17 +224,48 @@ def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[s
                          options=opts, package=package, fmu_dir=fmu_dir, log=log)
 
 
-def simulate(model: str | Path, parameters: Mapping[str, float] | None = None, *, stop_time: float | None = None,
-             output_interval: float | None = None, output_times=None, outputs: Sequence[str] | None = None,
-             input_time=None, inputs: Mapping[str, np.ndarray] | None = None, runner: str = DEFAULT_RUNNER,
-             timeout: float | None = None, package: str | Path = PACKAGE, fmu_dir: str | Path = FMU_DIR,
-             compiler: str = "auto") -> Trajectory:
-    """One simulation of a model of the package (a class name, built if needed) or of any
-    FMI 2.0 Model Exchange FMU (a path ending in ``.fmu``)."""
+def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None, *,
+             stop_time: float | None = None, output_interval: float | None = None, output_times=None,
+             outputs: Sequence[str] | None = None, input_time=None, inputs: Mapping[str, np.ndarray] | None = None,
+             runner: str = DEFAULT_RUNNER, timeout: float | None = None, package: str | Path = PACKAGE,
+             fmu_dir: str | Path = FMU_DIR, compiler: str = "auto") -> Trajectory | BatchResult:
+    """Simulate a model of the package (a class name, built if needed) or any FMI 2.0
+    Model Exchange FMU (a path ending in ``.fmu``).
+
+    ``parameters`` is one set (names to numbers): a :class:`Trajectory` is returned, and
+    a failure raises. Or a batch: a sequence of such mappings, or a mapping of names to
+    equal-length arrays; the batch runs in one call of the runner and returns a
+    :class:`BatchResult` whose ``values`` are (sets x times x outputs), a failed set
+    carrying its status and message instead of raising. The FMU is loaded once per
+    process (and again only when its file changes), so repeated calls cost a simulation.
+    """
     fmu = ensure_fmu(str(model), package=package, fmu_dir=fmu_dir, compiler=compiler)
-    sim = Simulator(fmu, timeout=timeout, runner=runner)
-    try:
-        return sim.simulate(parameters, stop_time=stop_time, output_interval=output_interval,
-                            output_times=output_times, outputs=outputs, input_time=input_time, inputs=inputs)
-    finally:
-        sim.close()
+    sim = get_simulator(fmu, timeout=timeout)
+    grid = dict(stop_time=stop_time, output_interval=output_interval, output_times=output_times, outputs=outputs,
+                input_time=input_time, inputs=inputs, runner=runner)
+    batch = _as_batch(parameters)
+    if batch is None:
+        return sim.simulate(parameters, **grid)
+    names, values = batch
+    return sim.simulate_batch(names, values, **grid)
+
+
+def _as_batch(parameters) -> tuple[list[str], np.ndarray] | None:
+    """(names, sets x names) when ``parameters`` is a batch, None for one set."""
+    if parameters is None:
+        return None
+    if isinstance(parameters, Mapping):
+        arrays = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in parameters.items()}
+        if all(a.ndim == 1 and a.size == 1 and np.ndim(parameters[k]) == 0 for k, a in arrays.items()):
+            return None
+        sizes = {a.size for a in arrays.values()}
+        if len(sizes) != 1:
+            raise ParameterError(f"a batch of parameters needs arrays of one length; got {sorted(sizes)}")
+        return list(arrays), np.column_stack(list(arrays.values()))
+    sets = list(parameters)
+    if not sets:
+        raise ParameterError("an empty batch of parameter sets")
+    names = list(sets[0])
+    if any(set(p) != set(names) for p in sets):
+        raise ParameterError("every parameter set of a batch must name the same parameters")
+    return names, np.array([[float(p[n]) for n in names] for p in sets])

@@ -163,13 +163,15 @@ def diagnosis_report(diagnosis, folder: str | Path, json_path: str | Path | None
     import json
 
     from .report.diagnosis import markdown, residual_figure
+    from .report.evidence import evidence_figure
 
     folder = Path(folder)
     js, h5 = diagnosis.save(folder)
     figure = residual_figure(folder)
+    evidence = evidence_figure(folder)
     report = folder / "diagnosis.md"
     report.write_text(markdown(folder))
-    files = [report, figure, js, h5]
+    files = [report, figure, evidence, js, h5]
     if json_path:
         Path(json_path).parent.mkdir(parents=True, exist_ok=True)
         Path(json_path).write_text(json.dumps(diagnosis.to_json(), indent=2) + "\n")
@@ -219,14 +221,15 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
     from .diagnose.structures import Structure, effects_on, select_structure
     from .diagnose.workflow import DiagnoseOptions, split_holdout
     from .experiment import load_experiment
+    from .calibration import RunOptions
+    from .diagnose.context import METHOD
     from .report.structures import identifiability_figure, markdown
-    from .staged import method
 
     found = [Structure.load(f) for f in structure_files]  # every file checked before a run starts
     training, heldout = split_holdout([load_experiment(c) for c in configs], holdout)
     results = Path(results)
     results.mkdir(parents=True, exist_ok=True)
-    options = method("pf10+nm").run_options(seed, n_jobs)
+    options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs)
     log(f"structures {', '.join(s.name for s in found)} on {', '.join(e.name for e in training)}"
         + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
     verdict = select_structure(found, training, heldout, workdir=results, options=options, package=package,

@@ -2,8 +2,10 @@
 
 For checking that a method recovers known parameters, that a Bayesian interval covers
 them as often as it claims, and that the discrepancy workflow names an effect hidden in
-the data. Noise is white plus AR(1), the recorder's clock jitters, and the transducer may
-carry an offset: the features of the field recordings.
+the data. Noise is white plus a slow correlated component (AR(1) per sample, or an
+Ornstein-Uhlenbeck process of correlation time ``tau`` on the actual, jittered time
+stamps), the recorder's clock jitters, its A/D converter quantises, and the transducer
+may carry an offset: the features of the field recordings.
 """
 
 from __future__ import annotations
@@ -14,24 +16,40 @@ from typing import Mapping
 
 import numpy as np
 
+from .noise import RecorderNoise
 from .simulator import Simulator, get_simulator
 
 
 @dataclass(frozen=True)
 class NoiseModel:
-    """``e_k = phi * e_{k-1} + a_k`` (AR(1), stationary std ``ar1_sigma``) plus white ``white_sigma``."""
+    """``e_k = phi * e_{k-1} + a_k`` (AR(1), stationary std ``ar1_sigma``) plus white
+    ``white_sigma``; with ``tau`` (s) the slow part is instead an Ornstein-Uhlenbeck
+    process of that correlation time, exact on irregular time stamps (``phi`` unused).
+    ``quantum``: the recorder's resolution (pu per count); the recorded value is rounded
+    to it (e.g. 16 bits over a 2 pu span: 2 / 65536)."""
 
     white_sigma: float = 0.0
     ar1_sigma: float = 0.0
     phi: float = 0.0
     offset: float = 0.0
+    tau: float | None = None
+    quantum: float = 0.0
 
     @property
     def sigma(self) -> float:
         """Standard deviation of the noise (offset aside)."""
         return float(np.hypot(self.white_sigma, self.ar1_sigma))
 
-    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+    def sample(self, n: int, rng: np.random.Generator, times: np.ndarray | None = None) -> np.ndarray:
+        """``n`` noise values (at ``times`` when the slow part is continuous in time)."""
+        if self.tau is not None:
+            if times is None:
+                raise ValueError("a noise model with tau needs the sample times")
+            comps = ((self.ar1_sigma, self.tau),) if self.ar1_sigma > 0 else ()
+            if not comps and self.white_sigma == 0:
+                return np.full(n, self.offset)
+            return RecorderNoise(self.white_sigma, comps, float(np.median(np.diff(times)))).sample(times, rng) \
+                + self.offset
         e = self.white_sigma * rng.standard_normal(n)
         if self.ar1_sigma > 0:
             a = self.ar1_sigma * np.sqrt(1 - self.phi ** 2) * rng.standard_normal(n)
@@ -63,7 +81,12 @@ def synthesize(fmu: str | Path | Simulator, parameters: Mapping[str, float], *, 
     traj = sim.simulate(parameters, stop_time=float(t[-1]), output_interval=output_interval, outputs=[output])
     clean = traj[output] if transform is None else transform(np.asarray(traj.time), np.asarray(traj[output]))
     y = np.interp(t, traj.time, clean)
-    return t, y + noise.sample(t.size, rng)
+    return t, quantise(y + noise.sample(t.size, rng, t), noise.quantum)
+
+
+def quantise(y: np.ndarray, quantum: float) -> np.ndarray:
+    """Values rounded to the recorder's resolution (unchanged for ``quantum`` 0)."""
+    return np.round(y / quantum) * quantum if quantum > 0 else y
 
 
 def write_csv(path: str | Path, time: np.ndarray, values: np.ndarray, column: str = "pm") -> Path:
@@ -92,6 +115,36 @@ def write_experiment(folder: str | Path, *, model: str, time: np.ndarray, values
         "estimate": {k: dict(v) for k, v in estimate.items()},
         "fitness": dict(fitness or {"offset": True}),
         "simulation": dict(simulation or {"output_interval": 0.05, "timeout": 10.0}),
+    }
+    path = folder / "config.toml"
+    path.write_text(render_config(sections))
+    return path
+
+
+def write_event_experiment(folder: str | Path, *, time: np.ndarray, frequency: np.ndarray, values: np.ndarray,
+                           fixed: Mapping[str, float], estimate: Mapping[str, Mapping], t_event: float,
+                           model: str = "iGrGen.TestBenches.FrequencyInput", name: str | None = None,
+                           description: str = "synthetic recorded event") -> Path:
+    """A config folder for a recorded event: ``data.csv`` with the recorded frequency
+    (Hz) and power (pu); the frequency drives the model's ``f_dev`` as a deviation from
+    50 Hz with its pre-event level removed."""
+    from .experiment import render_config
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    with (folder / "data.csv").open("w") as f:
+        f.write("time,FREQ,P\n")
+        for t, fr, v in zip(time, frequency, values):
+            f.write(f"{t:.4f},{fr:.6f},{v:.6f}\n")
+    sections = {
+        "experiment": {"name": name or folder.name, "model": model, "description": description},
+        "data": {"file": "data.csv", "time": "time", "outputs": {"pm": "P"}},
+        "inputs": {"f_dev": {"column": "FREQ", "unit": "Hz", "convert": "deviation", "nominal": 50.0,
+                             "baseline": "pre-event"}},
+        "fixed": {"f_nom": 50.0, **fixed},
+        "estimate": {k: dict(v) for k, v in estimate.items()},
+        "fitness": {"offset": True, "noise": "pre-step", "pre_step_end": float(t_event)},
+        "simulation": {"timeout": 10.0},
     }
     path = folder / "config.toml"
     path.write_text(render_config(sections))
@@ -133,14 +186,20 @@ def pmu_noise(n: int, *, rate: float, sigma: float, window: float, rng: np.rando
 
 def synthesize_event(fmu: str | Path | Simulator, parameters: Mapping[str, float], *, duration: float,
                      rate: float, t_event: float, f_noise: float, p_noise: NoiseModel, rng: np.random.Generator,
-                     input: str = "f_dev", output: str = "pm", event: Mapping | None = None
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     input: str = "f_dev", output: str = "pm", event: Mapping | None = None, jitter: float = 0.0,
+                     transform=None, runner: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(time, measured frequency deviation in Hz, measured output) of a unit riding
-    through an under-frequency event: the model is driven by the true frequency; the
-    recorder adds PMU noise to the frequency and ``p_noise`` to the output."""
+    through a grid event (:func:`under_frequency_event`; a negative ``loss`` is a load
+    lost, and the frequency rises): the model is driven by the true frequency; the
+    recorder samples at times off their grid by up to ``jitter`` s, adds PMU noise to the
+    frequency and ``p_noise`` to the output. ``transform(time, values)`` changes the
+    simulated output first (a plant the model does not describe); ``runner`` simulates it
+    (default: the simulator's)."""
     sim = fmu if isinstance(fmu, Simulator) else get_simulator(fmu)
-    t = np.arange(0.0, duration, 1.0 / rate)
+    t = jittered_times(duration, rate, jitter, rng) if jitter > 0 else np.arange(0.0, duration, 1.0 / rate)
     f_true = under_frequency_event(t, t_event=t_event, **dict(event or {}))
-    traj = sim.simulate(parameters, output_times=t, outputs=[output], input_time=t, inputs={input: f_true})
+    traj = sim.simulate(parameters, output_times=t, outputs=[output], input_time=t, inputs={input: f_true},
+                        runner=runner)
     f_meas = f_true + pmu_noise(t.size, rate=rate, sigma=f_noise, window=0.3, rng=rng)
-    return t, f_meas, traj[output] + p_noise.sample(t.size, rng)
+    clean = traj[output] if transform is None else transform(t, np.asarray(traj[output]))
+    return t, f_meas, quantise(clean + p_noise.sample(t.size, rng, t), p_noise.quantum)

@@ -38,13 +38,13 @@ def study(repo, tmp_path_factory):
     """(work folder, package copy, FMU folder) with the base bench and every catalogue
     effect's bench built: what the synthetic diagnosis studies run on."""
     from rapid_cosim.compiler import build_models
-    from rapid_cosim.diagnose.catalogue import BASE_BENCH, CATALOGUE
+    from rapid_cosim.diagnose.catalogue import BASE_BENCH, EFFECTS
 
     work = tmp_path_factory.mktemp("study")
     package = work / "package" / "iGrGen"
     shutil.copytree(repo / "modelica" / "iGrGen", package)
     fmu_dir = work / "fmus"
-    build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in CATALOGUE.values())])), package=package,
+    build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in EFFECTS.values())])), package=package,
                  fmu_dir=fmu_dir, log=lambda *_: None)
     return work, package, fmu_dir
 

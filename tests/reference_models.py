@@ -25,7 +25,14 @@ EFFECT_DEFAULTS = {
     "StagedTestLoadController": {"gov.K_lc": 0.005},
     "StagedTestMeasurementLag": {"meas.T": 0.5, "meas.offset": 0.0},
     "StagedTestOutputLimit": {"lim.headroom": 0.05, "lim.eps_lim": 1e-3},
+    "StagedTestLoadControllerFiltered": {"gov.K_lc": 0.005, "gov.T_f": 10.0},
+    "StagedTestRateLimitCommand": {"gov.rate_open": 0.01, "gov.rate_close": 0.02, "gov.eps_rate": 1e-4,
+                                   "gov.T_rl": 0.02},
 }
+# extra states of each bench, after xg1, xg2, xg3
+EXTRA_STATES = {"StagedTestDelay": 2, "StagedTestBacklash": 1, "StagedTestLoadController": 1,
+                "StagedTestMeasurementLag": 1, "StagedTestLoadControllerFiltered": 2,
+                "StagedTestRateLimitCommand": 1}
 
 
 def _softplus(z, eps):
@@ -34,6 +41,12 @@ def _softplus(z, eps):
 
 def _softplus_exp(z, eps):
     return eps * np.logaddexp(0.0, z / eps)
+
+
+def _limited(p, v):
+    """A speed ``v`` through the smooth clamp to [-rate_close, rate_open] (RateLimitedLag)."""
+    ro, rc, eps = p["gov.rate_open"], p["gov.rate_close"], p["gov.eps_rate"]
+    return v - (_softplus(v - ro, eps) - _softplus(-ro, eps)) + (_softplus(-rc - v, eps) - _softplus(-rc, eps))
 
 
 def _turbine(p, xv, xg2, xg3):
@@ -73,13 +86,16 @@ class Reference:
         dwg, extra = self._governor_input(self.dw(t), x)
         xg1, xg2, xg3 = x[0], x[1], x[2]
         pin_star = p["gov.p_ref"] + dwg / p["gov.R"]
-        if self.bench == "StagedTestLoadController":
+        if self.bench in ("StagedTestLoadController", "StagedTestLoadControllerFiltered"):
             pin_star += x[3]
         pin = min(max(pin_star, p["gov.pmin"]), p["gov.pmax"])
-        v = (pin - xg1) / p["gov.Ts"]
+        if self.bench == "StagedTestRateLimitCommand":  # the command ramps (a fast lag with limited speed), then Ts
+            ramp = _limited(p, (pin - x[3]) / p["gov.T_rl"])
+            v = (x[3] - xg1) / p["gov.Ts"]
+        else:
+            v = (pin - xg1) / p["gov.Ts"]
         if self.bench == "StagedTestRateLimit":
-            ro, rc, eps = p["gov.rate_open"], p["gov.rate_close"], p["gov.eps_rate"]
-            v = v - (_softplus(v - ro, eps) - _softplus(-ro, eps)) + (_softplus(-rc - v, eps) - _softplus(-rc, eps))
+            v = _limited(p, v)
         xv = x[3] if self.bench == "StagedTestBacklash" else xg1
         dxg2, dxg3, pm = _turbine(p, xv, xg2, xg3)
         d = [v, dxg2, dxg3] + extra
@@ -89,6 +105,10 @@ class Reference:
             d.append((_softplus_exp(gap - h, eps) - _softplus_exp(-gap - h, eps)) / p["gov.T_bl"])
         if self.bench == "StagedTestLoadController":
             d.append(p["gov.K_lc"] * (p["gov.p_ref"] - pm))
+        if self.bench == "StagedTestLoadControllerFiltered":  # x[3]: correction, x[4]: filtered power
+            d += [p["gov.K_lc"] * (p["gov.p_ref"] - x[4]), (pm - x[4]) / p["gov.T_f"]]
+        if self.bench == "StagedTestRateLimitCommand":
+            d.append(ramp)
         if self.bench == "StagedTestMeasurementLag":
             d.append((pm - x[3]) / p["meas.T"])
         return np.array(d, dtype=float)
@@ -104,22 +124,21 @@ class Reference:
         return pm
 
     def n_states(self):
-        return 3 + {"StagedTestDelay": 2, "StagedTestBacklash": 1, "StagedTestLoadController": 1,
-                    "StagedTestMeasurementLag": 1}.get(self.bench, 0)
+        return 3 + EXTRA_STATES.get(self.bench, 0)
 
     def steady_start(self, t0=0.0):
         """Equilibrium at t0 by root finding; states with a continuum of equilibria
         (backlash position, load-controller integral) are pinned as the models pin them."""
         n = self.n_states()
         guess = np.full(n, self.p["gov.p_ref"])
-        if self.bench == "StagedTestLoadController":
+        if self.bench in ("StagedTestLoadController", "StagedTestLoadControllerFiltered"):
             guess[3] = 0.0
 
         def residual(x):
             r = self.rhs(t0, x)
             if self.bench == "StagedTestBacklash":
                 r[3] = x[3] - x[0]
-            if self.bench == "StagedTestLoadController":
+            if self.bench in ("StagedTestLoadController", "StagedTestLoadControllerFiltered"):
                 r[3] = x[3]
             return r
 

@@ -13,12 +13,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from rapid_cosim.diagnose.adequacy import MAX_VARIANCE_RATIO, adequacy, ljung_box_p
 from rapid_cosim.diagnose.candidates import CandidateFit, CandidateSpec, ExperimentResiduals
 from rapid_cosim.diagnose.catalogue import NONE
 from rapid_cosim.diagnose.limits import check_material
 from rapid_cosim.diagnose.materiality import MIN_GAP_SHARE, gap_share, size_share
 from rapid_cosim.diagnose.selection import NoiseFloor, Verdict
+from rapid_cosim.noise import NoiseFit, RecorderNoise
 from rapid_cosim.diagnose.study import CAMPAIGN, draw_case, run_case
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
 
@@ -28,23 +28,15 @@ def _residuals(r, name="t"):
     return ExperimentResiduals(name, t, r, float(np.sum(r ** 2)), 0.0, r.size)
 
 
-def test_noise_is_adequate_and_structure_of_visible_size_is_not():
-    rng = np.random.default_rng(4)
-    floor = {"t": NoiseFloor(sigma=1e-3, phi=0.0)}
-    noise = 1e-3 * rng.standard_normal(400)
-    assert adequacy({"t": _residuals(noise)}, floor).adequate
-    bump = 1.5e-3 * np.sin(np.arange(400) / 15.0)  # 1.5 noise levels RMS... of structure
-    verdict = adequacy({"t": _residuals(noise + bump)}, floor)
-    assert not verdict.adequate and verdict.failing == ["t"]
-    assert verdict.tests[0].variance_ratio > MAX_VARIANCE_RATIO and verdict.tests[0].ljung_box_p < 1e-6
-    assert ljung_box_p(rng.standard_normal(500)) > 0.001
+def _floor(sigma: float) -> NoiseFloor:
+    return NoiseFloor(NoiseFit.known(RecorderNoise(sigma, (), 0.2)))
 
 
 def test_materiality_measures_size_from_off_to_material():
     assert size_share("deadband", {"db.db": 0.0075}) == pytest.approx(0.25)
     # rates on a log scale: 0.2 pu/s is off, 0.01 material; sqrt(0.2 * 0.01) is half way
     assert size_share("rate_limit", {"gov.rate_open": np.sqrt(0.002), "gov.rate_close": 0.2}) == pytest.approx(0.5)
-    floor = {"t": NoiseFloor(sigma=1.0, phi=0.0)}
+    floor = {"t": _floor(1.0)}
     before = {"t": _residuals(np.full(100, np.sqrt(5.0)))}  # gap sqrt(5 - 1) = 2
     after = {"t": _residuals(np.full(100, np.sqrt(2.0)))}  # gap 1
     assert gap_share(before, after, floor) == pytest.approx(0.5)
@@ -70,7 +62,7 @@ def test_a_detectable_but_immaterial_deadband_leaves_the_verdict_none():
     engineer would not act on it, so the verdict falls back to ``none``; the same fit
     removing most of a visible gap is named."""
     rng = np.random.default_rng(7)
-    floor = {"t": NoiseFloor(sigma=1e-3, phi=0.0)}
+    floor = {"t": _floor(1e-3)}
     noise = 1e-3 * rng.standard_normal(400)
     structure = 1.5e-3 * np.sin(np.arange(400) / 15.0)
 

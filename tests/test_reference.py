@@ -21,6 +21,8 @@ EFFECT_ACTIVE = {
     "StagedTestLoadController": {"gov.K_lc": 0.05},
     "StagedTestMeasurementLag": {"meas.T": 2.0, "meas.offset": 0.003},
     "StagedTestOutputLimit": {"lim.headroom": 0.02},
+    "StagedTestLoadControllerFiltered": {"gov.K_lc": 0.05, "gov.T_f": 8.0},
+    "StagedTestRateLimitCommand": {"gov.rate_open": 0.004, "gov.rate_close": 0.01},
 }
 
 

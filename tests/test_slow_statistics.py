@@ -21,7 +21,7 @@ from test_recovery import ESTIMATE, FIXED, PARAMS, TRUTH
 
 from rapid_cosim.calibration import inputs_from_configs, log_likelihood_for
 from rapid_cosim.compiler import build_models
-from rapid_cosim.diagnose.catalogue import BASE_BENCH, CATALOGUE
+from rapid_cosim.diagnose.catalogue import BASE_BENCH, EFFECTS
 from rapid_cosim.diagnose.study import HIDDEN, confusion_text, draw_case, run_case
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
 from rapid_cosim.engine import make_engine
@@ -36,7 +36,7 @@ def test_the_workflow_names_the_hidden_effect_over_five_seeds(repo, tmp_path):
     package = tmp_path / "package" / "iGrGen"
     shutil.copytree(repo / "modelica" / "iGrGen", package)
     fmu_dir = tmp_path / "fmus"
-    build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in CATALOGUE.values())])), package=package, fmu_dir=fmu_dir,
+    build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in EFFECTS.values())])), package=package, fmu_dir=fmu_dir,
                  log=lambda *_: None)
     cases = [draw_case(t, s, package=package, fmu_dir=fmu_dir) for t in [*HIDDEN, "none"] for s in range(1, 6)]
     options = DiagnoseOptions(write_model=False, max_effects=1)

@@ -18,7 +18,7 @@ from rapid_cosim.compiler import ensure_fmu
 from rapid_cosim.campaign import structures as campaign_structures
 from rapid_cosim.diagnose.catalogue import bench_name, bench_source, composable, write_bench
 from rapid_cosim.diagnose.identifiability import best_separating_step, identifiability
-from rapid_cosim.diagnose.selection import pooled_noise
+from rapid_cosim.diagnose.selection import noise_floors
 from rapid_cosim.diagnose.structures import Structure, StructureFit, _verdict, select_structure
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.report.structures import markdown as structures_markdown
@@ -160,7 +160,7 @@ def test_two_ggov1_time_constants_the_tests_cannot_separate(repo, tmp_path):
             estimate={"gov.Tact": {"min": 0.05, "max": 5.0}, "gov.Tb": {"min": 0.05, "max": 5.0}},
             fitness={"offset": True, "noise": "pre-step", "pre_step_end": 20.0})))
     inputs = inputs_from_experiments(exps, package=package, fmu_dir=tmp_path / "fmus")
-    noise = pooled_noise(exps)
+    noise = noise_floors(exps)
     x = np.array([0.5, 0.5])
     ident = identifiability(inputs, x, noise)
     assert {ident.status(0), ident.status(1)} == {"not determined"}, ident.summary()

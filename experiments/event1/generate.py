@@ -41,7 +41,7 @@ def generate(folder: Path = HERE, fmu_dir: str | Path = "fmus", binary: bool = T
     rng = np.random.default_rng(SEED)
     noise = NoiseModel(white_sigma=0.3 / RATING_MW, ar1_sigma=0.4 / RATING_MW, phi=0.9, offset=0.8 / RATING_MW)
     t, df, pm = synthesize_event(fmu, TRUTH, duration=120.0, rate=50.0, t_event=20.0, f_noise=1e-3,
-                                 p_noise=noise, rng=rng)
+                                 p_noise=noise, rng=rng, runner="compiled")  # the committed recording's runner
     return write_comtrade(folder / "event1.cfg", t, {"FREQ": 50.0 + df, "P": pm * RATING_MW},
                           units={"FREQ": "Hz", "P": "MW"}, station="SYNTHETIC-PLANT", device="PMU-DFR",
                           start=datetime(2024, 3, 1, 11, 58, 40, tzinfo=timezone.utc), binary=binary)

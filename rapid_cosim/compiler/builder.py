@@ -227,6 +227,28 @@ def _fresh(old: Manifest | None, fmu: Path, source_hash: str, compiler: str, com
     return same and old.fmu_sha256 == _sha256(fmu)
 
 
+def _signature(package: Path, fmu: Path) -> tuple:
+    """What an up-to-date answer depends on: every source file of the package and the
+    FMU, by path, size and modification time (a stat each: far cheaper than parsing)."""
+    files = [str(package)]
+    if package.is_dir():
+        files = sorted(os.path.join(root, f) for root, _, names in os.walk(package) for f in names
+                       if f.endswith(".mo") or f == "package.order")
+    stats = []
+    for p in [*files, str(fmu), str(manifest_path(fmu))]:
+        try:
+            st = os.stat(p)
+            stats.append((p, st.st_size, st.st_mtime_ns))
+        except OSError:
+            stats.append((p, None, None))
+    return tuple(stats)
+
+
+# Per process: the answers of ensure_fmu while nothing they depend on has changed, so that
+# a notebook's repeated simulate() does not parse the package on every call.
+_CURRENT: dict[tuple, tuple[tuple, Path]] = {}
+
+
 def ensure_fmu(model: str, *, package: str | Path = DEFAULT_PACKAGE, fmu_dir: str | Path = DEFAULT_FMU_DIR,
                compiler: str = "auto") -> Path:
     """Path of an up-to-date FMU for ``model`` (a class name or a path to an .fmu)."""
@@ -240,4 +262,11 @@ def ensure_fmu(model: str, *, package: str | Path = DEFAULT_PACKAGE, fmu_dir: st
         if fmu.exists():
             return fmu
         raise BuildError(f"no FMU {fmu} and no Modelica package at {package} to build it from")
-    return build_models([model], package=package, fmu_dir=fmu_dir, compiler=compiler, log=lambda *_: None)[0].fmu
+    key = (model, str(Path(package).resolve()), str(Path(fmu_dir).resolve()), compiler)
+    signature = _signature(Path(package), fmu_path(model, fmu_dir))
+    known = _CURRENT.get(key)
+    if known is not None and known[0] == signature:
+        return known[1]
+    fmu = build_models([model], package=package, fmu_dir=fmu_dir, compiler=compiler, log=lambda *_: None)[0].fmu
+    _CURRENT[key] = (_signature(Path(package), fmu), fmu)
+    return fmu

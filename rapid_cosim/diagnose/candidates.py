@@ -10,6 +10,7 @@ show``, ``rerun`` and the reports understand.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -17,11 +18,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..calibration import SEARCHES, RunOptions, best_run, ensure_run, inputs_from_experiments
+from ..calibration import RunOptions, best_run, inputs_from_experiments
 from ..objective import ProblemObjective, evaluate_in_detail
 from ..experiment import Experiment, parse_experiment, render_config
+from ..noise import RecorderNoise
 from ..simulator import FmuRef
-from .catalogue import CATALOGUE, NONE, bench_name, effect_parameters
+from .catalogue import CATALOGUE, EFFECTS, NONE, bench_name, effect_parameters
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,8 @@ class ExperimentResiduals:
     rssd: float
     offset: float
     n_valid: int
+    whitened: np.ndarray | None = None  # by the recorder's noise model (NaN where masked)
+    simulated: np.ndarray | None = None  # the model's output at the samples
 
 
 @dataclass(frozen=True)
@@ -64,12 +68,45 @@ class CandidateFit:
     nfev: int
     tests: dict[str, ExperimentResiduals] = field(default_factory=dict)
     inputs: object = field(default=None, repr=False)  # the RunInputs it was fitted on
+    waterfall: np.ndarray | None = field(default=None, repr=False)  # each start's final fitness (multistart)
+    ends: np.ndarray | None = field(default=None, repr=False)  # each start's end point (physical units)
+
+    def next_basin(self, margin_bic: float = 2.0) -> tuple[float, dict[str, float]] | None:
+        """(criterion above the best, parameters) of the best end point outside the best's
+        margin: the runner-up basin of the multistart, or None."""
+        if self.waterfall is None or self.ends is None:
+            return None
+        delta = self.n_samples * np.log(self.waterfall / np.min(self.waterfall))
+        outside = np.flatnonzero(np.isfinite(delta) & (delta > margin_bic))
+        if not outside.size:
+            return None
+        k = outside[np.argmin(delta[outside])]
+        return float(delta[k]), dict(zip(self.inputs.problem.names, map(float, self.ends[k])))
+
+    @property
+    def n_samples(self) -> int:
+        return sum(int(np.sum(np.isfinite(t.residual))) for t in self.tests.values())
+
+    def reached_best(self, margin_bic: float = 2.0) -> int | None:
+        """Starts of the multistart that ended within ``margin_bic`` of the best (None:
+        not a multistart fit). The fitness is the deviance per sample, so a criterion
+        difference ``D`` is a fitness ratio ``exp(D / N)``."""
+        if self.waterfall is None:
+            return None
+        f = self.waterfall[np.isfinite(self.waterfall)]
+        if not f.size:
+            return 0
+        return int(np.sum(f <= np.min(f) * math.exp(margin_bic / max(self.n_samples, 1))))
 
 
-def candidate_config(exp: Experiment, spec: CandidateSpec, *, model: str | Mapping[str, str] | None = None) -> str:
+def candidate_config(exp: Experiment, spec: CandidateSpec, *, model: str | Mapping[str, str] | None = None,
+                     noise: RecorderNoise | None = None) -> str:
     """The TOML of ``exp`` turned into a candidate's experiment, on the candidate's bench
     for the experiment's base (``model``: another class, or one per base bench, such as
     the calibrated model written from it).
+
+    ``noise``, the recorder's noise model, goes into ``[noise]``: the candidate is then
+    fitted by the whitened least squares its criterion judges it by.
 
     The governor keeps the experiment's own bounds. The base model's optimum is neither
     a starting point (a particle at the base optimum with the effect
@@ -89,7 +126,7 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, *, model: str | Mappi
     estimate = {k: dict(v) for k, v in raw.get("estimate", {}).items()}
     held = dict(spec.held)
     fixed = dict(raw.get("fixed", {}))
-    relative = {p.name for e in spec.effects if CATALOGUE[e].relative for p in CATALOGUE[e].parameters}
+    relative = {p.name for e in spec.effects if EFFECTS[e].relative for p in EFFECTS[e].parameters}
     for p in effect_parameters(spec.effects):
         doc = 1.0
         if p.name in relative:  # a documented constant, freed around its documented value
@@ -106,6 +143,9 @@ def candidate_config(exp: Experiment, spec: CandidateSpec, *, model: str | Mappi
                                       "description": f"{raw['experiment'].get('description', exp.name)} "
                                                      f"[candidate {spec.label}]"},
                 "data": data, "fixed": fixed, "estimate": estimate}
+    if noise is not None:
+        (output,) = [o for o in exp.outputs if exp.weights[o] > 0]
+        sections["noise"] = {output: noise.to_config()}
     return render_config(sections)
 
 
@@ -121,11 +161,13 @@ def default_start(spec: CandidateSpec, base: Mapping[str, float] | None) -> dict
 
 def candidate_experiments(experiments: Sequence[Experiment], spec: CandidateSpec,
                           polish_from: Mapping[str, float] | None = None, *,
-                          model: str | Mapping[str, str] | None = None) -> list[Experiment]:
-    """The experiments as the candidate's, in memory: each one's measurements reused."""
+                          model: str | Mapping[str, str] | None = None,
+                          noise: Mapping[str, RecorderNoise] | None = None) -> list[Experiment]:
+    """The experiments as the candidate's, in memory: each one's measurements reused
+    (``noise``: the recorder's model per test name, for the whitened fitness)."""
     out = []
     for exp in experiments:
-        text = candidate_config(exp, spec, model=model)
+        text = candidate_config(exp, spec, model=model, noise=(noise or {}).get(exp.name))
         if polish_from is not None:
             text = _with_start(text, polish_from)
         out.append(parse_experiment(text, exp.config_path, data=exp.data, files=exp.files))
@@ -147,10 +189,10 @@ def record_configs(folder: Path, experiments: Sequence[Experiment]) -> list[Path
 def candidate_inputs(folder: Path, experiments: Sequence[Experiment], spec: CandidateSpec,
                      polish_from: Mapping[str, float] | None = None, *,
                      model: str | Mapping[str, str] | None = None, package, fmu_dir,
-                     fmus: dict[str, FmuRef] | None = None):
+                     fmus: dict[str, FmuRef] | None = None, noise: Mapping[str, RecorderNoise] | None = None):
     """The candidate's run inputs, its configs recorded in ``folder``; ``fmus`` caches the
     FMUs by model across candidates (each is built or loaded once)."""
-    exps = candidate_experiments(experiments, spec, polish_from, model=model)
+    exps = candidate_experiments(experiments, spec, polish_from, model=model, noise=noise)
     record_configs(folder, exps)
     inputs = inputs_from_experiments(exps, package=package, fmu_dir=fmu_dir, fmus=fmus)
     if fmus is not None:
@@ -169,42 +211,65 @@ def _with_start(text: str, start: Mapping[str, float]) -> str:
 def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdir: Path, *,
                   options: RunOptions, start: Mapping[str, float] | None = None, package: str | Path,
                   fmu_dir: str | Path, progress: bool = False, fmus: dict[str, FmuRef] | None = None,
-                  searches: Sequence[str] = SEARCHES) -> CandidateFit:
-    """Calibrate the candidate by ``options.method`` and each of ``searches``, the best
-    kept (a candidate must not lose for its search's failure: an output limit, like a
-    load limit, acts only in a narrow valley of its range). If that ends worse than the
-    point where its effects are switched off at ``start`` (the base optimum), which it
-    nests, it missed that basin: Nelder-Mead polishes from there, also archived, and the
-    better of the two stands."""
+                  searches: Sequence[str] = (), noise: Mapping[str, RecorderNoise] | None = None) -> CandidateFit:
+    """Calibrate the candidate by ``options.method``, from ``start`` (the nested model's
+    optimum with the effects switched off) where the method takes a start.
+
+    The diagnosis's method is multistart least squares (``ms``): Levenberg-Marquardt
+    from a Sobol design over the whole box plus the nested start, whose waterfall
+    (every start's end) certifies the optimum or shows it uncertain. ``searches`` are
+    further methods run beside it, the best kept (the earlier practice: PF10+NM with
+    ``pso:10+nm+scan+nm``)."""
     start = dict(start or {})
-    inputs = candidate_inputs(workdir / "candidates" / spec.slug, experiments, spec, package=package,
-                              fmu_dir=fmu_dir, fmus=fmus)
+    nested = start if spec.effects and start and all(p.name in start for p in effect_parameters(spec.effects)) \
+        else None
+    inputs = candidate_inputs(workdir / "candidates" / spec.slug, experiments, spec, polish_from=nested,
+                              package=package, fmu_dir=fmu_dir, fmus=fmus, noise=noise)
+    if nested is not None and "ms" in options.method and len(spec.effects) > 1:
+        # a pair starts from its first effect's fit: the new effect's parameters moved over their own design
+        new = [p.name for p in effect_parameters(spec.effects[-1:]) if p.name in inputs.problem.names]
+        ms = {**options.estimator_options.get("ms", {}), "vary": new}
+        options = replace(options, estimator_options={**options.estimator_options, "ms": ms})
     archive = workdir / "candidates" / f"{spec.slug}.h5"
     result, archive = best_run(inputs, options, archive, searches, progress=progress)
-    if spec.effects and all(n in start for n in inputs.problem.names):
-        nested = inputs.problem.space.clip(np.array([start[n] for n in inputs.problem.names]))
-        if ProblemObjective(inputs.problem, inputs.fmus)(nested[None]).fitness[0] < result.fun:
-            polish = f"{spec.slug}-from-base"
-            polished_inputs = candidate_inputs(workdir / "candidates" / polish, experiments, spec,
-                                               polish_from=start, package=package, fmu_dir=fmu_dir, fmus=fmus)
-            polished, _ = ensure_run(polished_inputs, replace(options, method="nm"),
-                                     workdir / "candidates" / f"{polish}.h5", progress=progress)
-            if polished.fun < result.fun:
-                inputs, result, archive = polished_inputs, polished, workdir / "candidates" / f"{polish}.h5"
+    waterfall = ends = None
+    if result.history and "start_fun" in result.history[-1].extras:
+        waterfall = np.asarray(result.history[-1].extras["start_fun"], dtype=float)
+        space = inputs.problem.space
+        ends = space.clip(space.from_unit(np.asarray(result.history[-1].extras["start_u"], dtype=float)))
     return CandidateFit(spec, archive, inputs.experiments[0].model, result.best(),
                         n_estimated=len(result.names), fitness=float(result.fun), nfev=result.nfev,
-                        tests=residuals_at(inputs, result.x), inputs=inputs)
+                        tests=residuals_at(inputs, result.x), inputs=inputs, waterfall=waterfall, ends=ends)
+
+
+def jacobian_at(inputs, x, step: float = 1e-3) -> dict[str, np.ndarray]:
+    """Per experiment, the Jacobian (valid samples x parameters) of its residual vector
+    as the objective scores it (whitened for whitened experiments), by forward
+    differences of ``step`` in unit coordinates (backward at an upper bound), all in one
+    batch. What the adequacy null takes out as the fit's share of the noise."""
+    problem = inputs.problem
+    space = problem.space
+    u = np.clip(space.to_unit(np.asarray(x, dtype=float)), 0.0, 1.0)
+    U = np.tile(u, (space.dim + 1, 1))
+    steps = np.where(u + step <= 1.0, step, -step)
+    U[1:][np.arange(space.dim), np.arange(space.dim)] += steps
+    _, R = ProblemObjective(problem, inputs.fmus).residuals(space.clip(space.from_unit(U)))
+    J = (R[1:] - R[0]).T / steps  # (samples, parameters), on the objective's uniform scale
+    sizes = [sum(ix.size for _, ix, _ in e.scored.columns) for e in problem.experiments]
+    edges = np.cumsum([0, *sizes])
+    return {e.name: J[a:b] for e, a, b in zip(problem.experiments, edges[:-1], edges[1:])}
 
 
 def residuals_at(inputs, x) -> dict[str, ExperimentResiduals]:
     out = {}
     for r in evaluate_in_detail(inputs.problem, inputs.fmus, np.asarray(x)):
         (column,) = r.fit.residuals  # one output per staged test
-        out[r.experiment.name] = ExperimentResiduals(r.experiment.name, r.fit.time, r.fit.residuals[column], r.fit.rssd,
-                                         r.fit.offsets[column], r.fit.n_valid[column])
+        out[r.experiment.name] = ExperimentResiduals(
+            r.experiment.name, r.fit.time, r.fit.residuals[column], r.fit.rssd, r.fit.offsets[column],
+            r.fit.n_valid[column], r.fit.whitened.get(column), np.asarray(r.trajectory[column], dtype=float))
     return out
 
 
 __all__ = ["CATALOGUE", "CandidateFit", "CandidateSpec", "ExperimentResiduals", "candidate_config",
-           "candidate_experiments", "candidate_inputs", "default_start", "fit_candidate", "record_configs",
-           "residuals_at"]
+           "candidate_experiments", "candidate_inputs", "default_start", "fit_candidate", "jacobian_at",
+           "record_configs", "residuals_at"]

@@ -9,6 +9,13 @@ effects on the staged test have hand-written benches in the package; the rest
 (combinations, the greedy second effect, effects on the recorded-frequency bench, and
 calibrated results) are generated here as Modelica text.
 
+Variants (:data:`VARIANTS`) are effects of the same physics in a slightly different form:
+a load controller acting on filtered power, a rate limit on the governor's command
+rather than on the valve lag. They are not first-round candidates (they would only split
+the verdict between twins); the diagnosis tries them when a freed documented constant
+joins their parent effect, since a constant off its documented value can imitate a
+small difference of form (:mod:`.variants`). :data:`EFFECTS` holds both.
+
 Each parameter carries an ``off`` value (the effect absent) and a ``material`` value: a
 size an engineer would care about. If a fit with the effect held at its material size is
 as good as the base model, the data cannot exclude the effect (it is confounded with the
@@ -57,6 +64,7 @@ class Effect:
     physics: str  # what it is, for the report
     signature: str  # how it shows in the residuals, for the report
     relative: bool = False  # a freed documented constant: bounds, off and material are factors of its value
+    variant_of: str | None = None  # the catalogue effect this one is a variant of
 
 
 def _documented(name: str, label: str) -> Effect:
@@ -108,22 +116,49 @@ CATALOGUE: dict[str, Effect] = {e.name: e for e in [
     *(_documented(f"gov.{c}", c) for c in ("Tc", "T3", "T4", "T5")),
 ]}
 
-# Fixed sharpness settings of the combined governor, equal to the single-effect variants.
+VARIANTS: dict[str, Effect] = {e.name: e for e in [
+    Effect("load_controller_filtered", "slow load controller acting on filtered power", "valve",
+           "iGrGen.TestBenches.StagedTestLoadControllerFiltered",
+           (EffectParameter("gov.K_lc", "load-loop gain", "1/s", 1e-4, 0.05, 1e-4, 0.01, "log"),
+            EffectParameter("gov.T_f", "measurement filter", "s", 0.5, 100.0, 0.5, 10.0, "log")),
+           "the load controller integrates the power error as its filtered measurement shows it",
+           "the withdrawal starts late and rounded instead of at once", variant_of="load_controller"),
+    Effect("rate_limit_command", "rate limits on the governor's command", "valve",
+           "iGrGen.TestBenches.StagedTestRateLimitCommand",
+           (EffectParameter("gov.rate_open", "opening rate", "pu/s", 0.001, 0.2, 0.2, 0.01, "log"),
+            EffectParameter("gov.rate_close", "closing rate", "pu/s", 0.001, 0.2, 0.2, 0.01, "log")),
+           "the power command is ramp-limited before the governor lag, not the valve's own motion",
+           "ramps with rounded ends: the lag smooths the ramped command", variant_of="rate_limit"),
+]}
+EFFECTS: dict[str, Effect] = {**CATALOGUE, **VARIANTS}
+
+
+def variants_of(effect: str) -> list[str]:
+    return [name for name, e in VARIANTS.items() if e.variant_of == effect]
+
+
+# The valve-side effects TGTypeIValveEffects combines (the variants have a governor each).
 _VALVE = {"rate_limit", "backlash", "load_controller"}
+_VARIANT_GOVERNORS = {"load_controller_filtered": "TGTypeILoadControlFiltered",
+                      "rate_limit_command": "TGTypeIRateLimitCommand"}
 
 
 def effect_parameters(effects: Sequence[str]) -> tuple[EffectParameter, ...]:
-    return tuple(p for name in effects for p in CATALOGUE[name].parameters)
+    return tuple(p for name in effects for p in EFFECTS[name].parameters)
 
 
 def check_effects(effects: Sequence[str]) -> tuple[str, ...]:
-    unknown = [e for e in effects if e not in CATALOGUE]
+    unknown = [e for e in effects if e not in EFFECTS]
     if unknown:
-        raise ValueError(f"unknown effect(s) {unknown}; catalogue: {', '.join(CATALOGUE)}")
+        raise ValueError(f"unknown effect(s) {unknown}; catalogue: {', '.join(EFFECTS)}")
     if len(set(effects)) != len(effects):
         raise ValueError(f"effect listed twice in {list(effects)}")
+    variants = [e for e in effects if e in VARIANTS]
+    valve = [e for e in effects if e in _VALVE or e in VARIANTS]
+    if variants and len(valve) > 1:
+        raise ValueError(f"{variants[0]} is a governor of its own and does not combine with {valve}")
     # a canonical order makes one bench per set of effects
-    return tuple(e for e in CATALOGUE if e in effects)
+    return tuple(e for e in EFFECTS if e in effects)
 
 
 def check_base(model: str) -> str:
@@ -145,18 +180,18 @@ def is_staged(base: str) -> bool:
 def composable(effect: str, base: str) -> bool:
     """Whether ``effect`` can be composed into ``base``: every effect into TG Type I's
     benches; into a standard structure's, those on the frequency path or the output."""
-    return governor(base) == "TGTypeI" or CATALOGUE[effect].site in ("frequency", "output")
+    return governor(base) == "TGTypeI" or EFFECTS[effect].site in ("frequency", "output")
 
 
 def bench_name(effects: Sequence[str], base: str = BASE_BENCH) -> str:
     """Class name of the bench for a set of effects on ``base`` (hand-written for zero or
     one effect on the staged test, generated into iGrGen.Diagnosed otherwise)."""
-    effects = tuple(e for e in check_effects(effects) if not CATALOGUE[e].relative)  # freed constants: same bench
+    effects = tuple(e for e in check_effects(effects) if not EFFECTS[e].relative)  # freed constants: same bench
     if not effects:
         return check_base(base)
     _check_composable(effects, base)
     if len(effects) == 1 and base == BASE_BENCH:
-        return CATALOGUE[effects[0]].bench
+        return EFFECTS[effects[0]].bench
     return f"iGrGen.Diagnosed.{BASES[check_base(base)]}" + "".join(camel(e) for e in effects)
 
 
@@ -184,14 +219,17 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
                  description: str = "", base: str = BASE_BENCH) -> str:
     """Modelica text of a bench: ``base`` with ``effects`` composed in, and ``values``
     (FMU names such as ``gov.R``) as modifiers, e.g. calibrated parameters."""
-    effects = tuple(e for e in check_effects(effects) if not CATALOGUE[e].relative)
+    effects = tuple(e for e in check_effects(effects) if not EFFECTS[e].relative)
     _check_composable(effects, base)
     values = dict(values or {})
     short = class_name.rsplit(".", 1)[-1]
     within = class_name.rsplit(".", 1)[0] if "." in class_name else ""
     valve = [e for e in effects if e in _VALVE]
+    variant = [e for e in effects if e in _VARIANT_GOVERNORS]
     if governor(base) != "TGTypeI":
         gov_class = governor(base)
+    elif variant:
+        gov_class = _VARIANT_GOVERNORS[variant[0]]
     elif not valve:
         gov_class = "TGTypeI"
     elif len(valve) == 1:

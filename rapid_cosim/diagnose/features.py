@@ -1,10 +1,11 @@
 """Residual analysis: where the base model's residual is systematic rather than noise,
 and features of the data that point at a cause.
 
-Whiteness is judged against each test's own noise, measured before the step: the
-residual, prewhitened with the noise's lag-1 autocorrelation, should be white (Ljung-Box
-on 10 lags) and no larger than the noise's innovations (a chi-square variance test), in
-every 10 s window. Windows that fail either are called systematic.
+Whiteness is judged against each test's recorder noise (:mod:`rapid_cosim.noise`): the
+residual, whitened by the noise model, should be white (Ljung-Box on 10 lags) and of unit
+variance (a chi-square variance test), in every 10 s window. Windows that fail either are
+called systematic. (These screen where to look; the verdict's adequacy has its own,
+computed null: :mod:`.adequacy`.)
 
 Features are computed on the measurements (and the base fit) per test:
 
@@ -37,7 +38,7 @@ from scipy import stats
 
 from ..experiment import Experiment
 from .candidates import ExperimentResiduals
-from .selection import NoiseFloor, prewhitened
+from .selection import NoiseFloor
 
 WINDOW_S = 10.0
 LAGS = 10
@@ -89,11 +90,10 @@ def _mean_in(t, y, a, b):
 
 def _windows(t, r, floor: NoiseFloor, start: float) -> list[Window]:
     out = []
-    innovation_var = floor.sigma ** 2 * (1 - floor.phi ** 2)
     edges = np.arange(start, t[-1] + 1e-9, WINDOW_S)
     for a, b in zip(edges[:-1], edges[1:]):
         m = (t >= a) & (t < b)
-        e = prewhitened(r[m], floor.phi)
+        e = floor.whiten(r[m] - np.nanmean(r[m])) if np.isfinite(r[m]).any() else np.zeros(0)
         if e.size < LAGS + 5:
             continue
         e0 = e - e.mean()
@@ -102,7 +102,7 @@ def _windows(t, r, floor: NoiseFloor, start: float) -> list[Window]:
         n = e.size
         q = n * (n + 2) * np.sum(rho ** 2 / (n - np.arange(1, LAGS + 1)))
         p_lb = float(stats.chi2.sf(q, LAGS))
-        ratio = float(np.mean(e ** 2) / innovation_var)
+        ratio = float(np.mean(e ** 2))
         p_var = float(stats.chi2.sf(ratio * n, n))
         out.append(Window(float(a), float(b), p_lb, ratio, p_var, p_lb < ALPHA or p_var < ALPHA))
     return out
@@ -188,8 +188,7 @@ def test_features(exp: Experiment, residual: np.ndarray, time: np.ndarray, floor
         fall = _time_to(t, y, t_ret, t[-1], y1, y2)
         residue = (y2 - y0) / response if abs(response) > 0 else None
     pre = np.isfinite(residual) & (time < t_step)
-    n_eff = max(pre.sum() * (1 - floor.phi) / (1 + floor.phi), 1.0)
-    bias = float(np.mean(residual[pre]) / (floor.sigma / np.sqrt(n_eff))) if pre.any() else 0.0
+    bias = float(np.mean(residual[pre]) / floor.mean_se(int(pre.sum()))) if pre.any() else 0.0
     windows = _windows(time, residual, floor, t_step)
     systematic = float(np.mean([w.systematic for w in windows])) if windows else 0.0
     return TestFeatures(

@@ -26,7 +26,6 @@ import numpy as np
 
 from ..objective import evaluate_in_detail
 from ..simulator import get_simulator
-from .selection import prewhitened
 
 REL_DETERMINED = 0.10
 REL_WEAK = 0.50
@@ -64,13 +63,22 @@ class Identifiability:
                 "condition": self.condition, "correlation": self.correlation.tolist()}
 
 
+def _covariance(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(covariance, standard errors) from the information ``F``; a parameter with a part
+    in a direction the tests do not see at all gets an infinite standard error."""
+    cov = np.linalg.pinv(F, rcond=NULL_RCOND, hermitian=True)
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    vals, vecs = np.linalg.eigh(F)
+    null = vals <= NULL_RCOND * max(float(vals.max()), 1e-300)
+    blind = np.any(np.abs(vecs[:, null]) > 1e-3, axis=1) if null.any() else np.zeros(F.shape[0], dtype=bool)
+    return cov, np.where(blind | (np.diag(F) <= 0), np.inf, se)
+
+
 def _whitened(inputs, x, noise) -> np.ndarray:
     parts = []
     for r in evaluate_in_detail(inputs.problem, inputs.fmus, np.asarray(x, dtype=float)):
         (column,) = r.fit.residuals
-        floor = noise[r.experiment.name]
-        res = np.nan_to_num(r.fit.residuals[column])  # masked samples: no information
-        parts.append(prewhitened(res, floor.phi) / (floor.sigma * np.sqrt(1 - floor.phi ** 2)))
+        parts.append(noise[r.experiment.name].whiten(r.fit.residuals[column]))  # masked samples: no information
     return np.concatenate(parts)
 
 
@@ -96,15 +104,18 @@ def identifiability(inputs, x: np.ndarray, noise) -> Identifiability:
     F = J.T @ J
     s = np.linalg.svd(F, compute_uv=False)
     condition = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
-    cov = np.linalg.pinv(F)
-    se = np.sqrt(np.clip(np.diag(cov), 0, None))
-    se = np.where(np.diag(F) > 0, se, np.inf)
+    cov, se = _covariance(F)
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(se, se)
     corr = np.nan_to_num(corr)
     np.fill_diagonal(corr, 1.0)
     return Identifiability(tuple(inputs.problem.names), se, corr, condition, F)
 
+
+# Information below this share of the largest is none: a limit never reached changes the
+# simulated output by rounding only, and its direction must read "not determined", not be
+# cut from the inverse and read as perfectly determined.
+NULL_RCOND = 1e-12
 
 STEPS_HZ = (-0.4, -0.2, -0.1, 0.1, 0.2, 0.4)
 HOLD_S = 50.0
@@ -127,7 +138,6 @@ def best_separating_step(inputs, x: np.ndarray, ident: Identifiability, noise) -
     dt = float(np.median(np.diff(exp.data.time)))
     times = np.arange(0.0, t_step + 2 * HOLD_S, dt)
     floor = noise[exp.name]
-    innovation = floor.sigma * np.sqrt(1 - floor.phi ** 2)
     rows = []
     for df in STEPS_HZ:
         cols = []
@@ -139,10 +149,9 @@ def best_separating_step(inputs, x: np.ndarray, ident: Identifiability, noise) -
                           "src.t_return": t_step + HOLD_S}
                 ys.append(sim.simulate(params, output_times=times, outputs=list(exp.outputs))[next(iter(exp.outputs))])
             d = (ys[0] - ys[1]) / width * (abs(x[j]) if x[j] != 0 else 1.0)
-            cols.append(prewhitened(d - d.mean(), floor.phi) / innovation)  # offsets are profiled
+            cols.append(floor.whiten(d - d.mean()))  # offsets are profiled
         J = np.column_stack(cols)
-        se = np.sqrt(np.clip(np.diag(np.linalg.pinv(ident.information + J.T @ J)), 0, None))
-        rows.append({"df_hz": df, "relative_se": float(se[k])})
+        rows.append({"df_hz": df, "relative_se": float(_covariance(ident.information + J.T @ J)[1][k])})
     best = min(rows, key=lambda r: r["relative_se"])
     name = ident.names[k]
     now = f"{name} is {ident.status(k)} ({100 * ident.relative_se[k]:.0f} % relative error)"

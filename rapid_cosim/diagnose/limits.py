@@ -10,7 +10,7 @@ or into ``<effect> + unexplained remainder``. Each function takes the workflow's
 
 from __future__ import annotations
 
-from .adequacy import adequacy, misfit_locations
+from .adequacy import misfit_locations
 from .candidates import CandidateFit, CandidateSpec
 from .catalogue import NONE
 from .materiality import gap_share, material
@@ -61,7 +61,7 @@ def inadequate(ctx, verdict: Verdict, ranking, before_tests, after_tests, fit_af
     experiments = ctx.training + ctx.heldout
     where = misfit_locations(experiments, after_tests, ctx.noise)
     passing = [label for label, fit in ctx.fits.items() if label != NONE and not fit.spec.held
-               and adequacy(ctx.tests(fit), ctx.noise).adequate]
+               and ctx.adequacy(fit).adequate]
     best = next((r for r in ranking if r.label != NONE), None)
     partial = None
     if best is not None:

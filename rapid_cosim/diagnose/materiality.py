@@ -26,7 +26,7 @@ from typing import Mapping
 import numpy as np
 
 from .candidates import ExperimentResiduals
-from .catalogue import CATALOGUE, EffectParameter
+from .catalogue import EFFECTS, EffectParameter
 from .selection import NoiseFloor
 
 MIN_SIZE_SHARE = 0.25
@@ -36,7 +36,7 @@ MIN_GAP_SHARE = 1 / 3
 def size_share(effect: str, parameters: Mapping[str, float], documented: Mapping[str, float] | None = None) -> float:
     """The fitted size as a share of the material size (the largest over its parameters);
     a freed constant's size is its factor from the ``documented`` value, either way."""
-    e = CATALOGUE[effect]
+    e = EFFECTS[effect]
     shares = []
     for p in e.parameters:
         if p.name in parameters:

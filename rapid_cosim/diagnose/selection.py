@@ -1,18 +1,19 @@
 """Model selection: an information criterion on the residuals, corrected for coloured
 noise, and the rules that turn a ranking into a verdict.
 
-Criterion. For each test the residual (offset profiled) is prewhitened with the lag-1
-autocorrelation ``phi`` of that test's pre-step noise, ``a_t = r_t - phi r_{t-1}``. If
-the model is right, ``a`` is white; its variance ``s2`` is then the innovation variance
-and the Gaussian AR(1) log-likelihood, concentrated over ``s2``, gives
+Criterion. Each test's residual (offset profiled) is whitened with the recorder's noise
+model (:mod:`rapid_cosim.noise`: white plus slow components, fitted to every quiet
+stretch of the recorder's tests): the standardised Kalman innovations ``a``. If the
+model is right, ``a`` is white; concentrating each test's variance ``s2_i = mean(a^2)``
+out of the Gaussian log-likelihood gives
 
     BIC = sum_tests n_i log(s2_i) + k log(N)
 
 with ``k`` the estimated parameters (the shared ones plus one offset per test) and ``N``
-the number of prewhitened samples. Treating correlated noise as white would count every
-sample as new evidence and make any extra parameter look significant; prewhitening with
-the noise's own ``phi`` does not, while a systematic misfit (slow, unlike the noise)
-still shows.
+the number of whitened samples. Treating correlated noise as white would count every
+sample as new evidence and make any extra parameter look significant; whitening with
+the noise's own model does not, while a systematic misfit (slow, unlike the noise) still
+shows. The concentrated variance keeps the ranking right when the model's level is off.
 
 Verdict (``threshold`` in BIC units, 10 = "very strong" on Kass and Raftery's scale):
 - an effect is *named* when it beats ``none`` and every other candidate by at least the
@@ -31,70 +32,75 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..data import noise_level
 from ..experiment import Experiment
+from ..noise import NoiseFit, campaign_noise
 from .candidates import CandidateFit, ExperimentResiduals
 
 THRESHOLD = 10.0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class NoiseFloor:
-    """The measurement noise of one test, from its pre-step samples."""
+    """A test's measurement noise: its recorder's fitted noise model."""
 
-    sigma: float  # standard deviation of the noise
-    phi: float  # lag-1 autocorrelation
+    fit: NoiseFit
 
+    @property
+    def model(self):
+        return self.fit.model
 
-def _pre_step(exp: Experiment) -> tuple[float, float, int, float]:
-    """(sigma, phi, samples, median sample interval) of one test's pre-step noise."""
-    (output,) = [o for o in exp.outputs if exp.weights[o] > 0]
-    end = exp.pre_step_end if exp.pre_step_end is not None else float(exp.fixed.get("src.t_step", 10.0))
-    est = noise_level(exp.data, exp.outputs[output], end)
-    conversion = exp.conversions.get(output)  # the level of the compared values (e.g. MW -> pu)
-    gain = conversion.gain if conversion is not None else 1.0
-    return float(est.sigma * gain), float(np.clip(est.phi, 0.0, 0.95)), est.n, float(np.median(np.diff(exp.data.time)))
+    @property
+    def sigma(self) -> float:
+        """Standard deviation of the noise."""
+        return self.fit.model.sigma
 
+    @property
+    def phi(self) -> float:
+        """Lag-1 autocorrelation of the noise (for reports)."""
+        return float(self.fit.model.autocorrelation(np.array([1]))[0])
 
-def pooled_noise(experiments: Sequence[Experiment]) -> dict[str, NoiseFloor]:
-    """Noise floors pooled over the tests recorded at the same rate.
+    def whiten(self, residual: np.ndarray) -> np.ndarray:
+        """Standardised innovations of the valid samples (a gap breaks the chain)."""
+        e = self.fit.model.whiten(np.asarray(residual, dtype=float))
+        return e[np.isfinite(e)]
 
-    One transducer and one recorder measured every test of a campaign; a pre-step window
-    holds 50 to 250 samples, so a single test's noise level is uncertain by 5 to 10 %,
-    enough to make a perfect model look as if it missed something. Tests with the same
-    sampling interval (within 10 %) share one estimate, weighted by their sample counts.
-    """
-    stats_ = {e.name: _pre_step(e) for e in experiments}
-    groups: list[list[str]] = []
-    for name, (_, _, _, dt) in stats_.items():
-        for g in groups:
-            if abs(stats_[g[0]][3] - dt) <= 0.1 * dt:
-                g.append(name)
-                break
-        else:
-            groups.append([name])
-    out = {}
-    for g in groups:
-        n = np.array([stats_[k][2] for k in g], dtype=float)
-        var = np.sum(n * np.array([stats_[k][0] ** 2 for k in g])) / n.sum()
-        phi = float(np.sum(n * np.array([stats_[k][1] for k in g])) / n.sum())
-        for k in g:
-            out[k] = NoiseFloor(float(np.sqrt(var)), phi)
-    return out
+    def evidence(self, difference: np.ndarray) -> float:
+        """What a systematic ``difference`` between two models adds to the criterion
+        once its offset is profiled: its squared norm in whitened units."""
+        d = np.asarray(difference, dtype=float)
+        e = self.fit.model.whiten(d[None])[0]
+        ones = self.fit.model.whiten(np.ones((1, d.size)))[0]
+        e = e - (e @ ones) / (ones @ ones) * ones
+        return float(e @ e)
+
+    def mean_se(self, n: int) -> float:
+        """Standard error of the mean of ``n`` consecutive samples."""
+        k = np.arange(-(n - 1), n)
+        acf = self.fit.model.autocorrelation(k)
+        return float(self.sigma * np.sqrt(np.sum((n - np.abs(k)) * acf)) / n)
 
 
-def prewhitened(residual: np.ndarray, phi: float) -> np.ndarray:
-    """Innovations of consecutive valid residual pairs (a gap breaks the chain)."""
-    r = np.asarray(residual, dtype=float)
-    ok = np.isfinite(r[1:]) & np.isfinite(r[:-1])
-    return (r[1:] - phi * r[:-1])[ok]
+def noise_floors(experiments: Sequence[Experiment], fits: Mapping[str, NoiseFit] | None = None
+                 ) -> dict[str, NoiseFloor]:
+    """Each test's noise floor: its recorder's model, fitted to all quiet stretches of the
+    recorder's tests (:func:`rapid_cosim.noise.campaign_noise`) unless ``fits`` are given."""
+    fits = campaign_noise(experiments) if fits is None else fits
+    return {e.name: NoiseFloor(fits[e.name]) for e in experiments}
+
+
+def whitened(fit: ExperimentResiduals, floor: NoiseFloor) -> np.ndarray:
+    """The test's whitened residual (valid samples): the fitness's own when it was
+    whitened, else whitened here."""
+    if fit.whitened is not None:
+        return fit.whitened[np.isfinite(fit.whitened)]
+    return floor.whiten(fit.residual)
 
 
 def score(tests: Mapping[str, ExperimentResiduals], noise: Mapping[str, NoiseFloor]) -> tuple[float, int]:
     """(sum n_i log s2_i, N): the data term of the criterion and its sample count."""
     total, n_total = 0.0, 0
     for name, fit in tests.items():
-        a = prewhitened(fit.residual, noise[name].phi)
+        a = whitened(fit, noise[name])
         total += a.size * math.log(max(float(np.mean(a ** 2)), 1e-300))
         n_total += a.size
     return total, n_total

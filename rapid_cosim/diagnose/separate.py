@@ -21,9 +21,10 @@ STEPS_HZ = (-0.4, -0.2, -0.1, -0.05, 0.05, 0.1, 0.2, 0.4)
 HOLD_S = 50.0  # how long each step is held before the return
 
 
-def _response(sim: Simulator, parameters: dict, t_step: float, df: float) -> np.ndarray:
+def _response(sim: Simulator, parameters: dict, t_step: float, df: float, dt: float) -> np.ndarray:
+    """The response sampled as the recorder would (every ``dt`` s)."""
     params = {**parameters, "src.df": df, "src.t_step": t_step, "src.t_return": t_step + HOLD_S}
-    return sim.simulate(params, stop_time=t_step + 2 * HOLD_S, output_interval=0.1, outputs=["pm"])["pm"]
+    return sim.simulate(params, stop_time=t_step + 2 * HOLD_S, output_interval=dt, outputs=["pm"])["pm"]
 
 
 def _relative(name: str) -> bool:
@@ -49,16 +50,15 @@ def separating_menu(a: tuple[str, Simulator, dict], b: tuple[str, Simulator, dic
     t_step = float(template.fixed.get("src.t_step", 10.0))
     rows = []
     for df in STEPS_HZ:
-        d = _response(sim_a, par_a, t_step, df) - _response(sim_b, par_b, t_step, df)
-        d = d - d.mean()  # a constant offset is not evidence: it is profiled out
-        rows.append({"df_hz": df, "rms_difference": float(np.sqrt(np.mean(d ** 2))),
-                     "rms_over_noise": float(np.sqrt(np.mean(d ** 2)) / noise.sigma)})
-    best = max(rows, key=lambda r: r["rms_over_noise"])
-    # What the test would add to the BIC difference: its samples, as many independent ones
-    # as AR(1) noise of this phi leaves, times the squared difference in noise units.
-    dt = float(np.median(np.diff(template.data.time)))
-    independent = (t_step + 2 * HOLD_S) / dt * (1 - noise.phi) / (1 + noise.phi)
-    evidence = independent * best["rms_over_noise"] ** 2
+        dt = noise.model.dt
+        d = _response(sim_a, par_a, t_step, df, dt) - _response(sim_b, par_b, t_step, df, dt)
+        # what the test would add to the BIC difference: the difference whitened by the
+        # recorder's noise model, its offset profiled out (an offset is not evidence)
+        rows.append({"df_hz": df, "rms_difference": float(np.sqrt(np.mean((d - d.mean()) ** 2))),
+                     "rms_over_noise": float(np.sqrt(np.mean((d - d.mean()) ** 2)) / noise.sigma),
+                     "evidence": noise.evidence(d)})
+    best = max(rows, key=lambda r: r["evidence"])
+    evidence = best["evidence"]
     test = f"a staged test with df = {1000 * best['df_hz']:+.0f} mHz, held {HOLD_S:.0f} s and returned"
     differ = (f"their responses differ by {best['rms_over_noise']:.2f} x the noise level (RMS), worth about "
               f"{evidence:.1f} in BIC")

@@ -16,8 +16,9 @@ A structure is a small TOML file (``experiments/structures/TGOV1.toml``)::
 Each test's config keeps its data, source (``src.*``), dispatch (``gov.p_ref``), fitness
 and simulation settings; its governor constants and estimates are the structure's.
 
-Ranking: BIC on AR(1)-prewhitened residuals (:mod:`.selection`), one offset per test
-counted. A structure is named when it beats every other by the threshold (10), or every
+Ranking: BIC on residuals whitened by the recorder's noise model (:mod:`.selection`,
+:mod:`rapid_cosim.noise`), one offset per test counted; every structure is fitted by
+the whitened least squares it is judged by. A structure is named when it beats every other by the threshold (10), or every
 one within the threshold estimates more parameters than it (a richer structure must win
 by the threshold, as an effect must over ``none``: the standard models nearly nest each
 other, and the richer one's extra freedom always buys a little), the held-out tests do
@@ -26,8 +27,9 @@ ones predicted, still favours it by as much: one held-out test that the runner-u
 predicts better by under one unit is noise, not a contradiction of 20 units of training
 evidence), and is adequate (:mod:`.adequacy`); otherwise
 the verdict is ``ambiguous`` between those within the threshold, or ``unexplained`` when
-none fits to the noise. Each structure is calibrated by the run's method and by
-:data:`SEARCHES`, the best fit kept. Each structure's
+none fits to the noise (adequacy against its computed null, :mod:`.adequacy`). Each
+structure is calibrated by the run's method (multistart least squares, ``ms``, by
+default) and by ``searches`` if given, the best fit kept. Each structure's
 identifiability at its optimum comes with it (:mod:`.identifiability`).
 
 Structures and effects combine: :func:`effects_on` runs the effect catalogue on the
@@ -46,14 +48,16 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..calibration import SEARCHES, RunOptions, best_run, inputs_from_experiments
+from ..calibration import RunOptions, best_run, inputs_from_experiments
 from ..errors import ConfigError
 from ..experiment import Experiment, parse_experiment, render_config
 from ..simulator import get_simulator
+from ..noise import campaign_noise
 from .adequacy import adequacy
-from .candidates import residuals_at
+from .candidates import jacobian_at, residuals_at
 from .identifiability import best_separating_step, identifiability
-from .selection import THRESHOLD, pooled_noise, score
+from .null import replicates_for
+from .selection import THRESHOLD, noise_floors, score
 from .separate import separating_menu
 
 KEPT_FIXED = ("src.", "gov.p_ref", "f_nom")
@@ -84,8 +88,9 @@ class Structure:
         return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), dict(raw.get("fixed", {})),
                    dict(raw["estimate"]), str(path))
 
-    def experiment(self, exp: Experiment) -> Experiment:
-        """``exp`` with this structure as its model."""
+    def experiment(self, exp: Experiment, noise=None) -> Experiment:
+        """``exp`` with this structure as its model (``noise``: the recorder's model, for
+        the whitened fitness)."""
         raw = tomllib.loads(exp.config_text)
         bench = self.input_bench if exp.inputs else self.bench
         if bench is None:
@@ -97,6 +102,9 @@ class Structure:
         data["file"] = str(data_file if data_file.is_absolute() else (Path(exp.config_path).parent / data_file))
         sections = {**raw, "experiment": {**raw["experiment"], "model": bench}, "data": data,
                     "fixed": {**fixed, **self.fixed}, "estimate": self.estimate}
+        if noise is not None:
+            (output,) = [o for o in exp.outputs if exp.weights[o] > 0]
+            sections["noise"] = {output: noise.to_config()}
         return parse_experiment(render_config(sections), exp.config_path, data=exp.data, files=exp.files)
 
 
@@ -161,29 +169,39 @@ def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Se
 def select_structure(structures: Sequence[Structure], training: Sequence[Experiment],
                      heldout: Sequence[Experiment] = (), *, workdir: str | Path, options: RunOptions,
                      package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus",
-                     threshold: float = THRESHOLD, searches: Sequence[str] = SEARCHES,
+                     threshold: float = THRESHOLD, searches: Sequence[str] = (),
                      log: Callable[[str], None] = print) -> StructureVerdict:
     """Calibrate every structure on ``training`` by ``options.method`` and each of
     ``searches`` (the best kept), rank them and give the verdict."""
     workdir = Path(workdir)
-    noise = pooled_noise([*training, *heldout])
-    fits = []
+    fitted_noise = campaign_noise([*training, *heldout])
+    noise = noise_floors([*training, *heldout], fitted_noise)
+    models = {name: f.model for name, f in fitted_noise.items()}
+    fits, null = [], None
     for s in structures:
         log(f"  calibrating {s.name} ({', '.join(s.estimate)}) ...")
-        exps = [s.experiment(e) for e in training]
+        exps = [s.experiment(e, models[e.name]) for e in training]
         inputs = inputs_from_experiments(exps, package=package, fmu_dir=fmu_dir)
         result, archive = best_run(inputs, options, workdir / f"{s.name}.h5", searches)
         tests = residuals_at(inputs, result.x)
         data_term, n = score(tests, noise)
         k = len(result.names) + len(tests)
-        fit_ok = adequacy(tests, noise)
-        held_score = None
+        held_score, jac = None, jacobian_at(inputs, result.x)
+        held_inputs = None
         if heldout:
-            held_inputs = inputs_from_experiments([s.experiment(e) for e in heldout], package=package,
-                                                 fmu_dir=fmu_dir)
+            held_inputs = inputs_from_experiments([s.experiment(e, models[e.name]) for e in heldout],
+                                                 package=package, fmu_dir=fmu_dir)
             best = result.best()
             x = np.array([best[name] for name in held_inputs.problem.names])
-            held_score = float(score(residuals_at(held_inputs, x), noise)[0])
+            held_tests = residuals_at(held_inputs, x)
+            held_score = float(score(held_tests, noise)[0])
+            tests.update(held_tests)
+            jac.update(jacobian_at(held_inputs, x))
+        if null is None:
+            null = replicates_for([*inputs.experiments, *(held_inputs.experiments if held_inputs else ())],
+                                  fitted_noise, seed=options.seed)
+        fit_ok = adequacy(tests, noise, null, {k_: np.nan_to_num(v) for k_, v in jac.items()},
+                          [e.name for e in training])
         ident = identifiability(inputs, np.asarray(result.x), noise)
         step = best_separating_step(inputs, np.asarray(result.x), ident, noise)
         fits.append(StructureFit(s.name, data_term + k * np.log(n), 0.0, float(result.fun), result.best(),

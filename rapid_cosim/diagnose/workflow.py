@@ -1,211 +1,51 @@
 """The discrepancy workflow: calibrate the base model, try each named effect, decide,
 write the named effect into the Modelica package, compile it and re-calibrate with it.
 
-Everything runs through the project's own machinery: candidates are archived runs of
-the estimators (``candidates.py``), the verdict comes from ``selection.py``, the new
-model is Modelica text from the catalogue, built like any other bench.
-
-Kept whole (over 400 lines): the verdict's steps share one context and read in the order
-they run.
+Everything runs through the project's own machinery: the recorder's noise model from the
+quiet data (:mod:`rapid_cosim.noise`), candidates that are archived multistart runs
+(:mod:`.candidates`, :mod:`.context`), the verdict from :mod:`.selection`, its adequacy
+against a computed null (:mod:`.adequacy`), the new model as Modelica text from the
+catalogue, built like any other bench.
 """
 
 from __future__ import annotations
 
-import json
 import re
-import shutil
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, replace
 from datetime import datetime, timezone
-from pathlib import Path
 from typing import Callable, Sequence
 
-import h5py
 import numpy as np
 
-from ..calibration import SEARCHES, RunOptions, ensure_run, log_likelihood_for
+from ..calibration import ensure_run, log_likelihood_for
 from ..compiler import build_models
-from ..data import ar1_inflation
 from ..errors import ConfigError, RapidCosimError
 from ..estimators.laplace import laplace
+from ..estimators.profile import grid, profile
 from ..engine import make_engine
 from ..objective import ProblemObjective
 from ..experiment import Experiment
-from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, residuals_at
-from .catalogue import (BASES, CATALOGUE, NONE, bench_name, camel, check_base, composable, governor, is_generated,
-                        is_staged, write_bench)
-from .adequacy import adequacy
+from .adequacy import jitter_share
+from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, residuals_at
+from .catalogue import BASES, CATALOGUE, NONE, camel, check_base, composable, effect_parameters, governor, is_staged, \
+    write_bench
+from .context import Context, DiagnoseOptions, split_holdout
 from .features import Features, residual_features
 from .limits import check_material, inadequate, verdict_text
-from .selection import THRESHOLD, Ranked, Verdict, bic, decide, decisive, gap, pooled_noise, rank, score
+from .result import Diagnosis
+from .selection import Ranked, Verdict, bic, decide, decisive, gap, rank, score
 from .separate import separating_test
+from .variants import check_variants
 
-
-@dataclass(frozen=True)
-class DiagnoseOptions:
-    method: str = "pf:10+nm"
-    estimator_options: dict = field(default_factory=lambda: {"pf": {"n_particles": 40},
-                                                             "nm": {"xatol": 1e-4, "fatol": 1e-10}})
-    seed: int = 1
-    n_jobs: int = 1
-    searches: tuple[str, ...] = SEARCHES  # run besides ``method`` on every candidate, the best kept
-    threshold: float = THRESHOLD
-    max_effects: int = 2
-    candidates: tuple[str, ...] = tuple(CATALOGUE)
-    write_model: bool = True  # write the named model into the package and re-calibrate with it
-    model_name: str | None = None  # class name of the model written; default from the effects
-
-    def __post_init__(self):
-        wrong = [c for c in self.candidates if c not in CATALOGUE]
-        if wrong:
-            raise RapidCosimError(f"candidates {', '.join(wrong)}: not in the catalogue ({', '.join(CATALOGUE)})")
-        if self.max_effects < 1:
-            raise RapidCosimError(f"max_effects must be at least 1, got {self.max_effects}")
-
-
-def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> tuple[list, list]:
-    """(training, held out) by the names of the experiments to hold out."""
-    names = [e.name for e in experiments]
-    unknown = [h for h in holdout if h not in names]
-    if unknown:
-        raise RapidCosimError(f"held-out {', '.join(unknown)}: not among the experiments ({', '.join(names)})")
-    return ([e for e in experiments if e.name not in holdout], [e for e in experiments if e.name in holdout])
-
-
-@dataclass
-class Diagnosis:
-    """The verdict with its evidence, as the JSON report holds it.
-
-    ``effect`` is a catalogue name, ``none``, ``ambiguous`` or ``unexplained``;
-    ``effects`` lists the effects named; ``adequate`` says whether the final model fits
-    to the noise (:mod:`.adequacy`, per test under ``adequacy``); ``verdict`` is the
-    sentence, e.g. ``"rate_limit + unexplained remainder"``."""
-
-    effect: str
-    effects: list[str]
-    candidates: list[str]
-    reason: str
-    verdict: str
-    adequate: bool
-    adequacy: dict
-    unexplained: dict | None
-    materiality: dict
-    ranking: list[dict]
-    second_effect_ranking: list[dict]
-    not_excluded: list[str]
-    separating_test: dict | None
-    held_out: dict | None
-    features: dict
-    gap_before: dict[str, dict]
-    gap_after: dict[str, dict]
-    parameters_before: dict[str, float]
-    parameters_after: dict[str, float]
-    parameter_intervals: dict[str, list[float]]
-    noise: dict[str, dict[str, float]]
-    model_written: str | None
-    model_file: str | None
-    archives: dict[str, str]
-    training: list[str]
-    heldout: list[str]
-    created: str
-    residuals: dict[str, dict[str, np.ndarray]] = field(default_factory=dict, repr=False)
-
-    def to_json(self) -> dict:
-        data = asdict(self)
-        data.pop("residuals")
-        return json.loads(json.dumps(data, default=_jsonable))
-
-    def save(self, folder: str | Path) -> tuple[Path, Path]:
-        """``diagnosis.json`` (the verdict and evidence) and ``diagnosis.h5`` (the residual
-        arrays before and after, which the report plots)."""
-        folder = Path(folder)
-        folder.mkdir(parents=True, exist_ok=True)
-        js = folder / "diagnosis.json"
-        js.write_text(json.dumps(self.to_json(), indent=2) + "\n")
-        h5 = folder / "diagnosis.h5"
-        with h5py.File(h5, "w") as f:
-            f.attrs["effect"] = self.effect
-            f.attrs["json"] = json.dumps(self.to_json())
-            for test, arrays in self.residuals.items():
-                g = f.create_group(test)
-                for key, values in arrays.items():
-                    g.create_dataset(key, data=np.asarray(values, dtype=float))
-        return js, h5
-
-
-def _jsonable(value):
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return str(value)
-
-
-class _Context:
-    """The fits made so far, by candidate label (each fitted once)."""
-
-    def __init__(self, training, heldout, workdir, options, package, fmu_dir, log):
-        self.training, self.heldout = list(training), list(heldout)
-        self.workdir, self.options = Path(workdir), options
-        self.user_package, self.user_fmu_dir, self.log = Path(package), Path(fmu_dir), log
-        # Candidates are built from a copy of the package: combinations of effects are
-        # generated there, and the user's package changes only if the verdict is written.
-        self.package = self.workdir / "package" / self.user_package.name
-        self.fmu_dir = self.workdir / "fmus"
-        shutil.copytree(self.user_package, self.package, dirs_exist_ok=True)  # refreshed on every run
-        self.noise = pooled_noise(self.training + self.heldout)
-        self.fits: dict[str, CandidateFit] = {}
-        self.fmus: dict = {}  # FMUs by model, built or loaded once for all candidates
-        self._predictions: dict[tuple, dict] = {}
-        self.run_options = RunOptions(method=options.method, seed=options.seed, n_jobs=options.n_jobs,
-                                      estimator_options=options.estimator_options)
-
-    @property
-    def bases(self) -> list[str]:
-        return sorted({e.model for e in self.training + self.heldout})
-
-    def fit(self, spec: CandidateSpec, start: dict | None = None) -> CandidateFit:
-        for base in self.bases:  # benches not in the package are generated into the work copy
-            if is_generated(bench_name(spec.effects, base)):
-                write_bench(self.package, spec.effects, bench_name(spec.effects, base), base=base,
-                            description=f"{BASES[base]} with {', '.join(spec.effects)} (candidate)")
-        if spec.label not in self.fits:
-            self.log(f"  fitting {spec.label} ...")
-            fit = fit_candidate(spec, self.training, self.workdir, options=self.run_options,
-                                start=start if start is not None else default_start(spec, self.base_parameters()),
-                                package=self.package, fmu_dir=self.fmu_dir, fmus=self.fmus,
-                                searches=self.options.searches)
-            self.fits[spec.label] = fit
-            self.log(f"    fitness {fit.fitness:.4g}, BIC {bic(fit, self.noise):.1f}, {fit.nfev} evaluations")
-        return self.fits[spec.label]
-
-    def base_parameters(self) -> dict[str, float] | None:
-        base = self.fits.get(NONE)
-        return dict(base.parameters) if base else None
-
-    def tests(self, fit: CandidateFit) -> dict:
-        """Residuals on the training tests and, predicted, on the held-out ones."""
-        return _all_tests(self, fit)
-
-    def predict(self, fit: CandidateFit) -> dict:
-        """Residuals of the held-out tests at the training calibration; kept, as the
-        verdict and the report ask for the same fits more than once."""
-        if not self.heldout:
-            return {}
-        key = (fit.spec, tuple(sorted(fit.parameters.items())))
-        if key not in self._predictions:
-            self._predictions[key] = self._predict(fit)
-        return self._predictions[key]
-
-    def _predict(self, fit: CandidateFit) -> dict:
-        inputs = candidate_inputs(self.workdir / "heldout" / fit.spec.slug, self.heldout, fit.spec,
-                                  package=self.package, fmu_dir=self.fmu_dir, fmus=self.fmus)
-        x = np.array([fit.parameters[n] for n in inputs.problem.names])
-        return residuals_at(inputs, x)
+MIN_REACHED = 3  # starts that must end at a candidate's best for its optimum to count as certified
+REACHED_MARGIN_BIC = 2.0
 
 
 def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (), *, workdir: str | Path,
              options: DiagnoseOptions = DiagnoseOptions(), package: str | Path = "modelica/iGrGen",
              fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print) -> Diagnosis:
+    """Name what the base model misses on ``training`` (confirmed on ``heldout``), or say
+    that nothing in the catalogue does; see the package docstring for the steps."""
     if not training:
         raise ValueError("diagnose needs at least one training experiment")
     for exp in [*training, *heldout]:
@@ -222,11 +62,14 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
                     and not all(p.name in e.fixed for e in [*training, *heldout] for p in CATALOGUE[c].parameters)]
     if undocumented:  # a constant no config documents cannot be "documented wrong"
         options = replace(options, candidates=tuple(c for c in options.candidates if c not in undocumented))
-    ctx = _Context(training, heldout, workdir, options, package, fmu_dir, log)
+    ctx = Context(training, heldout, workdir, options, package, fmu_dir, log)
+    for fit in {id(f): f for f in ctx.noise_fits.values()}.values():
+        log(f"noise of the recorder of {', '.join(fit.tests)} ({fit.n_stretches} quiet stretches, {fit.n_samples} "
+            f"samples): {fit.model.describe()}")
     log(f"calibrating the base model and {len(options.candidates)} candidates on "
         f"{', '.join(e.name for e in training)}" + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
     base = ctx.fit(CandidateSpec())
-    before_tests = _all_tests(ctx, base)
+    before_tests = ctx.tests(base)
     features = residual_features(training + list(heldout), before_tests, ctx.noise)
     singles = [ctx.fit(CandidateSpec((name,))) for name in options.candidates]
     ranking = rank([base, *singles], ctx.noise)
@@ -245,6 +88,12 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     if chosen is not None and options.max_effects >= 2:
         chosen, verdict, second = _second_effect(ctx, chosen, verdict, options)
 
+    variants, story = {}, None  # story: the simpler of two stories the data cannot tell apart
+    if chosen is not None:
+        chosen, verdict, variants, story = check_variants(ctx, chosen, verdict, options.threshold)
+        if verdict.effect == "ambiguous":
+            chosen = None
+
     separating = None
     if verdict.effect == "ambiguous":
         separating = _separating(ctx, verdict, not_excluded)
@@ -253,9 +102,9 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     if chosen is not None:
         chosen, verdict, materiality = check_material(ctx, base, chosen, verdict)
 
-    final_fit = chosen if chosen is not None else base
-    after_tests = _all_tests(ctx, final_fit)
-    fit_before, fit_after = adequacy(before_tests, ctx.noise), adequacy(after_tests, ctx.noise)
+    final_fit = chosen if chosen is not None else story if story is not None else base
+    after_tests = ctx.tests(final_fit)
+    fit_before, fit_after = ctx.adequacy(base), ctx.adequacy(final_fit)
     unexplained = None
     if not fit_after.adequate:
         verdict, unexplained = inadequate(ctx, verdict, ranking, before_tests, after_tests, fit_after)
@@ -264,11 +113,17 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     model_written, model_file = None, None
     if chosen is not None and options.write_model:
         model_written, model_file, final_fit = _write_and_recalibrate(ctx, chosen, options)
-        after_tests = _all_tests(ctx, final_fit)
-        fit_after = adequacy(after_tests, ctx.noise)
+        after_tests = ctx.tests(final_fit)
+        fit_after = ctx.adequacy(final_fit)
+    judged = {label: ctx.adequacy(ctx.fits[label]) for label in options.judge if label in ctx.fits}
+    judged.update({"final": fit_after, "base": fit_before})
+    search = _search_report(ctx, verdict, ranking, second, options)
+    if search["uncertain"]:
+        verdict.reason += "; " + search["warning"]
     gap_before = _gaps(ctx, before_tests)
     gap_after = _gaps(ctx, after_tests)
-    residuals = {name: {"time": t.time, "before": t.residual, "after": after_tests[name].residual}
+    residuals = {name: {"time": t.time, "before": t.residual, "after": after_tests[name].residual,
+                        "whitened_before": t.whitened, "whitened_after": after_tests[name].whitened}
                  for name, t in before_tests.items()}
     return Diagnosis(
         effect=verdict.effect, effects=verdict.effects, candidates=verdict.candidates, reason=verdict.reason,
@@ -280,14 +135,17 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
         features=features.to_json(), gap_before=gap_before, gap_after=gap_after,
         parameters_before=base.parameters, parameters_after=final_fit.parameters,
         parameter_intervals=_intervals(ctx, final_fit),
-        noise={name: {"sigma": f.sigma, "phi": f.phi} for name, f in ctx.noise.items()},
+        noise=_noise_report(ctx), search=search, profiles=_profiles(ctx, final_fit),
+        timing=jitter_share(after_tests, ctx.noise), variants=variants,
+        candidate_adequacy={label: {"adequate": a.adequate, "p": a.p, "pooled_variance_ratio": a.pooled_variance_ratio}
+                            for label, a in judged.items()},
         model_written=model_written, model_file=model_file, residuals=residuals,
         archives={label: str(f.archive) for label, f in ctx.fits.items()},
         training=[e.name for e in training], heldout=[e.name for e in heldout],
         created=datetime.now(timezone.utc).isoformat(timespec="seconds"))
 
 
-def _material_checks(ctx: _Context, base: CandidateFit, options: DiagnoseOptions) -> list[str]:
+def _material_checks(ctx: Context, base: CandidateFit, options: DiagnoseOptions) -> list[str]:
     """Effects that, held at a material size, still fit within the threshold of none."""
     base_bic = bic(base, ctx.noise)
     found = []
@@ -302,12 +160,12 @@ def _material_checks(ctx: _Context, base: CandidateFit, options: DiagnoseOptions
     return found
 
 
-def _held_out_score(ctx: _Context, fit: CandidateFit) -> float:
+def _held_out_score(ctx: Context, fit: CandidateFit) -> float:
     data_term, _ = score(ctx.predict(fit), ctx.noise)
     return data_term
 
 
-def _confirm(ctx: _Context, chosen: CandidateFit, base: CandidateFit, verdict: Verdict) -> Verdict:
+def _confirm(ctx: Context, chosen: CandidateFit, base: CandidateFit, verdict: Verdict) -> Verdict:
     named = _held_out_score(ctx, chosen)
     none = _held_out_score(ctx, base)
     improvement = none - named
@@ -321,7 +179,7 @@ def _confirm(ctx: _Context, chosen: CandidateFit, base: CandidateFit, verdict: V
     return verdict
 
 
-def _second_effect(ctx: _Context, chosen: CandidateFit, verdict: Verdict, options: DiagnoseOptions):
+def _second_effect(ctx: Context, chosen: CandidateFit, verdict: Verdict, options: DiagnoseOptions):
     first = chosen.spec.effects
     start = dict(chosen.parameters)
     combos = []
@@ -369,7 +227,7 @@ def _second_effect(ctx: _Context, chosen: CandidateFit, verdict: Verdict, option
     return fit, verdict, ranked
 
 
-def _separating(ctx: _Context, verdict: Verdict, not_excluded: Sequence[str]) -> dict | None:
+def _separating(ctx: Context, verdict: Verdict, not_excluded: Sequence[str]) -> dict | None:
     labels = verdict.candidates
     if len(labels) < 2:
         return None
@@ -389,7 +247,7 @@ def _separating(ctx: _Context, verdict: Verdict, not_excluded: Sequence[str]) ->
     return separating_test(a, b, staged[0], ctx.noise[staged[0].name])
 
 
-def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: DiagnoseOptions):
+def _write_and_recalibrate(ctx: Context, chosen: CandidateFit, options: DiagnoseOptions):
     """The named model written into the package, compiled, and calibrated again."""
     effects = chosen.spec.effects
     held = sorted({governor(b) for b in ctx.bases} - {"TGTypeI"})  # a standard structure's name in the class
@@ -410,7 +268,7 @@ def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: Diagnos
     ctx.log(f"  wrote {', '.join(map(str, targets))} and compiled; re-calibrating with it ...")
     spec = CandidateSpec(effects)
     inputs = candidate_inputs(ctx.workdir / "recalibrated", ctx.training, spec, polish_from=values, model=names,
-                              package=package_dir, fmu_dir=ctx.user_fmu_dir)
+                              package=package_dir, fmu_dir=ctx.user_fmu_dir, noise=ctx.models)
     archive = ctx.workdir / "recalibrated.h5"
     result, _ = ensure_run(inputs, replace(ctx.run_options, method="nm"), archive, progress=False)
     fit = CandidateFit(spec, archive, name, result.best(), len(result.names), float(result.fun), result.nfev,
@@ -419,23 +277,15 @@ def _write_and_recalibrate(ctx: _Context, chosen: CandidateFit, options: Diagnos
     return name, str(target), fit
 
 
-def _all_tests(ctx: _Context, fit: CandidateFit) -> dict:
-    """Residuals on the training tests and, predicted, on the held-out ones."""
-    tests = dict(fit.tests)
-    if ctx.heldout:
-        tests.update(ctx.predict(fit))
-    return tests
-
-
-def _gaps(ctx: _Context, tests: dict) -> dict[str, dict]:
+def _gaps(ctx: Context, tests: dict) -> dict[str, dict]:
     held = {e.name for e in ctx.heldout}
     return {name: {**gap(t, ctx.noise[name]), "held_out": name in held} for name, t in tests.items()}
 
 
-def _intervals(ctx: _Context, fit: CandidateFit, level: float = 0.9) -> dict[str, list[float]]:
+def _intervals(ctx: Context, fit: CandidateFit, level: float = 0.9) -> dict[str, list[float]]:
     """90 % intervals of the calibrated parameters: Laplace's approximation of the
-    Gaussian likelihood (pre-step noise levels), widened by the AR(1) variance factor
-    (1 + phi) / (1 - phi), since correlated samples carry less information each."""
+    whitened Gaussian likelihood (the recorder's noise model takes care of correlated
+    samples, which the earlier AR(1) inflation factor only approximated)."""
     problem = fit.inputs.problem
     log_likelihood = log_likelihood_for(problem)
     if log_likelihood is None:
@@ -447,13 +297,85 @@ def _intervals(ctx: _Context, fit: CandidateFit, level: float = 0.9) -> dict[str
     except RapidCosimError as e:  # intervals are evidence, not the verdict: report, do not fail
         ctx.log(f"  no parameter intervals: {e}")
         return {}
-    inflation = float(np.mean([ar1_inflation(ctx.noise[e.name].phi) for e in problem.experiments]))
     z = approx.interval - approx.mean[:, None]
     out = {}
     for k, name in enumerate(problem.names):
-        half = np.sqrt(inflation) * (z[k, 1] if np.isfinite(z[k, 1]) else np.inf)
+        half = z[k, 1] if np.isfinite(z[k, 1]) else np.inf
         out[name] = [float(x[k] - half), float(x[k] + half)]
     return out
 
 
-__all__ = ["DiagnoseOptions", "Diagnosis", "Features", "diagnose"]
+PROFILE_POINTS = 12
+
+
+def _profiles(ctx: Context, fit: CandidateFit) -> dict:
+    """Profile likelihoods of the named effects' parameters at the final fit: each held at
+    :data:`PROFILE_POINTS` values over its range (and its optimum), the others refitted;
+    in criterion units above the optimum, with the 90 % likelihood-ratio interval."""
+    names = [p.name for p in effect_parameters(fit.spec.effects) if p.name in fit.parameters]
+    if not names or fit.inputs is None:
+        return {}
+    problem = fit.inputs.problem
+    objective = ProblemObjective(problem, fit.inputs.fmus, engine=make_engine(ctx.options.n_jobs))
+    x = np.array([fit.parameters[n] for n in problem.names])
+    n_samples = fit.n_samples
+    out = {}
+    for name in names:
+        k = problem.names.index(name)
+        prof = profile(objective, problem.space, x, k, grid(problem.space, k, PROFILE_POINTS, around=x[k]),
+                       rng=np.random.default_rng(ctx.options.seed))
+        f_best = min(float(np.min(prof.fitness)), fit.fitness)
+        lo, hi = prof.interval(n_samples)
+        out[name] = {"values": prof.values.tolist(), "delta_bic": (n_samples * np.log(prof.fitness / f_best)).tolist(),
+                     "optimum": float(x[k]), "interval_90": [lo, hi], "log_scale": bool(problem.space.log[k])}
+        if np.min(prof.fitness) < fit.fitness * np.exp(-2.0 / n_samples):
+            ctx.log(f"  the profile of {name} found a better point than the search ({n_samples * np.log(fit.fitness / np.min(prof.fitness)):.1f} "
+                    "in BIC): the search was not certified")
+            out[name]["better_than_search"] = True
+    return out
+
+
+def _noise_report(ctx: Context) -> dict:
+    """Each recorder's noise model with its uncertainty and quiet-data autocorrelation."""
+    recorders = {id(f): f for f in ctx.noise_fits.values()}
+    return {"recorders": [f.to_json() for f in recorders.values()],
+            "tests": {name: {"sigma": floor.sigma, "phi": floor.phi, "recorder": list(recorders).index(id(floor.fit))}
+                      for name, floor in ctx.noise.items()}}
+
+
+def _search_report(ctx: Context, verdict: Verdict, ranking, second, options: DiagnoseOptions) -> dict:
+    """How sure each candidate's optimum is: the starts that reached it (within
+    :data:`REACHED_MARGIN_BIC`), and a warning when the winner or a close rival (within
+    the threshold of it) was reached by fewer than :data:`MIN_REACHED`."""
+    rows = {}
+    for label, fit in ctx.fits.items():
+        reached = fit.reached_best(REACHED_MARGIN_BIC)
+        if reached is None:
+            continue
+        f = fit.waterfall[np.isfinite(fit.waterfall)]
+        delta = (fit.n_samples * np.log(np.sort(f) / np.min(f))).tolist() if f.size else []
+        rows[label] = {"starts": int(fit.waterfall.size), "reached": reached, "waterfall_dbic": delta}
+    named = "+".join(verdict.effects) if verdict.effects else verdict.effect
+    close = [r.label for r in [*ranking, *second] if r.label == named or r.label in verdict.candidates
+             or r.delta < options.threshold]
+    uncertain = sorted({label for label in close if label in rows and rows[label]["reached"] < MIN_REACHED})
+    notes = []
+    for label in uncertain:
+        fit, r = ctx.fits[label], rows[label]
+        note = f"{label}: its best reached by {r['reached']} of {r['starts']} starts"
+        runner_up = fit.next_basin(REACHED_MARGIN_BIC)
+        if runner_up is not None:
+            delta, point = runner_up
+            moved = [n for n in point if abs(point[n] - fit.parameters[n]) > 0.1 * max(abs(point[n]),
+                                                                                    abs(fit.parameters[n]), 1e-12)]
+            note += (f"; the next basin, {delta:.1f} worse in BIC, has " + ", ".join(
+                f"{n} = {point[n]:.4g} (best {fit.parameters[n]:.4g})" for n in moved or point))
+            r["next_basin"] = {"delta_bic": delta, "parameters": point}
+        notes.append(note)
+    warning = ("the search is uncertain for " + "; ".join(notes) + ": the tests may not decide between these points, "
+               "or a better one may exist") if uncertain else ""
+    return {"candidates": rows, "uncertain": uncertain, "warning": warning, "min_reached": MIN_REACHED,
+            "margin_bic": REACHED_MARGIN_BIC}
+
+
+__all__ = ["DiagnoseOptions", "Diagnosis", "Features", "diagnose", "split_holdout"]

@@ -1,0 +1,167 @@
+"""The null distribution of the adequacy statistics, computed for each campaign.
+
+What a residual of a *correct* model looks like depends on the test: its length and
+gaps, the recorder's noise (white plus slow components, estimated from a few thousand
+quiet samples and so uncertain itself), the offset profiled out, and the parameters
+fitted to the training tests (which take some of the noise with them) or predicted from
+them (held-out tests, which carry the estimate's error). Fixed gates on a variance ratio
+cannot know all that; a parametric bootstrap does:
+
+1. draw the noise model of each recorder from its estimate's sampling distribution
+   (:meth:`rapid_cosim.noise.NoiseFit.draw`), one per replicate;
+2. simulate that noise at each test's own sample times (jitter included), whiten it with
+   the *estimated* model and profile the offset out, exactly as the fitness does;
+3. take out the part a least-squares fit would absorb: with ``J`` the Jacobian of the
+   whitened residual at the optimum, ``beta = (J'J)^-1 J' e`` over the training tests,
+   and ``e - J beta`` on every test, held-out ones included (the linearised fit);
+4. compute each statistic: the variance ratio ``mean(e^2)`` and the Ljung-Box ``Q``.
+
+Step 2 is the same for every candidate of a diagnosis and is done once
+(:class:`NoiseReplicates`); steps 3 and 4 take a candidate's Jacobian.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..fitness import whitenings
+from ..noise import NoiseFit, sample_draws
+
+LAGS = 10
+REPLICATES = 2000
+BLOCK = 250  # replicates simulated at once (memory: BLOCK x samples of the campaign)
+
+
+@dataclass(frozen=True, eq=False)
+class ScoredTest:
+    """One test as the fitness scores it: the valid sample times, its whitening (the
+    estimated model's, :class:`rapid_cosim.fitness.Whitening`), whether the offset is
+    profiled, and its recorder's :class:`~rapid_cosim.noise.NoiseFit`."""
+
+    name: str
+    times: np.ndarray
+    whitening: object
+    offset: bool
+    noise: NoiseFit
+
+
+def replicates_for(experiments, noise_fits: Mapping[str, NoiseFit], replicates: int = REPLICATES,
+                   seed: int = 0) -> "NoiseReplicates":
+    """The noise replicates of whitened experiments (one compared output each), whitened
+    as their fitness whitens them."""
+    tests = []
+    for exp in experiments:
+        (w,) = whitenings(exp).values()
+        (_, index, _), = exp.scored.columns
+        tests.append(ScoredTest(exp.name, exp.windowed_data().time[index], w, exp.offset, noise_fits[exp.name]))
+    return NoiseReplicates(tests, replicates, seed=seed)
+
+
+def ljung_box_q(e: np.ndarray, lags: int = LAGS) -> np.ndarray:
+    """Ljung-Box statistic of each row of ``e`` (rows, n)."""
+    e = np.atleast_2d(e)
+    n = e.shape[1]
+    e0 = e - e.mean(axis=1, keepdims=True)
+    den = np.sum(e0 * e0, axis=1)
+    q = np.zeros(e.shape[0])
+    for k in range(1, min(lags, n - 1) + 1):
+        rho = np.sum(e0[:, k:] * e0[:, :-k], axis=1) / den
+        q += rho * rho / (n - k)
+    return n * (n + 2) * q
+
+
+class NoiseReplicates:
+    """Whitened, offset-profiled noise replicates of every test (step 2 above), kept in
+    single precision: the part of the null every candidate shares."""
+
+    def __init__(self, tests: Sequence[ScoredTest], replicates: int = REPLICATES, seed: int = 0):
+        self.tests = list(tests)
+        self.replicates = int(replicates)
+        rng = np.random.default_rng([seed, 17])
+        recorders: dict[int, list] = {}
+        for t in self.tests:  # one draw of each recorder's model per replicate, shared by its tests
+            if id(t.noise) not in recorders:
+                recorders[id(t.noise)] = t.noise.draw(rng, self.replicates)
+        self.e: dict[str, np.ndarray] = {}
+        self._stats: dict[bytes, dict] = {}
+        for t in self.tests:
+            models = recorders[id(t.noise)]
+            out = np.empty((self.replicates, t.times.size), dtype=np.float32)
+            for a in range(0, self.replicates, BLOCK):
+                raw = sample_draws(models[a:a + BLOCK], t.times, rng)
+                out[a:a + BLOCK] = t.whitening.residual(raw, t.offset)
+            self.e[t.name] = out
+
+    def statistics(self, jacobians: Mapping[str, np.ndarray] | None, training: Sequence[str],
+                   lags: int = LAGS) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per test, the null replicates of (variance ratio, Ljung-Box Q) after a
+        linearised fit with ``jacobians`` (per test, (n_i, p), on the whitened scale;
+        None: nothing fitted). Kept per Jacobian: a fit judged twice costs once."""
+        key = b"".join([*(np.ascontiguousarray(jacobians[k]).tobytes() + k.encode() for k in sorted(jacobians or {})),
+                        ",".join(training).encode(), str(lags).encode()])
+        if key not in self._stats:
+            self._stats[key] = self._statistics(jacobians, training, lags)
+        return self._stats[key]
+
+    def _statistics(self, jacobians, training, lags) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        beta = None
+        if jacobians:
+            p = next(iter(jacobians.values())).shape[1]
+            A = np.zeros((p, p))
+            for name in training:
+                A += jacobians[name].T @ jacobians[name]
+            A_inv = np.linalg.pinv(A)
+            g = np.zeros((self.replicates, p))
+            for name in training:
+                g += self.e[name].astype(float) @ jacobians[name]
+            beta = g @ A_inv  # (replicates, p)
+        out = {}
+        for t in self.tests:
+            e = self.e[t.name].astype(float)
+            if beta is not None and t.name in jacobians:
+                e -= beta @ jacobians[t.name].T
+            out[t.name] = (np.mean(e * e, axis=1), ljung_box_q(e, lags))
+        return out
+
+
+def upper_p(observed: float, null: np.ndarray) -> float:
+    """Bootstrap p-value of a statistic whose large values speak against the null."""
+    return float((1 + np.sum(null >= observed)) / (null.size + 1))
+
+
+def combined_p(v: float, q: float, null_v: np.ndarray, null_q: np.ndarray) -> tuple[float, float, float]:
+    """(p of the variance ratio, p of Ljung-Box, p of the smaller of the two) where the
+    last is calibrated on the replicates' own smaller p (the min-p combination)."""
+    pv, pq = upper_p(v, null_v), upper_p(q, null_q)
+    b = null_v.size
+    rank_v = b - np.searchsorted(np.sort(null_v), null_v, side="left")  # replicates >= each one
+    rank_q = b - np.searchsorted(np.sort(null_q), null_q, side="left")
+    null_min = np.minimum((1 + rank_v) / (b + 1), (1 + rank_q) / (b + 1))
+    pm = float((1 + np.sum(null_min <= min(pv, pq))) / (b + 1))
+    return pv, pq, pm
+
+
+def holm(p: Mapping[str, float]) -> dict[str, float]:
+    """Holm's step-down adjusted p-values: rejecting those under alpha keeps the
+    family-wise false alarm over the tests at alpha."""
+    order = sorted(p, key=p.get)
+    m = len(order)
+    out, running = {}, 0.0
+    for k, name in enumerate(order):
+        running = max(running, min(1.0, (m - k) * p[name]))
+        out[name] = running
+    return out
+
+
+def timing_jitter(times: np.ndarray) -> float:
+    """Standard deviation (s) of a time stamp's error, were the stamps independently off
+    their true instants: the intervals' spread over the square root of two (a drifting
+    clock, whose stamps wander far from any regular grid, does not count as jitter)."""
+    d = np.diff(np.asarray(times, dtype=float))
+    if d.size < 2:
+        return 0.0
+    d = d[d < 1.5 * np.median(d)]  # a missing sample is not jitter
+    return float(np.std(d) / np.sqrt(2))

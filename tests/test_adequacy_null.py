@@ -1,0 +1,97 @@
+"""The adequacy null: a parametric bootstrap of the variance ratio and Ljung-Box statistic
+over the recorder's noise, the tests' own samples, the profiled offset and the fitted
+parameters. Correct models must pass at the stated rate; structure must not."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rapid_cosim.diagnose.candidates import ExperimentResiduals
+from rapid_cosim.diagnose.adequacy import adequacy
+from rapid_cosim.diagnose.null import NoiseReplicates, ScoredTest, combined_p, holm, ljung_box_q
+from rapid_cosim.diagnose.selection import NoiseFloor
+from rapid_cosim.fitness import Whitening
+from rapid_cosim.noise import NoiseFit, RecorderNoise
+
+MODEL = RecorderNoise(0.0012, ((0.0008, 0.9),), 0.1)
+N_TESTS, N = 4, 600
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    rng = np.random.default_rng(0)
+    times = [np.arange(N) * 0.1 + rng.uniform(-0.003, 0.003, N) for _ in range(N_TESTS)]
+    fit = NoiseFit.known(MODEL)
+    tests = [ScoredTest(f"t{k}", t, Whitening(MODEL, t), True, fit) for k, t in enumerate(times)]
+    # a linear "model": two smooth sensitivities shared by the tests (a step and a ramp)
+    J = {f"t{k}": np.column_stack([(t > 10) * 1.0, np.clip(t - 10, 0, 20) / 20]) for k, t in enumerate(times)}
+    return tests, NoiseReplicates(tests, 2000, seed=1), J
+
+
+def _observed(tests, J, rng, structure=None):
+    """Noise (plus ``structure``) on every test, whitened, offset profiled, and the linear
+    model's two parameters fitted over all tests by least squares, as a calibration does."""
+    e, Jw = {}, {}
+    for t in tests:
+        y = MODEL.sample(t.times, rng) + (structure(t.times) if structure else 0.0)
+        e[t.name] = t.whitening.residual(y[None], True)[0]
+        Jw[t.name] = t.whitening.residual(J[t.name].T, True).T
+    A = sum(Jw[k].T @ Jw[k] for k in e)
+    beta = np.linalg.solve(A, sum(Jw[k].T @ e[k] for k in e))
+    out = {}
+    for t in tests:
+        w = e[t.name] - Jw[t.name] @ beta
+        out[t.name] = ExperimentResiduals(t.name, t.times, np.zeros(N), 0.0, 0.0, N, whitened=w)
+    return out, Jw
+
+
+def test_a_correct_model_is_rejected_at_the_stated_rate(campaign):
+    tests, null, J = campaign
+    floors = {t.name: NoiseFloor(t.noise) for t in tests}
+    rng = np.random.default_rng(2)
+    rejected, p_tests = 0, []
+    for _ in range(200):
+        obs, Jw = _observed(tests, J, rng)
+        a = adequacy(obs, floors, null, Jw, [t.name for t in tests], alpha=0.05)
+        rejected += not a.adequate
+        p_tests += [t.p for t in a.tests]
+    assert 0.01 <= rejected / 200 <= 0.10  # family-wise 5 %
+    assert 0.06 <= np.mean(np.array(p_tests) < 0.1) <= 0.14  # each test's p uniform
+
+
+def test_ignoring_the_slow_component_calls_a_correct_model_inadequate(campaign):
+    """The issue's failure: whitening white + slow noise as if it were white (or AR(1))
+    leaves correlation that a whiteness test calls misfit."""
+    tests, _, _ = campaign
+    rng = np.random.default_rng(3)
+    wrong = RecorderNoise(MODEL.sigma, (), 0.1)
+    q = [ljung_box_q(wrong.whiten(MODEL.sample(t.times, rng)[None]))[0] for t in tests for _ in range(5)]
+    from scipy import stats
+
+    assert np.median(stats.chi2.sf(q, 10)) < 1e-3
+    right = [ljung_box_q(MODEL.whiten(MODEL.sample(t.times, rng)[None]))[0] for t in tests for _ in range(5)]
+    assert np.median(stats.chi2.sf(right, 10)) > 0.1
+
+
+def test_structure_the_size_of_the_noise_is_found(campaign):
+    """A misfit of one noise level, oscillating over 8 s after the step (slower misfits
+    hide in the slow noise: at 20 s periods the noise is five times as strong as white)."""
+    tests, null, J = campaign
+    floors = {t.name: NoiseFloor(t.noise) for t in tests}
+    rng = np.random.default_rng(4)
+    bump = lambda t: 1.4 * MODEL.sigma * np.sin(t / 1.3) * (t > 10)  # noqa: E731
+    found = 0
+    for _ in range(20):
+        obs, Jw = _observed(tests, J, rng, bump)
+        found += not adequacy(obs, floors, null, Jw, [t.name for t in tests]).adequate
+    assert found >= 18
+
+
+def test_holm_and_min_p():
+    adj = holm({"a": 0.01, "b": 0.04, "c": 0.5})
+    assert adj == {"a": 0.03, "b": 0.08, "c": 0.5}
+    null_v = np.random.default_rng(0).normal(1.0, 0.05, 5000)
+    null_q = np.random.default_rng(1).chisquare(10, 5000)
+    pv, pq, pm = combined_p(1.2, 10.0, null_v, null_q)
+    assert pv < 0.001 and 0.3 < pq < 0.6 and pv <= pm < 3 * pv + 0.002  # the smaller p, paid for twice at most
