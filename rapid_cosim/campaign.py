@@ -212,7 +212,7 @@ def _ar1_inflation(exp) -> float:
 
 def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Path], *, holdout: Sequence[str],
                results: str | Path, seed: int, n_jobs: int, package: str | Path, fmu_dir: str | Path,
-               log=print) -> tuple[str, list[Path]]:
+               backend: str = "loky", scheduler: str | None = None, log=print) -> tuple[str, list[Path]]:
     """Calibrate each structure on the training tests, rank them, report identifiability,
     and run the effect catalogue on the winning structure (``<results>/structures.md``,
     ``.json``, ``identifiability.png``)."""
@@ -229,7 +229,7 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
     training, heldout = split_holdout([load_experiment(c) for c in configs], holdout)
     results = Path(results)
     results.mkdir(parents=True, exist_ok=True)
-    options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs)
+    options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs, backend=backend, scheduler=scheduler).check()
     log(f"structures {', '.join(s.name for s in found)} on {', '.join(e.name for e in training)}"
         + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
     verdict = select_structure(found, training, heldout, workdir=results, options=options, package=package,
@@ -238,7 +238,8 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
         winner = next(s for s in found if s.name == verdict.winner)
         log(f"the effect catalogue on {winner.name}:")
         verdict.effects = effects_on(winner, training, heldout, workdir=results / f"effects-{winner.name}",
-                                     options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False),
+                                     options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False,
+                                                             backend=backend, scheduler=scheduler),
                                      package=package, fmu_dir=fmu_dir, log=log)
     record = verdict.to_json()
     js = results / "structures.json"

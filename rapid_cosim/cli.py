@@ -209,7 +209,8 @@ def cmd_diagnose(args) -> int:
     from .campaign import diagnosis_report
     from .diagnose.workflow import DiagnoseOptions, split_holdout
 
-    options = {"threshold": args.threshold, "max_effects": args.max_effects, "model_name": args.model_name}
+    options = {"threshold": args.threshold, "max_effects": args.max_effects, "model_name": args.model_name,
+               "backend": args.joblib_backend, "scheduler": args.scheduler}
     if args.candidates:
         options["candidates"] = tuple(args.candidates.split(","))
     DiagnoseOptions(**options)  # refused before anything is read or written
@@ -228,7 +229,7 @@ def cmd_structures(args) -> int:
 
     text, files = structures(args.configs, args.structures.split(","), holdout=args.holdout or [],
                              results=args.results, seed=args.seed, n_jobs=args.n_jobs, package=args.package,
-                             fmu_dir=args.fmus)
+                             fmu_dir=args.fmus, backend=args.joblib_backend, scheduler=args.scheduler)
     print()
     print(text)
     print(f"written: {', '.join(map(str, files))}")
@@ -281,6 +282,10 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--results", default=results, help="work and report folder (default %(default)s)")
         p.add_argument("--seed", type=int, default=1)
         p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s)")
+        p.add_argument("--joblib-backend", default="loky", choices=["loky", "multiprocessing", "sequential", "dask"],
+                       help="where the work goes with --n-jobs > 1: candidates fitted in local processes (loky), or "
+                            "their batches on a dask cluster (default %(default)s)")
+        p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="a running dask scheduler, with dask")
         model_options(p)
 
     p = command("build", cmd_build, "compile test benches into FMUs (only what changed)")

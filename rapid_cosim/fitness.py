@@ -187,36 +187,51 @@ def combination_weights(experiments) -> np.ndarray | None:
     return np.array([sum(index.size for _, index, _ in e.scored.columns) for e in experiments], dtype=float)
 
 
-def batch_residuals(exp: Experiment, simulated: np.ndarray) -> np.ndarray:
-    """Residual rows of a batch whose squares sum to each set's :func:`batch_rssd`
-    value: whitened (GLS offset projected out) for a whitened experiment, the plain
-    offset-removed residual otherwise; outputs concatenated, each scaled by its weight
-    and sample count. Non-finite where a set's simulation is not finite."""
-    scored = exp.scored
+def batch_scores(exp: Experiment, simulated: np.ndarray, residuals: bool = False):
+    """(values, residual rows or None) of a batch: the values are :func:`batch_rssd`'s,
+    the residual rows (``residuals=True``) have squares summing to them: whitened with the
+    GLS offset projected out for a whitened experiment, the plain offset-removed residual
+    otherwise, outputs concatenated, each scaled by its weight and sample count;
+    non-finite where a set's simulation is not finite. A whitened experiment is whitened
+    once for both, so a least-squares method's values are bit for bit any other method's."""
     yhat = np.asarray(simulated, dtype=np.float64)
+    if not residuals:
+        return batch_rssd(exp, yhat), None
+    scored = exp.scored
     total_w = np.sum(scored.weights[scored.weights > 0])
-    parts = []
-    w = whitenings(exp) if is_whitened(exp) else None
-    for j, index, y in scored.columns:
-        r = y - np.take(yhat[:, :, j], index, axis=1)
-        if w is not None:
-            r = w[j].residual(r, exp.offset)
-        elif exp.offset:
-            r = r - r.mean(axis=1)[:, None]
-        parts.append(r * np.sqrt(scored.weights[j] / (total_w * index.size)))
-    return np.concatenate(parts, axis=1)
+    if is_whitened(exp):
+        with np.errstate(invalid="ignore", over="ignore"):
+            values, blocks = _batch_whitened(exp, yhat, keep=True)
+    else:
+        values, blocks = batch_rssd(exp, yhat), []
+        for j, index, y in scored.columns:
+            r = y - np.take(yhat[:, :, j], index, axis=1)
+            blocks.append(r - r.mean(axis=1)[:, None] if exp.offset else r)
+    parts = [b * np.sqrt(scored.weights[j] / (total_w * index.size))
+             for b, (j, index, _) in zip(blocks, scored.columns)]
+    return values, np.concatenate(parts, axis=1)
 
 
-def _batch_whitened(exp: Experiment, yhat: np.ndarray) -> np.ndarray:
+def batch_residuals(exp: Experiment, simulated: np.ndarray) -> np.ndarray:
+    """The residual rows of :func:`batch_scores`."""
+    return batch_scores(exp, simulated, residuals=True)[1]
+
+
+def _batch_whitened(exp: Experiment, yhat: np.ndarray, keep: bool = False):
+    """Values of a whitened experiment's batch (and, with ``keep``, its whitened residual
+    blocks, one per output)."""
     scored = exp.scored
     w = whitenings(exp)
     total = np.zeros(yhat.shape[0])
+    blocks = []
     for j, index, y in scored.columns:
         e = w[j].residual(y - np.take(yhat[:, :, j], index, axis=1), exp.offset)
         total += scored.weights[j] * np.mean(e * e, axis=1)
+        if keep:
+            blocks.append(e)
     total /= np.sum(scored.weights[scored.weights > 0])
     total[~np.isfinite(total)] = np.inf
-    return total
+    return (total, blocks) if keep else total
 
 
 def batch_rssd(exp: Experiment, simulated: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ from .engine import Engine, SequentialEngine
 from .search import Evaluations
 from .experiment import Experiment
 from .problem import Problem
-from .fitness import ExperimentFit, arssd, batch_residuals, batch_rssd, combination_weights, experiment_fitness
+from .fitness import ExperimentFit, arssd, batch_scores, combination_weights, experiment_fitness
 from .simulator import DEFAULT_RUNNER, FmuRef, Trajectory, check_runner, get_simulator
 
 PENALTY = 1.0  # pu^2: ~10^4 times a poor fit of a 0.08 pu step, finite for every method
@@ -108,10 +108,10 @@ def _score_chunk(payload: Payload, X: np.ndarray, batches: list[ExperimentBatch]
         if not alive.size:
             break
         batch = batches[i](X[alive])
-        scores = batch_rssd(exp, batch.values)
+        scores, rows = batch_scores(exp, batch.values, residuals)
         ok = batch.ok & np.isfinite(scores)
         if residuals and ok.any():
-            blocks[i][alive[ok]] = batch_residuals(exp, batch.values[ok])
+            blocks[i][alive[ok]] = rows[ok]
         if ok.all():
             rssd[alive, i] = scores
             continue

@@ -138,10 +138,9 @@ def build_models(models: list[str] | None = None, *, package: str | Path = DEFAU
                  fmu_dir: str | Path = DEFAULT_FMU_DIR, compiler: str = "auto", force: bool = False,
                  log=print) -> list[BuildOutcome]:
     """Build (or confirm up to date) the FMUs of ``models``; default: every test bench."""
-    source = load_package(package)
+    source, known = _parsed(Path(package))
     chosen = resolve_compiler(compiler)
     models = models or test_benches(source)
-    known = class_index(source)
     unknown = [m for m in models if m not in known]
     if unknown:
         raise BuildError(f"unknown model(s) {', '.join(unknown)}; test benches: {', '.join(test_benches(source))}")
@@ -227,21 +226,45 @@ def _fresh(old: Manifest | None, fmu: Path, source_hash: str, compiler: str, com
     return same and old.fmu_sha256 == _sha256(fmu)
 
 
-def _signature(package: Path, fmu: Path) -> tuple:
-    """What an up-to-date answer depends on: every source file of the package and the
-    FMU, by path, size and modification time (a stat each: far cheaper than parsing)."""
-    files = [str(package)]
-    if package.is_dir():
-        files = sorted(os.path.join(root, f) for root, _, names in os.walk(package) for f in names
-                       if f.endswith(".mo") or f == "package.order")
-    stats = []
-    for p in [*files, str(fmu), str(manifest_path(fmu))]:
+def _stats(paths) -> tuple:
+    out = []
+    for p in paths:
         try:
             st = os.stat(p)
-            stats.append((p, st.st_size, st.st_mtime_ns))
+            out.append((str(p), st.st_size, st.st_mtime_ns))
         except OSError:
-            stats.append((p, None, None))
-    return tuple(stats)
+            out.append((str(p), None, None))
+    return tuple(out)
+
+
+def _package_signature(package: Path) -> tuple:
+    """Every source file of the package by path, size and modification time: a stat each,
+    far cheaper than parsing, and it changes whenever a source does."""
+    if not package.is_dir():
+        return _stats([package])
+    return _stats(sorted(os.path.join(root, f) for root, _, names in os.walk(package) for f in names
+                         if f.endswith(".mo") or f == "package.order"))
+
+
+def _signature(package: Path, fmu: Path) -> tuple:
+    """What an up-to-date FMU depends on: the package's sources and the FMU itself."""
+    return _package_signature(package) + _stats([fmu, manifest_path(fmu)])
+
+
+# Per process: each package parsed once while its sources stay as they are (a diagnosis
+# asks for a dozen benches of one package).
+_PARSED: dict[str, tuple] = {}
+
+
+def _parsed(package: Path):
+    """(the package's source, its class index), parsed again only when a source changed."""
+    key = str(package.resolve())
+    signature = _package_signature(package)
+    known = _PARSED.get(key)
+    if known is None or known[0] != signature:
+        source = load_package(package)
+        known = _PARSED[key] = (signature, source, class_index(source))
+    return known[1], known[2]
 
 
 # Per process: the answers of ensure_fmu while nothing they depend on has changed, so that

@@ -62,8 +62,9 @@ CAMPAIGN = ((-0.2, 60.0), (-0.1, 60.0), (0.1, 60.0), (0.2, 60.0))
 # one step size only (tests 2, 4 and 1): a deadband cannot be told from a larger droop
 SINGLE_SIZE = ((-0.2, 60.0), (0.2, 60.0), (-0.2, None))
 DURATION_S, RATE_HZ, T_STEP = 110.0, 10.0, 10.0
-# (share of generation lost: negative for load lost); the last one held out
-EVENTS = (0.03, -0.025, 0.02)
+# (share of generation lost: negative for load lost); the last one held out. Large enough
+# for the unit to move by more than an output limit's material headroom (0.03 pu).
+EVENTS = (0.05, -0.04, 0.035)
 EVENT_DURATION_S, EVENT_RATE_HZ, T_EVENT, PMU_NOISE_HZ = 120.0, 50.0, 20.0, 1e-3
 
 # The plant documentation's constants, as the configs fix them (the bench defaults); a

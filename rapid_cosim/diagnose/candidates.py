@@ -225,10 +225,17 @@ def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdi
         else None
     inputs = candidate_inputs(workdir / "candidates" / spec.slug, experiments, spec, polish_from=nested,
                               package=package, fmu_dir=fmu_dir, fmus=fmus, noise=noise)
-    if nested is not None and "ms" in options.method and len(spec.effects) > 1:
-        # a pair starts from its first effect's fit: the new effect's parameters moved over their own design
-        new = [p.name for p in effect_parameters(spec.effects[-1:]) if p.name in inputs.problem.names]
-        ms = {**options.estimator_options.get("ms", {}), "vary": new}
+    if "ms" in options.method:
+        # the starts that reach the best are counted within the criterion's 2 (the fitness is
+        # the deviance per sample); a pair starts from its first effect's fit, the new
+        # effect's parameters moved over their own design
+        n = sum(ix.size for e in inputs.experiments for _, ix, _ in e.scored.columns)
+        ms = {"margin": 2.0 / n, **options.estimator_options.get("ms", {})}
+        if nested is not None and len(spec.effects) > 1:
+            ms["vary"] = [p.name for p in effect_parameters(spec.effects[-1:]) if p.name in inputs.problem.names]
+        if spec.held and nested is not None:  # an effect held at a size: the nested model's problem, from its fit
+            ms.setdefault("n_starts", inputs.problem.space.dim)
+            ms.setdefault("screen", 0)
         options = replace(options, estimator_options={**options.estimator_options, "ms": ms})
     archive = workdir / "candidates" / f"{spec.slug}.h5"
     result, archive = best_run(inputs, options, archive, searches, progress=progress)

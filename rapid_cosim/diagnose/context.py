@@ -10,13 +10,15 @@ criterion and adequacy judge it by.
 from __future__ import annotations
 
 import shutil
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
 from ..calibration import RunOptions
+from ..compiler import build_models
+from ..engine import JOBLIB_BACKENDS, JoblibEngine
 from ..errors import RapidCosimError
 from ..experiment import Experiment
 from ..noise import campaign_noise
@@ -47,6 +49,8 @@ class DiagnoseOptions:
     candidates: tuple[str, ...] = tuple(CATALOGUE)
     write_model: bool = True  # write the named model into the package and re-calibrate with it
     model_name: str | None = None  # class name of the model written; default from the effects
+    backend: str = "loky"  # where the work goes with n_jobs > 1 (dask: the objective's batches on the cluster)
+    scheduler: str | None = None
     replicates: int = REPLICATES  # of the adequacy null's bootstrap
     judge: tuple[str, ...] = ()  # candidate labels whose adequacy is reported too (e.g. a study's truth)
 
@@ -56,6 +60,10 @@ class DiagnoseOptions:
             raise RapidCosimError(f"candidates {', '.join(wrong)}: not in the catalogue ({', '.join(CATALOGUE)})")
         if self.max_effects < 1:
             raise RapidCosimError(f"max_effects must be at least 1, got {self.max_effects}")
+        if self.backend not in JOBLIB_BACKENDS:
+            raise RapidCosimError(f"unknown backend {self.backend!r}; choose one of {', '.join(JOBLIB_BACKENDS)}")
+        if self.scheduler is not None and self.backend != "dask":
+            raise RapidCosimError("a scheduler address needs the dask backend (--joblib-backend dask)")
 
 
 def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> tuple[list, list]:
@@ -65,6 +73,14 @@ def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> 
     if unknown:
         raise RapidCosimError(f"held-out {', '.join(unknown)}: not among the experiments ({', '.join(names)})")
     return ([e for e in experiments if e.name not in holdout], [e for e in experiments if e.name in holdout])
+
+
+def _fit_jobs(payload, chunk) -> list[CandidateFit]:
+    """Worker: fit the candidates ``chunk`` indexes (what :meth:`Context.fit_many` maps)."""
+    jobs, ctx, options = payload
+    return [fit_candidate(spec, ctx.training, ctx.workdir, options=options, start=start, package=ctx.package,
+                          fmu_dir=ctx.fmu_dir, fmus=ctx.fmus, searches=ctx.options.searches, noise=ctx.models)
+            for spec, start in (jobs[k] for k in chunk)]
 
 
 class Context:
@@ -89,30 +105,61 @@ class Context:
         self._adequacy: dict[tuple, Adequacy] = {}
         self.null: NoiseReplicates | None = None
         self.run_options = RunOptions(method=options.method, seed=options.seed, n_jobs=options.n_jobs,
-                                      estimator_options=options.estimator_options)
+                                      estimator_options=options.estimator_options, backend=options.backend,
+                                      scheduler=options.scheduler).check()
+        # Candidates are independent fits: with local workers each is fitted in a worker
+        # process (its batches then run in that process); on a dask cluster they are
+        # fitted here, one after the other, and their batches go to the cluster.
+        self.parallel = options.n_jobs != 1 and options.backend in ("loky", "multiprocessing")
 
     @property
     def bases(self) -> list[str]:
         return sorted({e.model for e in self.training + self.heldout})
 
     def fit(self, spec: CandidateSpec, start: dict | None = None) -> CandidateFit:
-        for base in self.bases:  # benches not in the package are generated into the work copy
-            if is_generated(bench_name(spec.effects, base)):
-                write_bench(self.package, spec.effects, bench_name(spec.effects, base), base=base,
-                            description=f"{BASES[base]} with {', '.join(spec.effects)} (candidate)")
-        if spec.label not in self.fits:
+        return self.fit_many([(spec, start)])[0]
+
+    def fit_many(self, items) -> list[CandidateFit]:
+        """Each ``(spec, start)`` fitted once (``start`` None: the base model's optimum with
+        the effects off), in worker processes when the options give several."""
+        todo = {}
+        for spec, start in items:
+            for base in self.bases:  # benches not in the package are generated into the work copy
+                if is_generated(bench_name(spec.effects, base)):
+                    write_bench(self.package, spec.effects, bench_name(spec.effects, base), base=base,
+                                description=f"{BASES[base]} with {', '.join(spec.effects)} (candidate)")
+            if spec.label not in self.fits and spec.label not in todo:
+                todo[spec.label] = (spec, start if start is not None else default_start(spec, self.base_parameters()))
+        jobs = list(todo.values())
+        for spec, _ in jobs:
             self.log(f"  fitting {spec.label} ...")
-            fit = fit_candidate(spec, self.training, self.workdir, options=self.run_options,
-                                start=start if start is not None else default_start(spec, self.base_parameters()),
-                                package=self.package, fmu_dir=self.fmu_dir, fmus=self.fmus,
-                                searches=self.options.searches, noise=self.models)
-            self.fits[spec.label] = fit
+        if self.parallel and len(jobs) > 1:
+            build_models(sorted({bench_name(spec.effects, b) for spec, _ in jobs for b in self.bases}),
+                         package=self.package, fmu_dir=self.fmu_dir, log=lambda *_: None)  # once, not per worker
+            payload = (jobs, self, replace(self.run_options, n_jobs=1))
+            engine = JoblibEngine(self.options.n_jobs, self.options.backend)
+            # one chunk per worker, dealt round-robin: the payload (tests, FMUs) travels once per worker
+            chunks = [np.arange(w, len(jobs), engine.workers) for w in range(min(engine.workers, len(jobs)))]
+            order = np.concatenate(chunks)
+            parts = engine.map(_fit_jobs, payload, chunks)
+            fits = [None] * len(jobs)
+            for k, fit in zip(order, (f for part in parts for f in part)):
+                fits[k] = fit
+        else:
+            fits = _fit_jobs((jobs, self, self.run_options), np.arange(len(jobs)))
+        for fit in fits:
+            self.fits[fit.spec.label] = fit
             reached = fit.reached_best()
-            self.log(f"    fitness {fit.fitness:.4g}, BIC {bic(fit, self.noise):.1f}, {fit.nfev} simulations"
-                     + (f", best reached by {reached} of {fit.waterfall.size} starts" if reached is not None else ""))
+            self.log(f"    {fit.spec.label}: fitness {fit.fitness:.4g}, BIC {bic(fit, self.noise):.1f}, "
+                     f"{fit.nfev} simulations" + (f", best reached by {reached} of {fit.waterfall.size} starts"
+                                                  if reached is not None else ""))
             if self.null is None:
                 self._make_null(fit)
-        return self.fits[spec.label]
+        return [self.fits[spec.label] for spec, _ in items]
+
+    def __getstate__(self):  # what a worker needs to fit candidates (not the fits, the null, the log)
+        keep = ("training", "workdir", "package", "fmu_dir", "fmus", "models", "options")
+        return {k: self.__dict__[k] for k in keep}
 
     def _make_null(self, fit: CandidateFit) -> None:
         """The noise replicates of every test, whitened as the fitness whitens them."""

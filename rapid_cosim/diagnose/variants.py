@@ -36,12 +36,10 @@ def check_variants(ctx, chosen: CandidateFit, verdict: Verdict, threshold: float
     if not documented or not parents:
         return chosen, verdict, {}, None
     named_bic = bic(chosen, ctx.noise)
-    tried = {}
-    for parent in parents:
-        for variant in variants_of(parent):
-            spec = CandidateSpec(tuple(variant if e == parent else e for e in physical))
-            fit = ctx.fit(spec, start=default_start(spec, chosen.parameters))
-            tried[spec.label] = fit
+    specs = [CandidateSpec(tuple(variant if e == parent else e for e in physical))
+             for parent in parents for variant in variants_of(parent)]
+    fits = ctx.fit_many([(spec, default_start(spec, chosen.parameters)) for spec in specs])
+    tried = {spec.label: fit for spec, fit in zip(specs, fits)}
     report = {"story": chosen.spec.label, "documented": documented,
               "variants": {label: {"delta_bic": bic(f, ctx.noise) - named_bic, "parameters": f.parameters}
                            for label, f in tried.items()}}

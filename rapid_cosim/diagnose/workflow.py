@@ -71,7 +71,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     base = ctx.fit(CandidateSpec())
     before_tests = ctx.tests(base)
     features = residual_features(training + list(heldout), before_tests, ctx.noise)
-    singles = [ctx.fit(CandidateSpec((name,))) for name in options.candidates]
+    singles = ctx.fit_many([(CandidateSpec((name,)), None) for name in options.candidates])
     ranking = rank([base, *singles], ctx.noise)
 
     not_excluded: list[str] = []
@@ -151,9 +151,9 @@ def _material_checks(ctx: Context, base: CandidateFit, options: DiagnoseOptions)
     found = []
     # Freed documented constants are not held: the documentation stands until the data
     # contradict it, whereas an effect's absence is what "none" claims.
-    for name in (c for c in options.candidates if not CATALOGUE[c].relative):
-        held = tuple((p.name, p.material) for p in CATALOGUE[name].parameters)
-        fit = ctx.fit(CandidateSpec((name,), held))
+    names = [c for c in options.candidates if not CATALOGUE[c].relative]
+    held = [CandidateSpec((name,), tuple((p.name, p.material) for p in CATALOGUE[name].parameters)) for name in names]
+    for name, fit in zip(names, ctx.fit_many([(spec, None) for spec in held])):
         # the held fit estimates no more parameters than none; compare the data terms
         if bic(fit, ctx.noise) - base_bic < options.threshold:
             found.append(name)
@@ -182,12 +182,8 @@ def _confirm(ctx: Context, chosen: CandidateFit, base: CandidateFit, verdict: Ve
 def _second_effect(ctx: Context, chosen: CandidateFit, verdict: Verdict, options: DiagnoseOptions):
     first = chosen.spec.effects
     start = dict(chosen.parameters)
-    combos = []
-    for name in options.candidates:
-        if name in first:
-            continue
-        spec = CandidateSpec(first + (name,))
-        combos.append(ctx.fit(spec, start=default_start(spec, start)))
+    specs = [CandidateSpec(first + (name,)) for name in options.candidates if name not in first]
+    combos = ctx.fit_many([(spec, default_start(spec, start)) for spec in specs])
     ranked = rank([chosen, *combos], ctx.noise)
     best = ranked[0]
     if best.label == chosen.spec.label:

@@ -11,7 +11,10 @@ The method, per start, in unit coordinates (each parameter scaled to [0, 1] by i
 bounds, log-scaled ones by their logarithm):
 
 * Jacobian ``J`` of the residual vector by forward differences of ``fd_step`` (backward
-  at the upper bound);
+  at the upper bound), a batch of ``d`` simulations; between two of them (at most
+  ``broyden_every`` accepted steps apart) Broyden's rank-one update carries it along
+  at no cost, and a step that an updated Jacobian misled, or that looks converged,
+  takes a fresh one: convergence is only declared on a Jacobian taken at the point;
 * steps ``(J'J + lam diag(J'J)) delta = -J' r`` for three damping values ``lam/10, lam,
   10 lam`` at once, clipped into the box; a coordinate on a bound whose gradient points
   out of the box is held there for the step;
@@ -39,11 +42,12 @@ from .base import Tracker, check_option
 class LMOptions:
     max_iter: int = 40
     fd_step: float = 1e-3
-    ftol: float = 1e-6
-    xtol: float = 1e-6
+    ftol: float = 1e-5  # relative: at 4000 samples, 0.04 in the criterion
+    xtol: float = 1e-5
     lam0: float = 1e-3
     lam_max: float = 1e8
-    merge_tol: float = 0.02
+    merge_tol: float = 0.03
+    broyden_every: int = 4  # a finite-difference Jacobian at least every this many accepted steps (0: always)
 
     def __post_init__(self):
         check_option("max_iter", self.max_iter, low=1, integer=True)
@@ -53,6 +57,7 @@ class LMOptions:
         check_option("lam0", self.lam0, low=0.0, low_open=True)
         check_option("lam_max", self.lam_max, low=0.0, low_open=True)
         check_option("merge_tol", self.merge_tol, low=0.0)
+        check_option("broyden_every", self.broyden_every, low=0, integer=True)
 
 
 RUNNING, CONVERGED, STALLED, MERGED, FAILED, MAX_ITER = range(6)
@@ -151,6 +156,8 @@ def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptio
         t.record(np.vstack(pts), np.concatenate(fs), np.concatenate(fails), None, extras)
         pts.clear(), fs.clear(), fails.clear()
 
+    fresh = np.ones(n, dtype=bool)  # J of the start is a finite-difference one taken at its point
+    since = np.zeros(n, dtype=int)  # accepted steps since that one
     record()
     for _ in range(o.max_iter):
         live = [s for s in range(n) if status[s] == RUNNING]
@@ -166,20 +173,27 @@ def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptio
         T = np.array(trials)
         ev, RT = t.evaluate_residuals(T)
         pts.append(T), fs.append(ev.fitness), fails.append(ev.failed)
-        moved = []
+        refresh = []  # starts whose Jacobian is taken again by finite differences
         for s in live:
             iters[s] += 1
             rows = [k for k, o_ in enumerate(owner) if o_ == s and not ev.failed[k] and np.all(np.isfinite(RT[k]))]
             best = min(rows, key=lambda k: (ev.fitness[k], k)) if rows else None
             if best is not None and ev.fitness[best] < f[s]:
                 gain = f[s] - ev.fitness[best]
-                short = np.max(np.abs(T[best] - U[s])) < o.xtol
+                step = T[best] - U[s]
+                done = gain <= o.ftol * max(abs(ev.fitness[best]), 1e-300) or np.max(np.abs(step)) < o.xtol
+                if done and fresh[s]:
+                    status[s] = CONVERGED  # on a Jacobian taken at the point, never on an updated one
+                elif not done and o.broyden_every and since[s] + 1 < o.broyden_every:
+                    # Broyden's rank-one update: J follows what the step showed, no simulation
+                    J[s] = J[s] + np.outer(RT[best] - R[s] - J[s] @ step, step) / float(step @ step)
+                    fresh[s], since[s] = False, since[s] + 1
+                else:
+                    refresh.append(s)
                 U[s], f[s], R[s] = T[best], ev.fitness[best], RT[best]
                 lam[s] = max(lams[best] * 0.3, 1e-12)
-                if gain <= o.ftol * max(abs(f[s]), 1e-300) or short:
-                    status[s] = CONVERGED
-                else:
-                    moved.append(s)
+            elif not fresh[s]:
+                refresh.append(s)  # an updated Jacobian misled the step: take it again before damping more
             else:
                 lam[s] *= 100.0  # the largest trial (10 lam) failed too
                 if lam[s] > o.lam_max or (rows and max(np.max(np.abs(T[k] - U[s])) for k in rows) < o.xtol):
@@ -187,14 +201,14 @@ def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptio
             if status[s] == RUNNING and iters[s] >= o.max_iter:
                 status[s] = MAX_ITER
         _merge(U, f, status, merged, o.merge_tol)
-        moved = [s for s in moved if status[s] == RUNNING]
-        if moved:
-            newJ = _jacobians(t, U, R, moved, free, o.fd_step, pts, fs, fails)
-            for s in moved:
+        refresh = [s for s in refresh if status[s] == RUNNING]
+        if refresh:
+            newJ = _jacobians(t, U, R, refresh, free, o.fd_step, pts, fs, fails)
+            for s in refresh:
                 if newJ[s] is None:
                     status[s] = FAILED
                 else:
-                    J[s] = newJ[s]
+                    J[s], fresh[s], since[s] = newJ[s], True, 0
         record()
     status[status == RUNNING] = MAX_ITER
     run.u, run.f = _shared(U, f, merged)

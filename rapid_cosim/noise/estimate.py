@@ -150,7 +150,7 @@ def _starts(family: str, stretches: Sequence[QuietStretch], dt: float) -> list[n
     else:
         guesses.insert(0, (0.3, 3 * dt))
     out = []
-    for share, tau in guesses:
+    for share, tau in guesses[:1] if family in ("white", "ar1") else guesses[:2]:
         if family == "white":
             out.append(np.array([math.log(sd)]))
         elif family == "ar1":

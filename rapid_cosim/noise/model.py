@@ -173,16 +173,16 @@ def sample_draws(models: "list[RecorderNoise]", times: np.ndarray, rng: np.rando
         raise ValueError("sample_draws needs models of one family")
     dt = np.diff(t)
     for j in range(k):
-        s = np.array([m.components[j][0] for m in models])[:, None]
-        tau = np.array([m.components[j][1] for m in models])[:, None]
-        a = np.exp(-dt[None, :] / tau)  # (rows, n - 1)
-        b = s * np.sqrt(1.0 - a * a)
-        z = rng.standard_normal((rows, t.size))
-        x = np.empty((rows, t.size))
-        x[:, 0] = s[:, 0] * z[:, 0]
+        s = np.array([m.components[j][0] for m in models])
+        tau = np.array([m.components[j][1] for m in models])
+        a = np.exp(-dt[:, None] / tau[None, :])  # (n - 1, rows): time first, so each step is contiguous
+        b = s[None, :] * np.sqrt(1.0 - a * a)
+        z = rng.standard_normal((t.size, rows))
+        x = np.empty((t.size, rows))
+        x[0] = s * z[0]
         for i in range(1, t.size):
-            x[:, i] = a[:, i - 1] * x[:, i - 1] + b[:, i - 1] * z[:, i]
-        out += x
+            x[i] = a[i - 1] * x[i - 1] + b[i - 1] * z[i]
+        out += x.T
     return out
 
 
