@@ -281,7 +281,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="experiment kept out of the fits to confirm the verdict (repeatable)")
         p.add_argument("--results", default=results, help="work and report folder (default %(default)s)")
         p.add_argument("--seed", type=int, default=1)
-        p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s)")
+        p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s; with "
+                       "--joblib-backend dask, 1 or -1 split each batch over every worker of the cluster)")
         p.add_argument("--joblib-backend", default="loky", choices=["loky", "multiprocessing", "sequential", "dask"],
                        help="where the work goes with --n-jobs > 1: candidates fitted in local processes (loky), or "
                             "their batches on a dask cluster (default %(default)s)")
@@ -318,7 +319,8 @@ def build_parser() -> argparse.ArgumentParser:
     runner_option(p)
     p.add_argument("--archive", help="HDF5 archive to write (default <results>/run-<time>.h5)")
     p.add_argument("--results", default="results")
-    p.add_argument("--n-jobs", type=int, default=1, help="worker processes (-1: all cores; default %(default)s)")
+    p.add_argument("--n-jobs", type=int, default=1, help="worker processes (-1: all cores; default %(default)s; "
+                   "with --joblib-backend dask, 1 or -1 split each batch over every worker of the cluster)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     model_options(p)
 

@@ -23,6 +23,7 @@ LOST_WORKER_RETRIES = 3  # times a batch is run again on a fresh pool after a wo
 
 class Engine(Protocol):
     workers: int
+    local: bool  # True: a batch is scored in this process, not mapped
 
     def map(self, fn: Callable[[Any, np.ndarray], Any], payload: Any, chunks: Sequence[np.ndarray]) -> list: ...
 
@@ -32,6 +33,7 @@ class SequentialEngine:
     """Everything in this process."""
 
     workers: int = 1
+    local: bool = True
 
     def map(self, fn, payload, chunks) -> list:
         return [fn(payload, c) for c in chunks]
@@ -56,6 +58,10 @@ class JoblibEngine:
         import joblib
 
         return joblib.cpu_count() if self.n_jobs == -1 else self.n_jobs
+
+    @property
+    def local(self) -> bool:
+        return self.workers == 1
 
     def map(self, fn, payload, chunks) -> list:
         import joblib
@@ -88,7 +94,8 @@ class DaskEngine:
     """
 
     scheduler: str | None = None
-    n_jobs: int = -1  # chunks per batch; -1: one per worker
+    n_jobs: int = -1  # chunks per batch; 1 or -1: one per worker of the cluster
+    local: bool = False  # batches always go to the cluster, even one worker's
 
     def _client(self):
         from distributed import Client, get_client
@@ -106,7 +113,9 @@ class DaskEngine:
 
     @property
     def workers(self) -> int:
-        if self.n_jobs > 0:
+        # --n-jobs defaults to 1, which on a cluster would mean one chunk per batch
+        # (the workers idle but one): the cluster's size sets the parallelism then.
+        if self.n_jobs > 1:
             return self.n_jobs
         return max(len(self._client().scheduler_info()["workers"]), 1)
 

@@ -174,12 +174,12 @@ class ProblemObjective:
         return Evaluations(fitness, rssd, failed), (blocks[0] if blocks else None)
 
     def _score(self, X: np.ndarray, residuals: bool = False):
-        workers = 1 if X.shape[0] == 1 else self.engine.workers
-        if workers == 1:
+        # One row (a Nelder-Mead step) is scored here: shipping the payload would cost more.
+        if X.shape[0] == 1 or self.engine.local:
             if self._batches is None:
                 self._batches = _prepare(self.payload)
             return _score_chunk(self.payload, X, self._batches, residuals)
-        chunks = [c for c in np.array_split(np.arange(X.shape[0]), min(workers, X.shape[0])) if c.size]
+        chunks = [c for c in np.array_split(np.arange(X.shape[0]), min(self.engine.workers, X.shape[0])) if c.size]
         parts = self.engine.map(functools.partial(_score_chunk, residuals=residuals) if residuals else _score_chunk,
                                 self.payload, [X[c] for c in chunks])
         out = (np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),

@@ -85,10 +85,10 @@ def expected(config, tmp_path_factory):
                      tmp_path_factory.mktemp("local") / "local.h5", progress=False)
 
 
-def _estimate(config, archive, cluster, repo):
+def _estimate(config, archive, cluster, repo, n_jobs=("--n-jobs", "2")):
     cmd = [sys.executable, "-m", "rapid_cosim.cli", "estimate", str(config), "--method", METHOD, "--seed", "2",
            "--runner", "python", "--option", f"pf.n_particles={PARTICLES}", "--joblib-backend", "dask",
-           "--scheduler", cluster.address, "--n-jobs", "2", "--archive", str(archive), "--quiet"]
+           "--scheduler", cluster.address, *n_jobs, "--archive", str(archive), "--quiet"]
     return subprocess.Popen(cmd, cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -108,6 +108,26 @@ def _wait(archive: Path, n: int, proc, timeout: float = 120.0) -> None:
 def _result(archive):
     with RunArchive(archive) as view:
         return view.result()
+
+
+def _cpu_seconds(pid: int) -> float:
+    import psutil
+
+    t = psutil.Process(pid).cpu_times()
+    return t.user + t.system
+
+
+def test_the_default_n_jobs_puts_the_work_on_the_cluster(config, expected, cluster, tmp_path, repo):
+    """Without --n-jobs (1), the batches still go to every worker of the cluster: each
+    worker spends seconds computing, not only the client."""
+    before = [_cpu_seconds(w.pid) for w in cluster.workers]
+    proc = _estimate(config, tmp_path / "cluster.h5", cluster, repo, n_jobs=())
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    used = [_cpu_seconds(w.pid) - b for w, b in zip(cluster.workers, before)]
+    assert min(used) > 1.0, used
+    result = _result(tmp_path / "cluster.h5")
+    assert np.array_equal(result.x, expected.x) and result.fun == expected.fun
 
 
 def test_a_killed_worker_leaves_the_result_bit_for_bit(config, expected, cluster, tmp_path, repo):

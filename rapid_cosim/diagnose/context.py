@@ -22,6 +22,7 @@ from ..engine import JOBLIB_BACKENDS, JoblibEngine
 from ..errors import RapidCosimError
 from ..experiment import Experiment
 from ..noise import campaign_noise
+from ..simulator import DEFAULT_RUNNER
 from .adequacy import Adequacy, adequacy
 from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, jacobian_at, \
     residuals_at
@@ -53,6 +54,7 @@ class DiagnoseOptions:
     scheduler: str | None = None
     replicates: int = REPLICATES  # of the adequacy null's bootstrap
     judge: tuple[str, ...] = ()  # candidate labels whose adequacy is reported too (e.g. a study's truth)
+    runner: str = DEFAULT_RUNNER  # the simulator runner of every fit (see rapid_cosim.simulator)
 
     def __post_init__(self):
         wrong = [c for c in self.candidates if c not in CATALOGUE]
@@ -106,7 +108,7 @@ class Context:
         self.null: NoiseReplicates | None = None
         self.run_options = RunOptions(method=options.method, seed=options.seed, n_jobs=options.n_jobs,
                                       estimator_options=options.estimator_options, backend=options.backend,
-                                      scheduler=options.scheduler).check()
+                                      scheduler=options.scheduler, runner=options.runner).check()
         # Candidates are independent fits: with local workers each is fitted in a worker
         # process (its batches then run in that process); on a dask cluster they are
         # fitted here, one after the other, and their batches go to the cluster.
