@@ -85,6 +85,9 @@ bench-structures: fmus  ## confusion matrix of structure selection on synthetic 
 bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5)
 	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS)
 
+bench-speed: fmus  ## where a diagnosis spends its time: field, four-test and event campaigns, before and after
+	$(PY) benchmarks/speed.py
+
 bench: fmus  ## print the performance figures
 	$(PY) benchmarks/run.py
 

@@ -35,6 +35,21 @@ def test_reuse_gives_identical_runs_and_p_ref_reinitialises(staged):
     assert a["pm"][0] == pytest.approx(0.7, abs=1e-12)  # steady start follows p_ref set at run time
 
 
+def test_a_repeated_grid_reuses_its_prepared_batch_and_results_stay_apart(fmus):
+    sim = Simulator(fmus["StagedTest"])
+    grid = dict(stop_time=30, output_interval=0.05)
+    a = sim.simulate({"gov.Ts": 2.0}, **grid)
+    assert len(sim._batches) == 1
+    b = sim.simulate({"gov.Ts": 9.0}, **grid)
+    assert len(sim._batches) == 1 and not np.array_equal(a["pm"], b["pm"])  # one batch, separate results
+    fresh = sim.prepare(["gov.Ts"], **grid).run(np.array([[2.0]])).trajectory(0)
+    assert np.array_equal(sim.simulate({"gov.Ts": 2.0}, **grid)["pm"], fresh["pm"])
+    c = sim.simulate({"gov.Ts": 2.0}, stop_time=20, output_interval=0.05)
+    assert c.time[-1] == pytest.approx(20) and len(sim._batches) == 2
+    with pytest.raises(ValueError):  # the shared time base cannot be changed through a result
+        a.time[0] = 1.0
+
+
 def test_trajectory_covers_a_stop_time_off_the_grid(staged):
     traj = staged.simulate({}, stop_time=10.03, output_interval=0.05)
     assert traj.time[-1] >= 10.03 and np.allclose(np.diff(traj.time), 0.05)

@@ -101,6 +101,7 @@ class Simulator:
         self.relative_tolerance = relative_tolerance
         self.runner = check_runner(runner)
         self._runners: dict[str, object] = {}
+        self._batches: dict[tuple, PreparedBatch] = {}
 
     # the FMU's declarations
     name = property(lambda self: self.fmu.name)
@@ -167,7 +168,21 @@ class Simulator:
         rows; a repeated time is a step. ``check`` validates every value against the
         declared ranges (callers that checked their bounds once may skip it).
         """
-        return self.prepare(names, **kwargs).run(values, check=check)
+        return self._prepared(names, kwargs).run(values, check=check)
+
+    def _prepared(self, names: Sequence[str], kwargs: dict) -> "PreparedBatch":
+        """:meth:`prepare`, remembered for a repeated call on the same grid without inputs
+        (a notebook's parameter sweep through ``rc.simulate``), the latest few kept."""
+        if kwargs.get("inputs") is not None or kwargs.get("output_times") is not None:
+            return self.prepare(names, **kwargs)
+        outputs = kwargs.get("outputs")
+        key = (tuple(names), None if outputs is None else tuple(outputs), self.timeout,
+               *(kwargs.get(k) for k in ("start_time", "stop_time", "output_interval", "runner")))
+        batch = self._batches.pop(key, None) or self.prepare(names, **kwargs)
+        self._batches[key] = batch  # most recent last
+        while len(self._batches) > _PREPARED_KEPT:
+            self._batches.pop(next(iter(self._batches)))
+        return batch
 
     def _run_reference(self, loop, names, values, record, types, start_time, times, table):
         out = np.full((values.shape[0], times.size, len(record)), np.nan)
@@ -210,6 +225,7 @@ class Simulator:
         return result.trajectory(0)
 
     def close(self) -> None:
+        self._batches.clear()
         for r in self._runners.values():
             r.close()
         self._runners.clear()
@@ -220,6 +236,7 @@ class PreparedBatch:
     """What :meth:`Simulator.prepare` returns: call :meth:`run` with a value table."""
 
     def __init__(self, sim: Simulator, names: list[str], outputs: tuple[str, ...], times: np.ndarray, call):
+        times.flags.writeable = False  # shared by every result of the batch
         self.sim, self.names, self.outputs, self.time, self._call = sim, names, outputs, times, call
 
     def run(self, values, check: bool = False) -> BatchResult:
@@ -237,6 +254,8 @@ class PreparedBatch:
 def _describe(params: Mapping[str, float]) -> str:
     return ", ".join(f"{k}={v:.6g}" for k, v in params.items()) or "default parameters"
 
+
+_PREPARED_KEPT = 8  # prepared batches a simulator remembers (see Simulator._prepared)
 
 # The package's only global state: per process, the simulators of the FMUs it has loaded.
 _CACHE: dict[tuple, Simulator] = {}
