@@ -149,9 +149,23 @@ typedef struct Plan {
 
 static double *ex_alloc(size_t n) { return calloc(n ? n : 1, sizeof(double)); }
 
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
+/* the k-th smallest of a[0..n) (a is reordered): Hoare's selection, O(n) on average,
+ * where sorting a recorded event's 6000 steps took most of a plan's time */
+static double select_kth(double *a, int n, int k) {
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        double pivot = a[lo + (hi - lo) / 2], t;
+        int i = lo, j = hi;
+        while (i <= j) {
+            while (a[i] < pivot) i++;
+            while (a[j] > pivot) j--;
+            if (i <= j) { t = a[i]; a[i] = a[j]; a[j] = t; i++; j--; }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;
+    }
+    return a[k];
 }
 
 static void ex_kernels(struct Plan *p);
@@ -264,8 +278,7 @@ RC_EXPORT Plan *rc_plan_new(Runner *r, const Batch *b, const fmi2ValueReference 
             double h = p->g[k] - (k ? p->g[k - 1] : t0);
             if (h > 0) steps[n_steps++] = h;
         }
-        qsort(steps, (size_t)n_steps, sizeof(double), cmp_double);
-        med = n_steps ? steps[n_steps / 2] : (t_end > t0 ? t_end - t0 : 1.0);
+        med = n_steps ? select_kth(steps, n_steps, n_steps / 2) : (t_end > t0 ? t_end - t0 : 1.0);
         p->h_lo = INFINITY;
         p->h_hi = 0.0;
         for (k = 0; k < n_steps; k++) {

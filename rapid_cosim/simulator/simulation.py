@@ -26,6 +26,7 @@ and raises :class:`SimulationError` or :class:`SimulationTimeout` instead.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -171,13 +172,11 @@ class Simulator:
         return self._prepared(names, kwargs).run(values, check=check)
 
     def _prepared(self, names: Sequence[str], kwargs: dict) -> "PreparedBatch":
-        """:meth:`prepare`, remembered for a repeated call on the same grid without inputs
-        (a notebook's parameter sweep through ``rc.simulate``), the latest few kept."""
-        if kwargs.get("inputs") is not None or kwargs.get("output_times") is not None:
-            return self.prepare(names, **kwargs)
-        outputs = kwargs.get("outputs")
-        key = (tuple(names), None if outputs is None else tuple(outputs), self.timeout,
-               *(kwargs.get(k) for k in ("start_time", "stop_time", "output_interval", "runner")))
+        """:meth:`prepare`, remembered for a repeated call on the same grid and inputs (a
+        notebook's parameter sweep through ``rc.simulate``), the latest few kept. Arrays
+        enter the key by a digest of their bytes: planning a recorded event costs more than
+        its run, hashing it (SHA-1) a tenth of that."""
+        key = (tuple(names), self.timeout, *(_content(kwargs.get(k)) for k in sorted(kwargs)))
         batch = self._batches.pop(key, None) or self.prepare(names, **kwargs)
         self._batches[key] = batch  # most recent last
         while len(self._batches) > _PREPARED_KEPT:
@@ -249,6 +248,20 @@ class PreparedBatch:
         described = tuple(m and f"{self.sim.name} failed with {_describe(dict(zip(self.names, row)))}: {m}"
                           for m, row in zip(messages, values))
         return BatchResult(self.time, self.outputs, out, np.asarray(status), described)
+
+
+def _content(value):
+    """A hashable stand-in for a keyword of :meth:`Simulator.prepare` (see ``_prepared``)."""
+    if value is None or isinstance(value, (str, int, float)):
+        return value
+    if isinstance(value, InputTable):
+        return ("table", value.names, _content(value.time), _content(value.values))
+    if isinstance(value, Mapping):
+        return tuple((k, _content(v)) for k, v in value.items())
+    array = np.asarray(value)
+    if array.dtype == object:
+        return tuple(map(_content, value))
+    return (array.dtype.str, array.shape, hashlib.sha1(np.ascontiguousarray(array).data).digest())
 
 
 def _describe(params: Mapping[str, float]) -> str:
