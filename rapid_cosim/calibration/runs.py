@@ -27,6 +27,7 @@ from ..estimators import parse_method, run_chain
 from ..estimators.base import EstimationResult, Iteration
 from ..experiment import Experiment
 from ..objective import ProblemObjective
+from ..simulator import get_simulator
 from .inputs import RunInputs, inputs_from_archive, log_likelihood_for
 from .options import RunOptions, stage_options
 from .replay import RecordingObjective, same_iteration
@@ -55,8 +56,15 @@ class _Progress:
             self.bar.close()
 
 
+def _simulation_paths(inputs: RunInputs, options: RunOptions) -> dict[str, str]:
+    """Per model, what simulates it: the FMU's kind and the driver ("FMI 3.0 Co-Simulation,
+    C driver"), as archives record it."""
+    return {model: get_simulator(ref).run_path(options.runner) for model, ref in inputs.fmus.items()}
+
+
 def _archive_options(options: RunOptions, inputs: RunInputs) -> dict:
     return {**options.to_json(), "rapid_cosim_version": __version__,
+            "simulation_paths": _simulation_paths(inputs, options),
             "experiments": {e.name: {"config_path": str(e.config_path), "model": e.model,
                                      "time_column": e.time_column,
                                      "files": {s.file: s.time for s in e.inputs if s.file is not None}}
@@ -215,8 +223,11 @@ def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None
         options = _resumed_options(view, n_jobs, backend, scheduler)
         stored = view.iterations()
         archived = view.result()
+        recorded = view.options.get("simulation_paths")
     objective = _objective(inputs, options)
     differences: list[str] = []
+    if recorded and recorded != _simulation_paths(inputs, options):
+        differences.append(f"simulation path: archived {recorded}, now {_simulation_paths(inputs, options)}")
 
     def on_iteration(it: Iteration) -> None:
         if it.index >= len(stored):
