@@ -139,6 +139,7 @@ def start_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *, pr
             data=_all_data(problem.experiments),
             n_experiments=len(problem.experiments)) as writer, _interruptible(writer):
         result = _execute(inputs, options, objective, lambda it: writer.append(it, objective.rssd_of(it.x)), progress)
+        result = replace(result, failure_messages=tuple(objective.objective.failures.messages))
         writer.finish(result)
     return result
 
@@ -187,7 +188,9 @@ def resume_run(archive: str | Path, *, n_jobs: int | None = None, backend: str |
             writer.append(replace(it, wall_time=it.wall_time + clock["offset"]), objective.rssd_of(it.x))
 
         result = _execute(inputs, options, objective, on_iteration, progress)
-        result = replace(result, wall_time=result.wall_time + clock["offset"])
+        # the failures kept are those this process simulated (replayed ones are not run again)
+        result = replace(result, wall_time=result.wall_time + clock["offset"],
+                         failure_messages=tuple(objective.objective.failures.messages))
         writer.finish(result)
     return result
 
@@ -243,6 +246,8 @@ def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None
         if not (np.array_equal(result.x, archived.x) and result.fun == archived.fun and result.nfev == archived.nfev
                 and result.nit == archived.nit):
             differences.append("final result")
+        elif archived.failure_messages and archived.failure_messages != tuple(objective.objective.failures.messages):
+            differences.append("the failed simulations' messages")
     elif len(stored) > result.nit:
         differences.append(f"the archive holds {len(stored)} iterations, the re-run made only {result.nit}")
     return RerunReport(identical=not differences, iterations_compared=min(len(stored), result.nit),
