@@ -167,7 +167,7 @@ def test_a_fixed_step_fmu_is_driven_on_its_grid_and_read_between(kinds, kind):
 
 @pytest.mark.parametrize("kind", CS_KINDS)
 def test_a_smaller_communication_step_splits_the_intervals(kinds, kind):
-    from rapid_cosim.simulator.cosim import plan_communication
+    from rapid_cosim.simulator.communication import plan_communication
 
     sim = Simulator(kinds["DroopPlant", kind])
     t = np.linspace(0.0, 2.0, 5)
