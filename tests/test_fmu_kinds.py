@@ -65,6 +65,22 @@ def test_each_kind_runs_through_its_own_path(kinds, kind):
         assert sim.run_path("python") == f"{sim.kind}, fmpy loop"
 
 
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_an_fmu_with_both_interfaces_runs_model_exchange_unless_asked(version, tmp_path):
+    from c_fmus import build_c_fmu
+    from rapid_cosim.errors import FmuError
+
+    both = build_c_fmu("DroopPlant", tmp_path, fmi_version=version, model_exchange=True, co_simulation=True)
+    inputs = dict(output_times=np.linspace(0.0, 5.0, 51), input_time=np.array([0.0, 1.0, 1.0, 5.0]),
+                  inputs={"dw": np.array([0.0, 0.0, 0.01, 0.01])})
+    me, cs = Simulator(both), Simulator(both, interface="CoSimulation")
+    assert me.kind == f"FMI {version} Model Exchange" and cs.kind == f"FMI {version} Co-Simulation"
+    assert np.max(np.abs(me.simulate({}, **inputs)["p"] - cs.simulate({}, **inputs)["p"])) < 1e-9
+    only_me = build_c_fmu("DroopPlant", tmp_path, fmi_version=version)
+    with pytest.raises(FmuError, match="no Co-Simulation interface; the FMU offers Model Exchange"):
+        Simulator(only_me, interface="CoSimulation")
+
+
 # --------------------------------------------------------------------------- the droop plant twin
 
 
