@@ -20,6 +20,10 @@ input       the FrequencyInput bench driven by a 110 s recorded frequency at 25 
 pf          one particle-filter iteration of 100 particles on staged test 1, one core,
             with each runner; then batches of 100 to 4000 sets on one and two workers.
 archive     writing and reading a run's archive.
+fmi         every kind of FMU (FMI 2.0 / 3.0 x Model Exchange / Co-Simulation): speed
+            against a fresh fmpy.simulate_fmu, accuracy against closed forms, the
+            Co-Simulation C driver against its fmpy loop, and memory over 10,000
+            simulations and 1,000 instantiations per kind (see fmi_kinds.py).
 
 Times are the best of a few repeats (the machine may be shared); ratios compare paths
 measured in the same run.
@@ -262,7 +266,14 @@ def bench_archive() -> None:
         print(f"  {key:40s} {value}")
 
 
-SECTIONS = {"simulation": bench_simulation, "api": bench_api, "input": bench_input, "pf": bench_pf, "archive": bench_archive}
+def bench_fmi_kinds() -> None:
+    from fmi_kinds import bench_fmi
+
+    bench_fmi()
+
+
+SECTIONS = {"simulation": bench_simulation, "api": bench_api, "input": bench_input, "pf": bench_pf,
+            "archive": bench_archive, "fmi": bench_fmi_kinds}
 
 
 def main(argv: list[str]) -> int:

@@ -228,9 +228,10 @@ def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mappi
              stop_time: float | None = None, output_interval: float | None = None, output_times=None,
              outputs: Sequence[str] | None = None, input_time=None, inputs: Mapping[str, np.ndarray] | None = None,
              runner: str = DEFAULT_RUNNER, timeout: float | None = None, package: str | Path = PACKAGE,
-             fmu_dir: str | Path = FMU_DIR, compiler: str = "auto") -> Trajectory | BatchResult:
-    """Simulate a model of the package (a class name, built if needed) or any FMI 2.0
-    Model Exchange FMU (a path ending in ``.fmu``).
+             fmu_dir: str | Path = FMU_DIR, compiler: str = "auto",
+             communication_step: float | None = None) -> Trajectory | BatchResult:
+    """Simulate a model of the package (a class name, built if needed) or any FMI 2.0 or
+    3.0 FMU, Model Exchange or Co-Simulation (a path ending in ``.fmu``).
 
     ``parameters`` is one set (names to numbers): a :class:`Trajectory` is returned, and
     a failure raises. Or a batch: a sequence of such mappings, or a mapping of names to
@@ -238,11 +239,15 @@ def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mappi
     :class:`BatchResult` whose ``values`` are (sets x times x outputs), a failed set
     carrying its status and message instead of raising. The FMU is loaded once per
     process (and again only when its file changes), so repeated calls cost a simulation.
+
+    A model that asks to terminate (FMI terminateSimulation) before ``stop_time`` gives
+    the trajectory up to then, with a warning. ``communication_step`` (s) bounds a
+    Co-Simulation FMU's communication step, or sets it where the FMU needs a fixed one.
     """
     fmu = ensure_fmu(str(model), package=package, fmu_dir=fmu_dir, compiler=compiler)
     sim = get_simulator(fmu, timeout=timeout)
     grid = dict(stop_time=stop_time, output_interval=output_interval, output_times=output_times, outputs=outputs,
-                input_time=input_time, inputs=inputs, runner=runner)
+                input_time=input_time, inputs=inputs, runner=runner, communication_step=communication_step)
     batch = _as_batch(parameters)
     if batch is None:
         return sim.simulate(parameters, **grid)

@@ -49,7 +49,8 @@ def cmd_simulate(args) -> int:
 
     traj = simulate(args.model, _assignments(args.set), stop_time=args.stop_time,
                     output_interval=args.output_interval, outputs=args.outputs.split(",") if args.outputs else None,
-                    timeout=args.timeout, runner=args.runner, **_models(args))
+                    timeout=args.timeout, runner=args.runner, communication_step=args.communication_step,
+                    **_models(args))
     names = list(traj.outputs)
     out = open(args.out, "w", newline="") if args.out else sys.stdout
     try:
@@ -301,6 +302,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output-interval", type=float, default=0.05)
     p.add_argument("--outputs", help="comma-separated variables to record (default: the model's outputs)")
     p.add_argument("--timeout", type=float, default=None, help="wall-clock limit in seconds")
+    p.add_argument("--communication-step", type=float, default=None, metavar="SECONDS",
+                   help="Co-Simulation FMUs: the largest communication step (the fixed one where the FMU "
+                        "cannot vary it); default: the output grid")
     p.add_argument("--out", help="CSV file (default: standard output)")
     runner_option(p)
     model_options(p)

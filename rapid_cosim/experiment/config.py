@@ -49,6 +49,9 @@ Schema (keys not shown here are rejected, with a suggestion when one is close)::
     output_interval = 0.02   # fine grid, then sampled onto the measured times;
                              # default: half the median measured sample interval
     timeout = 10.0           # wall-clock seconds per simulation, default 30
+    communication_step = 0.01  # Co-Simulation FMUs only: the largest communication step
+                             # (the fixed one where the FMU cannot vary it); default: the
+                             # measured samples and input rows (see simulator.cosim)
 
 Estimate entries: ``min`` and ``max`` (required numbers, ``min < max``), ``label``
 (default: the name), ``scale`` (``"linear"``, or ``"log"`` for a positive range spanning
@@ -98,7 +101,7 @@ _SECTIONS: dict[str, frozenset[str] | None] = {
     "fixed": None,  # parameter names
     "estimate": None,
     "fitness": frozenset({"window", "weights", "offset", "noise", "pre_step_end"}),
-    "simulation": frozenset({"start_time", "stop_time", "output_interval", "timeout"}),
+    "simulation": frozenset({"start_time", "stop_time", "output_interval", "timeout", "communication_step"}),
     "noise": None,  # output names (rapid_cosim.experiment.recorder)
 }
 _REQUIRED_SECTIONS = ("experiment", "data")
@@ -436,7 +439,11 @@ def _read_simulation(s: dict, inside: MeasuredData, cfg: "_Reader") -> Simulatio
                           f"({start:g} s to {stop:g} s)", cfg.file, "simulation.output_interval")
     timeout = _positive(cfg.number(s.get("timeout", DEFAULT_TIMEOUT), "simulation.timeout"),
                         cfg, "simulation.timeout")
-    return SimulationSettings(start, stop, interval, timeout)
+    step = None
+    if "communication_step" in s:
+        step = _positive(cfg.number(s["communication_step"], "simulation.communication_step"),
+                         cfg, "simulation.communication_step")
+    return SimulationSettings(start, stop, interval, timeout, step)
 
 
 class _Reader:

@@ -1032,7 +1032,7 @@ static int ex_run_set(Runner *r, Plan *p, const double *params, double *out, dou
     if (p->m) input_at(r, t, p->u); /* the values just set */
     FMI(r->fmi.enter_init(r->c), "fmi2EnterInitializationMode");
     FMI(r->fmi.exit_init(r->c), "fmi2ExitInitializationMode");
-    if ((s = update_discrete(r, &has_event, &t_event))) return s;
+    if ((s = update_discrete(r, &has_event, &t_event))) return STOPPED(s, 0, t);
     FMI(r->fmi.enter_continuous(r->c), "fmi2EnterContinuousTimeMode");
     max_step = (b->times[b->n_times - 1] - b->start_time) / 50.0;
     if (r->span[0] != b->start_time || r->span[1] != b->times[b->n_times - 1]) {
@@ -1098,13 +1098,13 @@ static int ex_run_set(Runner *r, Plan *p, const double *params, double *out, dou
                     }
                     if (s) return s;
                 }
-                if (cvode && next > t && (s = advance(r, next, &t, &has_event, &t_event))) return s;
+                if (cvode && next > t && (s = advance(r, next, &t, &has_event, &t_event))) return STOPPED(s, k, t);
             }
             if (ts <= next) r->limit_row = step_row = next_input_step(r, ts); /* the step is taken now */
             if (cvode) {
-                if ((s = handle_event(r, t, &has_event, &t_event))) return s;
+                if ((s = handle_event(r, t, &has_event, &t_event))) return STOPPED(s, k, t);
             } else if ((s = ex_event(r, p, t, &has_event, &t_event))) {
-                return s;
+                return STOPPED(s, k, t);
             }
         }
         if (tk > t) {
@@ -1117,7 +1117,7 @@ static int ex_run_set(Runner *r, Plan *p, const double *params, double *out, dou
                 }
                 if (s) return s;
             }
-            if (cvode && tk > t && (s = advance(r, tk, &t, &has_event, &t_event))) return s;
+            if (cvode && tk > t && (s = advance(r, tk, &t, &has_event, &t_event))) return STOPPED(s, k, t);
         }
         *t_reached = t;
         if (!cvode && p->y_valid) {
@@ -1178,13 +1178,9 @@ RC_EXPORT int rc_run_exp(Runner *r, const Batch *b, Plan *p, double *out, int *s
             continue;
         }
         r->deadline = b->timeout > 0 ? now() + b->timeout : 0.0;
-        status[i] = ex_run_set(r, p, b->param_values + (size_t)b->n_params * i, o, &t_reached[i]);
+        status[i] = finish_set(r, ex_run_set(r, p, b->param_values + (size_t)b->n_params * i, o, &t_reached[i]), o);
         memcpy(messages + (size_t)MSG_LEN * i, r->message, MSG_LEN);
-        if (status[i] != RC_OK) {
-            for (j = 0; j < per_set; j++) o[j] = NAN;
-            failed++;
-            recover(r);
-        }
+        if (status[i] != RC_OK) failed++;
     }
     r->b = NULL;
     return r->c ? failed : -1;
