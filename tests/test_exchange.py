@@ -258,3 +258,84 @@ def test_andes_reads_every_exported_dyr_value_and_runs_the_case(model, tmp_path)
         pytest.skip("andes 2.0 has no GGOV1 model: its psse-dyr.yaml reads all 35 GGOV1 fields (checked above) "
                     "but builds a TGOV1 with only R from them ('destination: TGOV1', marked TODO), so only R "
                     "reaches a simulation")
+
+
+# --- in the product: export of an archive, a record as a config's documented constants ----
+
+TGOV1_FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0, "gov.VMAX": 0.95, "gov.T3": 6.0}
+
+
+@pytest.fixture(scope="module")
+def tgov1_run(fmus, tmp_path_factory):
+    """A short calibration of a synthetic TGOV1 staged test (R and T1 estimated)."""
+    import rapid_cosim as rc
+    from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+
+    work = tmp_path_factory.mktemp("export")
+    t, y = synthesize(fmus["StagedTestTGOV1"], {**TGOV1_FIXED, "gov.R": 0.06, "gov.T1": 0.5}, duration=30.0,
+                      noise=NoiseModel(white_sigma=0.0008), rng=np.random.default_rng(1))
+    config = write_experiment(work / "step", model="iGrGen.TestBenches.StagedTestTGOV1", time=t, values=y,
+                              fixed=TGOV1_FIXED, estimate={"gov.R": {"min": 0.02, "max": 0.12},
+                                                           "gov.T1": {"min": 0.1, "max": 2.0}})
+    fit = rc.calibrate(config, "nm", archive=work / "run.h5", options={"nm": {"max_fev": 40}})
+    return work, config, fit
+
+
+def test_export_writes_the_archived_calibration(tgov1_run):
+    import rapid_cosim as rc
+    from rapid_cosim.cli import main
+
+    work, _, fit = tgov1_run
+    written = rc.export(fit.archive, work / "unit.dyr", bus=5, machine_id="2")
+    record = read_record(work / "unit.dyr")
+    assert (written.model, record.bus, record.machine_id) == ("TGOV1", 5, "2")
+    expected = {"R": fit.parameters["gov.R"], "T1": fit.parameters["gov.T1"], "VMAX": 0.95, "T3": 6.0,
+                "VMIN": 0.0, "T2": 2.5, "Dt": 0.0}  # estimated, fixed, the bench's defaults
+    assert record.values == expected
+    assert main(["export", str(fit.archive), "--out", str(work / "unit.dyd"), "--mva", "110", "--bus", "5"]) == 0
+    assert read_record(work / "unit.dyd").values == expected and read_record(work / "unit.dyd").mva == 110.0
+    assert main(["export", str(fit.archive), "--out", str(work / "unit.dyd")]) == 2  # no --mva for a .dyd
+
+
+def test_export_refuses_a_bench_without_a_standard_governor(fmus, tmp_path):
+    import rapid_cosim as rc
+    from conftest import synthetic_config
+
+    from rapid_cosim.errors import ConfigError
+
+    fit = rc.calibrate(synthetic_config(fmus["StagedTest"], tmp_path / "tg", seed=1), "nm",
+                       archive=tmp_path / "tg.h5", options={"nm": {"max_fev": 10}})
+    with pytest.raises(ConfigError, match="carries none of the standard governors"):
+        rc.export(fit.archive, tmp_path / "unit.dyr")
+
+
+def test_a_config_takes_its_documented_constants_from_a_record(tgov1_run, tmp_path):
+    from rapid_cosim.diagnose.structures import Structure
+    from rapid_cosim.errors import ConfigError
+    from rapid_cosim.experiment import load_experiment, parse_experiment
+
+    work, config, _ = tgov1_run
+    record = {"R": 0.055, "T1": 0.4, "VMAX": 0.9, "VMIN": 0.1, "T2": 2.0, "T3": 5.5, "Dt": 0.2}
+    psse_dyr.write_record(tmp_path / "unit.dyr", "TGOV1", record, bus=1)
+    text = config.read_text()
+    assert '"gov.T3" = 6.0' in text
+    text = text.replace("[fixed]\n", f'[fixed]\ndocumented = "{tmp_path / "unit.dyr"}"  # the OEM data\n')
+    (config.parent / "documented.toml").write_text(text)
+    exp = load_experiment(config.parent / "documented.toml")
+    assert {k: v for k, v in exp.fixed.items() if k.startswith("gov.")} == {
+        "gov.p_ref": 0.6, "gov.VMAX": 0.95, "gov.T3": 6.0,  # stated in the config: kept
+        "gov.VMIN": 0.1, "gov.T2": 2.0, "gov.Dt": 0.2}  # from the record; R and T1 stay estimated
+    assert not re.search(r"^documented", exp.config_text, re.M) and "gov.R: 0.055 in the record, estimated here" in exp.config_text
+    again = parse_experiment(exp.config_text, exp.config_path, data=exp.data)  # as from an archive: no record read
+    assert again.fixed == exp.fixed
+
+    structure = tmp_path / "TGOV1.toml"
+    structure.write_text((STRUCTURES / "TGOV1.toml").read_text().replace("[fixed]\n", '[fixed]\ndocumented = "unit.dyr"\n'))
+    assert Structure.load(structure).fixed == {"gov.VMAX": 1.0, "gov.VMIN": 0.0, "gov.Dt": 0.0}  # stated: kept
+    structure.write_text((STRUCTURES / "TGOV1.toml").read_text().replace(
+        '"gov.VMAX" = 1.0\n"gov.VMIN" = 0.0\n"gov.Dt" = 0.0\n', 'documented = "unit.dyr"\n'))
+    assert Structure.load(structure).fixed == {"gov.VMAX": 0.9, "gov.VMIN": 0.1, "gov.Dt": 0.2}
+
+    (tmp_path / "unit.dyr").write_text("1 'TGOV1' 1 0.05 0.5 one 0.0 2.5 7.5 0.0 /\n")
+    with pytest.raises(ConfigError, match=r"\[fixed.documented\]: .*unit.dyr:1: field VMAX = 'one'"):
+        load_experiment(config.parent / "documented.toml")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import ParameterError
 from . import pslf_dyd, psse_dyr
 from .tables import MODELS, ExchangeWarning, Record, Written, model_named
 
@@ -18,7 +19,7 @@ def format_of(path: str | Path) -> str:
     """``dyr`` or ``dyd``, from a file's suffix."""
     suffix = Path(path).suffix.lower().lstrip(".")
     if suffix not in FORMATS:
-        raise ValueError(f"{path}: a record file ends in .dyr (PSS/E) or .dyd (PSLF)")
+        raise ParameterError(f"{path}: a record file ends in .dyr (PSS/E) or .dyd (PSLF)")
     return suffix
 
 
