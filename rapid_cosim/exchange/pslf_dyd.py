@@ -17,10 +17,13 @@ model has not. PSS/E-only fields (IEEEG1's ``JBUS``/``M``, GGOV1's ``Trate``) ha
 keyword: ``mva=`` is the base.
 
 Sources and their limits: the keyword names and positional orders follow PSLF as public
-secondary sources show it (the CIM ``GovCT1`` class, derived from PSLF's ggov1, for
-ggov1's order; PSLF's lower-case PSS/E names otherwise; ``rr`` for HYGOV's temporary
-droop, since PSLF keywords are case-blind and ``r`` is the permanent droop). GE's PSLF
-manual was not available to check them: check the first exported record in PSLF.
+secondary sources show it: the CIM dynamics classes derived from PSLF's models
+(``GovSteam0`` for tgov1, ``GovSteamIEEE1`` for ieeeg1, ``GovCT1`` for ggov1 with its
+``pmwset`` after ``kimw``, ``GovHydro1`` for hygov's ``rperm``/``rtemp``), and readers of
+PSLF files (GridDyn takes hygov's first 12, ieeeg1's first 20 and ggov1's first 35
+positional values). GE's PSLF manual was not available to check them: check the first
+exported record in PSLF. Positional records of ieeeg1 and hygov longer than these
+prefixes (PSLF's deadband and gate-curve extensions) are rejected, not truncated.
 """
 
 from __future__ import annotations
@@ -129,9 +132,9 @@ def _fields(table: Model, tokens: list[str], file: str, line: int) -> tuple[floa
             if f is None:
                 raise RecordError(f"{table.pslf_name} has no such field", file, line, name, value,
                                   " ".join(table.pslf_order))
-            if f.psse in keyed:
+            if f.key in keyed:
                 raise RecordError("given twice", file, line, name, value)
-            keyed[f.psse] = (name, value)
+            keyed[f.key] = (name, value)
         else:
             positional.append(token)
     if keyed and positional:
@@ -141,13 +144,13 @@ def _fields(table: Model, tokens: list[str], file: str, line: int) -> tuple[floa
         if len(positional) != len(table.pslf_order):
             raise RecordError(f"{table.pslf_name} takes {len(table.pslf_order)} values, the record has "
                               f"{len(positional)}", file, line, None, None, " ".join(table.pslf_order))
-        keyed = {by_pslf[n].psse: (n, t) for n, t in zip(table.pslf_order, positional)}
-    missing = [f.pslf for f in table.fields if f.pslf is not None and f.psse not in keyed]
+        keyed = {by_pslf[n].key: (n, t) for n, t in zip(table.pslf_order, positional)}
+    missing = [f.pslf for f in table.fields if f.pslf is not None and f.key not in keyed]
     if missing:
         raise RecordError(f"{table.pslf_name} misses {', '.join(missing)}", file, line, None, None,
                           " ".join(table.pslf_order))
     for f in table.fields:  # PSS/E-only fields: their neutral value
-        keyed.setdefault(f.psse, (f.psse, number_text(f.default, f.integer)))
+        keyed.setdefault(f.key, (f.key, number_text(f.default, f.integer)))
     return mva, keyed
 
 

@@ -47,7 +47,7 @@ def format_record(model: str, values: Mapping[str, float], *, bus: int, machine_
     table = model_named(model)
     numbers, dropped = record_numbers(table, values, extra)
     head = f"{int(bus)} '{table.name}' {_machine_id(machine_id)}"
-    texts = [number_text(v, f.integer) for f, v in numbers]
+    texts = [number_text(v, f.integer) for f, v in numbers if f.psse is not None]
     lines = [" ".join([head, *texts[:PER_LINE]])]
     lines += ["    " + " ".join(texts[k:k + PER_LINE]) for k in range(PER_LINE, len(texts), PER_LINE)]
     return "\n".join(lines) + " /\n", dropped
@@ -75,11 +75,12 @@ def parse_records(text: str, file: str = "<text>", *, mva: float | None = None) 
             continue
         table = MODELS[name.upper()]
         bus = _bus(tokens[0], file, line)
-        numbers = tokens[3:]
-        if len(numbers) != len(table.fields):
-            raise RecordError(f"{table.name} takes {len(table.fields)} values, the record has {len(numbers)}", file,
-                              line, None, None, " ".join(f.psse for f in table.fields))
-        fields = {f.psse: (f.psse, t) for f, t in zip(table.fields, numbers)}
+        numbers, own = tokens[3:], table.psse_fields
+        if len(numbers) != len(own):
+            raise RecordError(f"{table.name} takes {len(own)} values, the record has {len(numbers)}", file, line,
+                              None, None, " ".join(f.psse for f in own))
+        fields = {f.key: (f.key, number_text(f.default, f.integer)) for f in table.fields}  # PSLF-only: neutral
+        fields.update({f.key: (f.psse, t) for f, t in zip(own, numbers)})
         values, extra = values_from_numbers(table, fields, file, line, mva)
         records.append(Record(table.name, values, bus, tokens[2].strip("'\"").strip(), None, extra, file, line))
     return records, others

@@ -27,9 +27,13 @@ Conversions (the same for both formats)
   mean the iGrGen model (IEEEG1's second-machine ``JBUS``/``M`` and low-pressure fractions
   ``K2``, ``K4``, ``K6``, ``K8`` as 0, for a single shaft; GGOV1's ``Teng`` 0, ``Trate`` 0, ``Rup``
   99 and ``Rdown`` -99, PSS/E's "no ramp limit" of a load reference a test holds constant).
+  PSLF's ggov1 also has ``pmwset``, the power controller's set-point in MW (PSS/E computes
+  it from the initial power; iGrGen's ``Pmwset`` is the dispatch in pu): written 0, it acts
+  only with ``kimw`` > 0, which the standard structures hold at 0.
   On reading, a value the iGrGen model cannot represent is an error naming the allowed
-  value; ``Rup``/``Rdown`` (no effect while the load limit reference is constant) and
-  ``Trate`` are kept in :attr:`Record.extra`, so a record read and written again is the same.
+  value; ``Rup``/``Rdown`` (no effect while the load limit reference is constant),
+  ``Trate`` and ``pmwset`` are kept in :attr:`Record.extra`, so a record read and written
+  again is the same.
 * **Parameters without a field** (:class:`Dropped`) are not written: the operating point
   (``p_ref``, GGOV1's ``Pmwset``), which the grid simulator takes from its power flow; the
   smooth limits' sharpness (``eps_v``, ``K_lim``, GGOV1's ``K_track``), which the grid
@@ -61,8 +65,8 @@ class Field:
     counterpart, then ``default`` is written and ``allowed`` is what the iGrGen model can
     represent when read). ``lo``/``hi`` are the iGrGen parameter's declared range."""
 
-    psse: str
-    pslf: str | None
+    psse: str | None  # None: a PSLF-only field
+    pslf: str | None  # None: a PSS/E-only field
     param: str | None
     default: float
     lo: float = -math.inf
@@ -71,6 +75,11 @@ class Field:
     zero_as: float | None = None  # a record's 0 is this iGrGen value (and is written back as 0)
     keep: bool = False  # no counterpart, any value accepted and kept in Record.extra
     choices: tuple[float, ...] | None = None  # the only values allowed (flags)
+
+    @property
+    def key(self) -> str:
+        """The field's name in both formats' dicts: PSS/E's, else PSLF's."""
+        return self.psse or self.pslf
 
     def allowed(self) -> str:
         if self.choices is not None:
@@ -110,8 +119,9 @@ class Model:
         """Every iGrGen parameter of the block (carried or dropped)."""
         return tuple(f.param for f in self.fields if f.param) + tuple(d.param for d in self.dropped)
 
-    def by_psse(self) -> dict[str, Field]:
-        return {f.psse: f for f in self.fields}
+    @property
+    def psse_fields(self) -> tuple[Field, ...]:
+        return tuple(f for f in self.fields if f.psse is not None)
 
     def by_pslf(self) -> dict[str, Field]:
         return {f.pslf: f for f in self.fields if f.pslf is not None}
@@ -167,19 +177,21 @@ GGOV1 = Model("GGOV1", (
     Field("Trate", None, None, 0.0, 0.0, math.inf, keep=True), _f("db", "db", 0.0, 0, 0.1),
     _f("Tsa", "Tsa", 4.0, 0, 100), _f("Tsb", "Tsb", 5.0, 0.001, 100),
     Field("Rup", "rup", None, 99.0, keep=True), Field("Rdown", "rdown", None, -99.0, keep=True),
+    Field(None, "pmwset", None, 0.0, keep=True),
 ), ("r", "rselect", "tpelec", "maxerr", "minerr", "kpgov", "kigov", "kdgov", "tdgov", "vmax", "vmin", "tact",
     "kturb", "wfnl", "tb", "tc", "flag", "teng", "tfload", "kpload", "kiload", "ldref", "dm", "ropen", "rclose",
-    "kimw", "aset", "ka", "ta", "db", "tsa", "tsb", "rup", "rdown"),
+    "kimw", "pmwset", "aset", "ka", "ta", "db", "tsa", "tsb", "rup", "rdown"),
     _common(Dropped("Pmwset", None, _OPERATING + " (PSS/E sets it to the initial power)"),
             Dropped("K_track", 10.0, "tracking gain of iGrGen's smooth anti-windup; PSS/E's gate is exact"),
             Dropped("DELT", 0.005, "PSS/E's own time step, which iGrGen's acceleration limiter stands in for")))
 
 HYGOV = Model("HYGOV", (
-    _f("R", "R", 0.05, 0.001, 1), _f("r", "r", 0.3, 0.001, 5, pslf="rr"), _f("Tr", "Tr", 5.0, 0.001, 100),
+    _f("R", "R", 0.05, 0.001, 1, pslf="rperm"), _f("r", "r", 0.3, 0.001, 5, pslf="rtemp"),
+    _f("Tr", "Tr", 5.0, 0.001, 100),
     _f("Tf", "Tf", 0.05, 0.001, 10), _f("Tg", "Tg", 0.5, 0.001, 10), _f("VELM", "VELM", 0.2, 1e-4, 10),
     _f("GMAX", "GMAX", 1.0, 0, 2), _f("GMIN", "GMIN", 0.0, 0, 2), _f("TW", "TW", 1.0, 0.01, 10),
     _f("At", "At", 1.2, 0.5, 2), _f("Dturb", "Dturb", 0.5, 0, 5), _f("qNL", "qNL", 0.08, 0, 0.5),
-), ("r", "rr", "tr", "tf", "tg", "velm", "gmax", "gmin", "tw", "at", "dturb", "qnl"), _common())
+), ("rperm", "rtemp", "tr", "tf", "tg", "velm", "gmax", "gmin", "tw", "at", "dturb", "qnl"), _common())
 
 MODELS: dict[str, Model] = {m.name: m for m in (TGOV1, IEEEG1, GGOV1, HYGOV)}
 
@@ -237,9 +249,9 @@ def record_numbers(model: Model, values: Mapping[str, float],
             if f.zero_as is not None and math.isclose(v, f.zero_as, rel_tol=1e-12):
                 v = 0.0
         else:
-            v = float(extra.pop(f.psse, f.default))
+            v = float(extra.pop(f.key, f.default))
         if not math.isfinite(v):
-            raise ParameterError(f"{model.name}.{f.param or f.psse} = {v}: not a finite number")
+            raise ParameterError(f"{model.name}.{f.param or f.key} = {v}: not a finite number")
         numbers.append((f, v))
     if extra:
         raise ParameterError(f"{model.name} has no record field {', '.join(sorted(extra))} without an iGrGen counterpart")
@@ -258,7 +270,7 @@ def values_from_numbers(model: Model, numbers: Mapping[str, tuple[str, str]], fi
     written, text)), each checked against what the iGrGen model can represent."""
     values, extra = {}, {}
     for f in model.fields:
-        shown, text = numbers[f.psse]
+        shown, text = numbers[f.key]
         try:
             v = float(text.replace("D", "E").replace("d", "e"))
         except ValueError:
@@ -269,7 +281,7 @@ def values_from_numbers(model: Model, numbers: Mapping[str, tuple[str, str]], fi
             if f.psse == "Trate" and v != 0 and not (mva is not None and math.isclose(v, mva, rel_tol=1e-9)):
                 raise RecordError(f"{model.name} on a turbine rating other than the machine base is not converted",
                                   file, line, shown, text, "0 (the machine base)" + (f" or {mva:g}" if mva else ""))
-            extra[f.psse] = v
+            extra[f.key] = v
             continue
         if f.choices is not None and v not in f.choices:
             raise RecordError(f"{model.name} flag not offered by the iGrGen model", file, line, shown, text, f.allowed())
