@@ -325,16 +325,21 @@ def test_a_config_takes_its_documented_constants_from_a_record(tgov1_run, tmp_pa
     assert {k: v for k, v in exp.fixed.items() if k.startswith("gov.")} == {
         "gov.p_ref": 0.6, "gov.VMAX": 0.95, "gov.T3": 6.0,  # stated in the config: kept
         "gov.VMIN": 0.1, "gov.T2": 2.0, "gov.Dt": 0.2}  # from the record; R and T1 stay estimated
-    assert not re.search(r"^documented", exp.config_text, re.M) and "gov.R: 0.055 in the record, estimated here" in exp.config_text
+    assert {s.name: s.start for s in exp.estimate} == {"gov.R": 0.055, "gov.T1": 0.4}  # the record's: starts
+    assert not re.search(r"^documented", exp.config_text, re.M)
+    assert "gov.R: 0.055 in the record, estimated here from it" in exp.config_text
     again = parse_experiment(exp.config_text, exp.config_path, data=exp.data)  # as from an archive: no record read
-    assert again.fixed == exp.fixed
+    assert (again.fixed, again.estimate) == (exp.fixed, exp.estimate)
 
     structure = tmp_path / "TGOV1.toml"
     structure.write_text((STRUCTURES / "TGOV1.toml").read_text().replace("[fixed]\n", '[fixed]\ndocumented = "unit.dyr"\n'))
     assert Structure.load(structure).fixed == {"gov.VMAX": 1.0, "gov.VMIN": 0.0, "gov.Dt": 0.0}  # stated: kept
     structure.write_text((STRUCTURES / "TGOV1.toml").read_text().replace(
         '"gov.VMAX" = 1.0\n"gov.VMIN" = 0.0\n"gov.Dt" = 0.0\n', 'documented = "unit.dyr"\n'))
-    assert Structure.load(structure).fixed == {"gov.VMAX": 0.9, "gov.VMIN": 0.1, "gov.Dt": 0.2}
+    loaded = Structure.load(structure)
+    assert loaded.fixed == {"gov.VMAX": 0.9, "gov.VMIN": 0.1, "gov.Dt": 0.2}
+    assert {k: v.get("start") for k, v in loaded.estimate.items()} == {"gov.R": 0.055, "gov.T1": 0.4,
+                                                                       "gov.T2": 2.0, "gov.T3": 5.5}
 
     (tmp_path / "unit.dyr").write_text("1 'TGOV1' 1 0.05 0.5 one 0.0 2.5 7.5 0.0 /\n")
     with pytest.raises(ConfigError, match=r"\[fixed.documented\]: .*unit.dyr:1: field VMAX = 'one'"):

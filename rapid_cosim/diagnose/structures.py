@@ -86,13 +86,13 @@ class Structure:
         if not raw.get("estimate"):
             raise ConfigError("estimates nothing: give [estimate] with the parameters the tests must determine",
                               str(path), "estimate")
-        fixed = dict(raw.get("fixed", {}))
+        fixed, estimate = dict(raw.get("fixed", {})), dict(raw["estimate"])
         if documented.KEY in fixed:  # a .dyr/.dyd record of the unit, relative to the structure file
-            _, added, _ = documented.record_constants(fixed.pop(documented.KEY), fixed, raw["estimate"],
-                                                      path.parent, str(path))
+            _, added, starts, _ = documented.record_constants(fixed.pop(documented.KEY), fixed, estimate,
+                                                              path.parent, str(path))
             fixed = {**added, **fixed}
-        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, dict(raw["estimate"]),
-                   str(path))
+            estimate = {k: {**v, "start": starts[k]} if k in starts else v for k, v in estimate.items()}
+        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate, str(path))
 
     def experiment(self, exp: Experiment, noise=None) -> Experiment:
         """``exp`` with this structure as its model (``noise``: the recorder's model, for
