@@ -144,6 +144,8 @@ def test_bad_records_are_named_by_file_line_field_value_and_allowed_range(tmp_pa
     assert _error(psse_dyr.parse_records, turbine_base).field == "Trate"
     (ok,), _ = psse_dyr.parse_records(turbine_base, mva=45.0)
     assert ok.extra["Trate"] == 45.0
+    (tmp_path / "turbine.dyr").write_text(turbine_base)
+    assert read_record(tmp_path / "turbine.dyr", mva=45.0).extra["Trate"] == 45.0
 
     (tmp_path / "machine.dyr").write_text("1 'GENROU' 1 8 0.03 0.4 0.05 6.5 0 1.8 1.7 0.3 0.55 0.25 0.06 0 0 /\n")
     with pytest.raises(RecordError, match="no TGOV1, IEEEG1, GGOV1, HYGOV record; it holds GENROU"):

@@ -23,9 +23,14 @@ def format_of(path: str | Path) -> str:
     return suffix
 
 
-def read_record(path: str | Path, *, bus: int | None = None, machine_id: str | None = None) -> Record:
-    """The one governor record of a ``.dyr`` or ``.dyd`` file (by its suffix)."""
-    return FORMATS[format_of(path)].read_record(path, bus=bus, machine_id=machine_id)
+def read_record(path: str | Path, *, bus: int | None = None, machine_id: str | None = None,
+                mva: float | None = None) -> Record:
+    """The one governor record of a ``.dyr`` or ``.dyd`` file (by its suffix). ``mva``, the
+    machine base, lets a ``.dyr`` GGOV1 record on ``Trate`` = MBASE be read (a ``.dyd``
+    record states its base)."""
+    kind = format_of(path)
+    options = {"mva": mva} if kind == "dyr" else {}
+    return FORMATS[kind].read_record(path, bus=bus, machine_id=machine_id, **options)
 
 
 __all__ = ["FORMATS", "MODELS", "ExchangeWarning", "Record", "Written", "format_of", "model_named", "pslf_dyd",
