@@ -18,6 +18,8 @@ Schema (keys not shown here are rejected, with a suggestion when one is close)::
     outputs = { pm = "pm" }                 # required: model output -> data column
 
     [fixed]                                 # FMU parameter values held fixed (numbers)
+    documented = "unit.dyr"                 # optional: the gov.* constants of a PSS/E .dyr or
+                                            # PSLF .dyd record (rapid_cosim.experiment.documented)
     "gov.p_ref" = 0.6
     "src.df" = -0.2
     "src.t_step" = 10.0
@@ -88,6 +90,7 @@ import numpy as np
 from ..data import MeasuredData, MissingColumn, close_matches, describe_missing, load_measurements, noise_level
 from ..data import split_hdf5_path
 from ..errors import ConfigError, DataError
+from . import documented
 from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, EstimateSpec, Experiment,
                          SimulationSettings)
 from .recorder import read_noise_models
@@ -135,6 +138,9 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(_toml_message(e, text), file) from None
+    if isinstance(raw.get("fixed"), dict) and documented.KEY in raw["fixed"]:  # written out: see documented
+        text = documented.expand(text, raw, path)
+        raw = tomllib.loads(text)
     cfg = _Reader(file)
 
     cfg.check_keys(raw, frozenset(_SECTIONS), "")
