@@ -17,7 +17,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures clean table1 figures rerun event1 joint diagnose structures $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures clean table1 figures rerun event1 joint diagnose structures identify bench-speed $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -71,6 +71,10 @@ diagnose: fmus  ## name what TG Type I misses on tests 1-10 (4 and 8 held out), 
 	$(RC) diagnose $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
 		--results $(RESULTS)/diagnose --json $(RESULTS)/diagnose/verdict.json --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make diagnose: $$(( $$(date +%s) - $(T0) )) s wall time"
+
+identify: fmus  ## one identification of the field unit (experiments/unit.toml): explanation, standard records, .dyr
+	$(RC) identify experiments/unit.toml --results $(RESULTS)/identify --seed $(SEED) --n-jobs $(N_JOBS)
+	@echo "make identify: $$(( $$(date +%s) - $(T0) )) s wall time"
 
 STRUCTURES := $(addprefix experiments/structures/,TGTypeI.toml TGOV1.toml IEEEG1.toml GGOV1.toml HYGOV.toml)
 

@@ -25,9 +25,9 @@ The package follows the way data flows, each module knowing only those before it
 
 __version__ = "0.2.0"
 
-from .api import Calibration, calibrate, diagnose, export, load, rerun, resume, simulate  # noqa: E402
+from .api import Calibration, calibrate, diagnose, export, identify, load, rerun, resume, simulate  # noqa: E402
 from .experiment import Experiment  # noqa: E402
 from .simulator import Trajectory  # noqa: E402
 
-__all__ = ["Calibration", "Experiment", "Trajectory", "calibrate", "diagnose", "export", "load", "rerun", "resume",
-           "simulate", "__version__"]
+__all__ = ["Calibration", "Experiment", "Trajectory", "calibrate", "diagnose", "export", "identify", "load", "rerun",
+           "resume", "simulate", "__version__"]

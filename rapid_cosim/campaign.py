@@ -249,3 +249,16 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
     png = identifiability_figure(record, results / "identifiability.png")
     return md.read_text(), [md, js, png]
 
+
+
+def identification_report(result, folder: str | Path) -> tuple[str, list[Path]]:
+    """``<folder>/identification.md`` and ``.json`` of an identification."""
+    import json
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    md, js = folder / "identification.md", folder / "identification.json"
+    text = result.markdown()
+    md.write_text(text)
+    js.write_text(json.dumps(result.to_json(), indent=2) + "\n")
+    return text, [md, js]

@@ -237,6 +237,19 @@ def cmd_structures(args) -> int:
     return 0
 
 
+def cmd_identify(args) -> int:
+    from .api import identify
+    from .campaign import identification_report
+
+    result = identify(args.unit, workdir=args.results, seed=args.seed, n_jobs=args.n_jobs, package=args.package,
+                      fmu_dir=args.fmus, backend=args.joblib_backend, scheduler=args.scheduler)
+    text, files = identification_report(result, args.results)
+    print()
+    print(text)
+    print(f"written: {', '.join(map(str, [*files, *result.files.values()]))}")
+    return 0
+
+
 def cmd_export(args) -> int:
     from .api import export
 
@@ -412,6 +425,19 @@ def build_parser() -> argparse.ArgumentParser:
     selection_options(p, "results/structures")
     p.add_argument("--structures", required=True,
                    help="comma-separated structure files, e.g. experiments/structures/TGTypeI.toml,...")
+
+    p = command("identify", cmd_identify, "one identification per unit: the explanation (TG Type I and the effect "
+                "catalogue), every standard record's calibration and fidelity, the recommended record written as "
+                "PSS/E .dyr and PSLF .dyd")
+    p.add_argument("unit", help="the unit's unit.toml, or its folder")
+    p.add_argument("--results", default="results/identify", help="work and report folder (default %(default)s)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s; with "
+                   "--joblib-backend dask, 1 or -1 split each batch over every worker of the cluster)")
+    p.add_argument("--joblib-backend", default="loky", choices=["loky", "multiprocessing", "sequential", "dask"],
+                   help="where the work goes with --n-jobs > 1 (default %(default)s)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="a running dask scheduler, with dask")
+    model_options(p)
 
     p = command("export", cmd_export, "write a calibration of TGOV1, IEEEG1, GGOV1 or HYGOV as a PSS/E .dyr or "
                 "PSLF .dyd record (values on the machine base; conversions in the README)")

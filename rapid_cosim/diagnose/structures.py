@@ -43,7 +43,7 @@ standard models carry valve limits among their own parameters.
 from __future__ import annotations
 
 import tomllib
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -72,6 +72,13 @@ class Structure:
     fixed: dict
     estimate: dict
     path: str
+    optional: dict = field(default_factory=dict)  # parts freed only where the data call for them
+    carries: str = ""  # what the optional parts carry (an effect of the catalogue), e.g. "rate_limit"
+
+    def with_optional(self) -> "Structure":
+        """This structure with its optional parts estimated too (IEEEG1's valve rates)."""
+        return replace(self, name=f"{self.name}+{self.carries or 'optional'}",
+                       estimate={**self.estimate, **self.optional}, optional={})
 
     @classmethod
     def load(cls, path: str | Path) -> "Structure":
@@ -92,7 +99,16 @@ class Structure:
                                                               path.parent, str(path))
             fixed = {**added, **fixed}
             estimate = {k: {**v, "start": starts[k]} if k in starts else v for k, v in estimate.items()}
-        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate, str(path))
+        optional = {k: dict(v) for k, v in raw.get("optional", {}).items()}
+        carried = {v.pop("carries", "") for v in optional.values()}
+        if len(carried) > 1:
+            raise ConfigError(f"the optional parts carry {sorted(carried)}: one effect per structure file",
+                              str(path), "optional")
+        clash = sorted(set(optional) & (set(estimate) | set(fixed)))
+        if clash:
+            raise ConfigError(f"{', '.join(clash)}: optional and also fixed or estimated", str(path), "optional")
+        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate, str(path),
+                   optional, carried.pop() if carried else "")
 
     def experiment(self, exp: Experiment, noise=None) -> Experiment:
         """``exp`` with this structure as its model (``noise``: the recorder's model, for
@@ -129,6 +145,7 @@ class StructureFit:
     separating_step: dict | None
     archive: str
     at_bounds: list[str] = field(default_factory=list)  # estimates that ended on a bound of their range
+    tests: dict = field(default_factory=dict)  # per test: variance ratio, p-values, adequate (Adequacy.to_json)
 
 
 @dataclass
@@ -213,7 +230,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         fits.append(StructureFit(s.name, data_term + k * np.log(n), 0.0, float(result.fun), result.best(),
                                  len(result.names), fit_ok.adequate, fit_ok.pooled_variance_ratio, held_score,
                                  ident.to_json(), step, str(archive),
-                                 _at_bounds(s.estimate, result.best())))
+                                 _at_bounds(s.estimate, result.best()), fit_ok.to_json()["tests"]))
         log(f"    BIC {fits[-1].bic:.1f}, variance ratio {fit_ok.pooled_variance_ratio:.2f}, "
             f"{ident.summary()}")
     fits.sort(key=lambda f: f.bic)

@@ -1,0 +1,105 @@
+"""What an identification returns: the explanation, each standard record with its
+fidelity, and the recommendation; as JSON and as the Markdown the CLI prints."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+
+# What each standard structure can represent of the effect catalogue, as its own
+# parameters (PES-TR1 2013 and the PSS/E Model Library block diagrams), and in words.
+# An optional part (IEEEG1's Uo/Uc) carries its effect only when it was freed.
+CARRIES: dict[str, tuple[tuple[str, ...], str]] = {
+    "TGOV1": ((), "TGOV1 has valve position limits only: no rate limits, deadband, delay or load controller"),
+    "IEEEG1": (("rate_limit",), "IEEEG1 has valve rate limits (Uo, Uc) and position limits; no deadband, "
+                                "delay or load controller"),
+    "GGOV1": (("rate_limit", "deadband", "output_limit"),
+              "GGOV1 has valve rate limits, a speed deadband and a load (temperature) limiter; no delay or "
+              "separate load controller"),
+    "HYGOV": ((), "HYGOV has one gate velocity limit, the same both ways, and gate position limits"),
+}
+OPTIONAL_CARRIES = {"IEEEG1": ("rate_limit",)}  # carried only with the optional parts free
+
+
+def cannot_carry(structure: str, effects: list[str], *, freed: bool) -> list[str]:
+    """The explanation's effects that ``structure`` (as fitted) has no part for."""
+    carried = set(CARRIES.get(structure, ((), ""))[0])
+    if not freed:
+        carried -= set(OPTIONAL_CARRIES.get(structure, ()))
+    return [e for e in effects if e not in carried]
+
+
+@dataclass
+class StandardRecord:
+    model: str  # TGOV1, IEEEG1, GGOV1, HYGOV
+    fit: str  # the fit kept: the model, or the model with its optional parts ("IEEEG1+rate_limit")
+    optional_freed: bool
+    parameters: dict[str, float]
+    n_estimated: int
+    bic: float
+    adequate: bool
+    variance_ratio: float
+    tests: dict[str, dict]  # per test: rmse_over_noise, variance_ratio, p (Holm), adequate, the explanation's rmse
+    cannot_carry: list[str]
+    words: str
+    archive: str
+    at_bounds: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Identification:
+    unit: str
+    mva: float | None
+    bus: int
+    machine_id: str
+    training: list[str]
+    heldout: list[str]
+    explanation: dict
+    records: list[StandardRecord]
+    recommended: str | None
+    reason: str
+    structure_verdict: str
+    seconds: float
+    files: dict[str, str] = field(default_factory=dict)  # the records written: dyr, dyd
+
+    def record(self, model: str) -> StandardRecord:
+        return next(r for r in self.records if r.model == model)
+
+    def to_json(self) -> dict:
+        return json.loads(json.dumps(asdict(self), default=float))
+
+    def markdown(self) -> str:
+        e = self.explanation
+        lines = [f"# Identification of {self.unit}", "",
+                 f"Trained on {', '.join(self.training)}"
+                 + (f"; held out: {', '.join(self.heldout)}" if self.heldout else "") + ".", "",
+                 "## The explanation (TG Type I and the effect catalogue)", "",
+                 f"**{e['verdict']}** (campaign p-value {e['p']:.2g}).", "",
+                 "| parameter | value | 90 % interval |", "|---|---:|---|"]
+        for name, value in e["parameters"].items():
+            lo_hi = e["intervals"].get(name)
+            lines.append(f"| {name} | {value:.4g} | {f'[{lo_hi[0]:.4g}, {lo_hi[1]:.4g}]' if lo_hi else '-'} |")
+        lines += ["", "## The standard records", "",
+                  "| record | fit | estimated | dBIC | pooled variance ratio | within the noise | in words |",
+                  "|---|---|---:|---:|---:|---|---|"]
+        best = min((r.bic for r in self.records), default=0.0)
+        for r in sorted(self.records, key=lambda r: r.bic):
+            lines.append(f"| {r.model} | {r.fit} | {r.n_estimated} | {r.bic - best:.1f} | {r.variance_ratio:.3f} | "
+                         f"{'yes' if r.adequate else 'no'} | {r.words} |")
+        lines += ["", "Fidelity per test (RMSE over the noise level; the explanation's in the last column):", ""]
+        tests = list(e["tests"])
+        lines.append("| test | " + " | ".join(r.model for r in self.records) + " | explanation |")
+        lines.append("|---|" + "---:|" * (len(self.records) + 1))
+        for t in tests:
+            cells = [f"{r.tests[t]['rmse_over_noise']:.2f}{'' if r.tests[t]['adequate'] else ' (fails)'}"
+                     if t in r.tests else "-" for r in self.records]
+            lines.append(f"| {t} | " + " | ".join(cells) + f" | {e['tests'][t]['rmse_over_noise']:.2f} |")
+        lines += ["", "## The recommended record", "", f"**{self.recommended or 'none'}**: {self.reason}."]
+        if self.recommended:
+            r = self.record(self.recommended)
+            lines += ["", "| parameter | value |", "|---|---:|"]
+            lines += [f"| {k} | {v:.5g} |" for k, v in r.parameters.items()]
+        for kind, path in self.files.items():
+            lines.append(f"\n{kind}: `{path}`")
+        lines += ["", f"{self.seconds:.0f} s."]
+        return "\n".join(lines) + "\n"

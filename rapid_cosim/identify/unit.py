@@ -1,0 +1,93 @@
+"""A unit folder: one ``unit.toml`` naming a unit's staged tests and recorded events, the
+held-out choices, the standard structures its record may take, and where the record goes
+in the grid operator's case::
+
+    [unit]
+    name = "Unit 1"
+    mva = 400.0             # the machine's MVA base: a PSLF .dyd record needs it (optional)
+    bus = 1                 # where the record goes in the grid operator's case
+    machine_id = "1"
+
+    [tests]                 # experiment configs (folders or config.toml), relative to this file:
+    configs = ["test1", "test2", "event1"]   # staged tests, recorded events (CSV, COMTRADE, PMU CSV)
+    holdout = ["test2"]     # names of experiments kept out of the fits to confirm the verdict
+
+    [structures]            # the standard models a record may take (default: the four below)
+    files = ["structures/TGOV1.toml", "structures/IEEEG1.toml"]
+
+The tests' configs hold the documented constants of TG Type I (the explanation's base);
+each structure file holds its own (given directly or as ``documented = "unit.dyr"``, a
+PSS/E or PSLF record of the unit, see :mod:`rapid_cosim.exchange`).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import ConfigError
+
+STANDARD = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV")
+KEYS = {"unit": {"name", "mva", "bus", "machine_id"}, "tests": {"configs", "holdout"}, "structures": {"files"}}
+
+
+@dataclass(frozen=True)
+class Unit:
+    name: str
+    mva: float | None  # None: no .dyd record (it states the base; a .dyr takes it from the .raw)
+    bus: int
+    machine_id: str
+    configs: tuple[Path, ...]
+    holdout: tuple[str, ...]
+    structures: tuple[Path, ...]
+    path: Path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Unit":
+        path = Path(path)
+        if path.is_dir():
+            path = path / "unit.toml"
+        try:
+            raw = tomllib.loads(path.read_text())
+        except OSError as e:
+            raise ConfigError(f"cannot read the unit file: {e.strerror}", str(path)) from None
+        except tomllib.TOMLDecodeError as e:
+            raise ConfigError(f"not valid TOML: {e}", str(path)) from None
+        for section, keys in KEYS.items():
+            unknown = sorted(set(raw.get(section, {})) - keys)
+            if unknown:
+                raise ConfigError(f"unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(keys))}",
+                                  str(path), section)
+        extra = sorted(set(raw) - set(KEYS))
+        if extra:
+            raise ConfigError(f"unknown section(s) {', '.join(extra)}; allowed: {', '.join(KEYS)}", str(path))
+        head, tests = raw.get("unit", {}), raw.get("tests", {})
+        mva = head.get("mva")
+        if mva is not None and (not isinstance(mva, (int, float)) or not 1.0 <= mva <= 5000.0):
+            raise ConfigError(f"mva = {mva!r}: the machine's MVA base, a number from 1 to 5000", str(path), "unit.mva")
+        bus = head.get("bus", 1)
+        if not isinstance(bus, int) or not 1 <= bus <= 999999:
+            raise ConfigError(f"bus = {bus!r}: a bus number from 1 to 999999", str(path), "unit.bus")
+        configs = tests.get("configs")
+        if not isinstance(configs, list) or not configs or not all(isinstance(c, str) for c in configs):
+            raise ConfigError("configs must list the unit's experiment configs (folders or config.toml files)",
+                              str(path), "tests.configs")
+        folder = path.parent
+        found = []
+        for c in configs:
+            p = folder / c
+            p = p / "config.toml" if p.is_dir() else p
+            if not p.is_file():
+                raise ConfigError(f"{c}: no such experiment config ({p})", str(path), "tests.configs")
+            found.append(p)
+        default = [folder / "structures" / f"{s}.toml" for s in STANDARD]
+        files = [folder / f for f in raw.get("structures", {}).get("files", [])] or default
+        missing = [str(f) for f in files if not f.is_file()]
+        if missing:
+            raise ConfigError(f"no such structure file: {', '.join(missing)}", str(path), "structures.files")
+        holdout = tests.get("holdout", [])
+        if not isinstance(holdout, list) or not all(isinstance(h, str) for h in holdout):
+            raise ConfigError("holdout must list experiment names", str(path), "tests.holdout")
+        return cls(str(head.get("name", folder.name)), None if mva is None else float(mva), bus, str(head.get("machine_id", "1")),
+                   tuple(found), tuple(holdout), tuple(files), path)

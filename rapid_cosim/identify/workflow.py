@@ -1,0 +1,115 @@
+"""One identification per unit: the explanation and the deliverable, from one selection
+with one noise model.
+
+* **The explanation** is the discrepancy workflow on TG Type I (the base of the effect
+  catalogue): which effects the unit has, adequate or not (:mod:`rapid_cosim.diagnose`).
+* **The deliverable** is a standard record. Every standard structure the unit allows is
+  calibrated by the same whitened multistart least squares and judged by the same
+  computed null (:func:`rapid_cosim.diagnose.structures.select_structure`); a structure
+  with optional parts (IEEEG1's valve rates ``Uo``/``Uc``) is also fitted with them
+  free, and that fit is kept only where it wins by the selection threshold (the data
+  call for them). Each record's fidelity is stated per test in noise units beside the
+  explanation's, with what it cannot carry in plain words.
+* **The recommendation** is the simplest standard record (fewest estimated parameters,
+  then BIC) that is adequate: within the noise on every test. If none is, the best by
+  BIC is named with what it leaves out.
+
+Both parts estimate the recorder's noise model from the same quiet stretches
+(:func:`rapid_cosim.noise.campaign_noise` is deterministic in its data), so they whiten
+the same way.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Callable
+
+from ..calibration import RunOptions
+from ..diagnose.context import METHOD
+from ..diagnose.selection import THRESHOLD
+from ..diagnose.structures import Structure, StructureFit, select_structure
+from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
+from ..experiment import load_experiment
+from .result import CARRIES, Identification, StandardRecord, cannot_carry
+from .unit import Unit
+
+
+def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_jobs: int = 1,
+             package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus", backend: str = "loky",
+             scheduler: str | None = None, log: Callable[[str], None] = print) -> Identification:
+    """The unit's explanation, each standard record's calibration and fidelity, and the
+    recommended record (see the module docstring)."""
+    t0 = time.perf_counter()
+    unit = unit if isinstance(unit, Unit) else Unit.load(unit)
+    structures = [Structure.load(f) for f in unit.structures]  # every file checked before a run starts
+    training, heldout = split_holdout([load_experiment(c) for c in unit.configs], unit.holdout)
+    workdir = Path(workdir)
+    log(f"identifying {unit.name}: {len(training)} training and {len(heldout)} held-out experiments")
+    log("the explanation (TG Type I and the effect catalogue):")
+    explanation = diagnose(training, heldout, workdir=workdir / "explanation",
+                           options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False, backend=backend,
+                                                   scheduler=scheduler),
+                           package=package, fmu_dir=fmu_dir, log=log)
+    log(f"  {explanation.verdict}")
+    candidates = [*structures, *(s.with_optional() for s in structures if s.optional)]
+    log("the standard records:")
+    options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs, backend=backend, scheduler=scheduler).check()
+    verdict = select_structure(candidates, training, heldout, workdir=workdir / "records", options=options,
+                               package=package, fmu_dir=fmu_dir, log=log)
+    fits = {f.name: f for f in verdict.ranking}
+    records = [_record(s, fits, explanation) for s in structures]
+    recommended, reason = _recommend(records)
+    log(f"  recommended: {recommended or 'none'} ({reason})")
+    return Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
+                          training=[e.name for e in training], heldout=[e.name for e in heldout],
+                          explanation=_explanation(explanation), records=records, recommended=recommended,
+                          reason=reason, structure_verdict=verdict.structure, seconds=time.perf_counter() - t0)
+
+
+def _record(structure: Structure, fits: dict[str, StructureFit], explanation) -> StandardRecord:
+    """The structure's kept fit: with its optional parts free only if that wins by the
+    threshold."""
+    plain = fits[structure.name]
+    freed = fits.get(structure.with_optional().name) if structure.optional else None
+    use = freed if freed is not None and freed.bic <= plain.bic - THRESHOLD else plain
+    effects = list(explanation.effects)
+    missing = cannot_carry(structure.name, effects, freed=use is freed)
+    explained = explanation.adequacy["after"]["tests"]
+    per_test = {name: {"rmse_over_noise": t["rmse_over_noise"], "variance_ratio": t["variance_ratio"],
+                       "p": t["p_holm"], "adequate": t["adequate"],
+                       "explanation_rmse_over_noise": explained.get(name, {}).get("rmse_over_noise")}
+                for name, t in use.tests.items()}
+    failing = [n for n, t in per_test.items() if not t["adequate"]]
+    if use.adequate:
+        words = "within the noise on every test"
+    else:
+        words = f"not within the noise on {', '.join(failing)} (pooled variance ratio {use.variance_ratio:.2f})"
+    if missing:
+        words += f"; it cannot carry {', '.join(missing)} ({CARRIES.get(structure.name, ((), 'no part for them'))[1]})"
+    if freed is not None and use is plain:
+        words += f"; freeing {', '.join(structure.optional)} did not win by {THRESHOLD:g} in BIC"
+    return StandardRecord(model=structure.name, fit=use.name, optional_freed=use is freed,
+                          parameters=use.parameters, n_estimated=use.n_estimated, bic=use.bic,
+                          adequate=use.adequate, variance_ratio=use.variance_ratio, tests=per_test,
+                          cannot_carry=missing, words=words, archive=use.archive, at_bounds=use.at_bounds)
+
+
+def _recommend(records: list[StandardRecord]) -> tuple[str | None, str]:
+    adequate = sorted((r for r in records if r.adequate), key=lambda r: (r.n_estimated, r.bic))
+    if adequate:
+        r = adequate[0]
+        rivals = [o.model for o in adequate[1:]]
+        return r.model, (f"the simplest standard record within the noise ({r.n_estimated} estimated parameters)"
+                         + (f"; also within it: {', '.join(rivals)}" if rivals else ""))
+    if not records:
+        return None, "no standard structure was given"
+    best = min(records, key=lambda r: r.bic)
+    return best.model, (f"no standard record is within the noise; {best.model} comes closest by BIC "
+                        f"({best.words})")
+
+
+def _explanation(d) -> dict:
+    return {"verdict": d.verdict, "effect": d.effect, "effects": list(d.effects), "adequate": d.adequate,
+            "parameters": d.parameters_after, "intervals": d.parameter_intervals, "noise": d.noise,
+            "p": d.adequacy["after"]["p"], "tests": d.adequacy["after"]["tests"]}

@@ -1,0 +1,98 @@
+"""One identification per unit (``rapid-cosim identify``): a unit folder, the explanation
+and the standard records from one selection, the recommended record written as a
+``.dyr`` / ``.dyd`` that reads back to its calibration.
+
+The unit is a study plant (:mod:`rapid_cosim.diagnose.campaigns`: TG Type I with
+asymmetric valve rate limits, four staged tests shaped like the field's, realistic
+recorder noise, the last held out). TGOV1 has no rate limits; IEEEG1 has them as optional
+parts (``Uo``/``Uc``), freed only where the data call for them.
+"""
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from rapid_cosim.cli import main
+from rapid_cosim.diagnose.study import draw_case, write_campaign
+from rapid_cosim.errors import ConfigError
+from rapid_cosim.exchange import read_record
+from rapid_cosim.identify import Unit
+from rapid_cosim.identify.result import cannot_carry
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _unit(folder: Path, configs: list[Path], *, extra: str = "", mva: str = "mva = 250.0") -> Path:
+    (folder / "structures").mkdir(parents=True, exist_ok=True)
+    for name in ("TGOV1", "IEEEG1"):
+        shutil.copy(REPO / "experiments" / "structures" / f"{name}.toml", folder / "structures")
+    names = ", ".join(f'"{p.parent.relative_to(folder).as_posix()}"' for p in configs)
+    text = (f'[unit]\nname = "study unit"\n{mva}\nbus = 7\nmachine_id = "2"\n{extra}\n'
+            f'[tests]\nconfigs = [{names}]\nholdout = ["{configs[-1].parent.name}"]\n\n'
+            '[structures]\nfiles = ["structures/TGOV1.toml", "structures/IEEEG1.toml"]\n')
+    (folder / "unit.toml").write_text(text)
+    return folder / "unit.toml"
+
+
+@pytest.fixture(scope="module")
+def identified(study, tmp_path_factory):
+    work, package, fmu_dir = study
+    folder = tmp_path_factory.mktemp("unit")
+    case = draw_case("rate_limit", 1, package=package, fmu_dir=fmu_dir)
+    configs = write_campaign(case, folder / "data", package=package, fmu_dir=fmu_dir)
+    unit = _unit(folder, configs)
+    results = folder / "results"
+    assert main(["identify", str(unit), "--results", str(results), "--package", str(package),
+                 "--fmus", str(fmu_dir), "--n-jobs", "2"]) == 0
+    return case, json.loads((results / "identification.json").read_text()), results
+
+
+def test_the_explanation_and_the_record_tell_one_story(identified):
+    case, result, _ = identified
+    assert result["explanation"]["effect"] == "rate_limit"
+    records = {r["model"]: r for r in result["records"]}
+    assert records["IEEEG1"]["optional_freed"] and records["IEEEG1"]["fit"] == "IEEEG1+rate_limit"
+    assert "rate_limit" in records["TGOV1"]["cannot_carry"] and not records["TGOV1"]["adequate"]
+    assert result["recommended"] == "IEEEG1", result["reason"]
+    # the freed rates are the plant's, as the explanation's are (within a quarter)
+    truth = case.effect_values
+    assert records["IEEEG1"]["parameters"]["gov.Uo"] == pytest.approx(truth["gov.rate_open"], rel=0.25)
+    assert -records["IEEEG1"]["parameters"]["gov.Uc"] == pytest.approx(truth["gov.rate_close"], rel=0.25)
+
+
+def test_the_recommended_record_reads_back_to_its_calibration(identified):
+    _, result, results = identified
+    fitted = next(r for r in result["records"] if r["model"] == result["recommended"])["parameters"]
+    for kind in ("dyr", "dyd"):
+        record = read_record(results / f"unit.{kind}")
+        assert record.model == "IEEEG1" and record.bus == 7 and record.machine_id == "2"
+        for name, value in fitted.items():
+            assert record.values[name.removeprefix("gov.")] == pytest.approx(value, rel=1e-9), name
+    assert "IEEEG1" in (results / "identification.md").read_text()
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(mva="mva = -3"), r"unit\.mva.*1 to 5000"),
+    (dict(extra="colour = 'red'"), r"unknown key\(s\) colour"),
+])
+def test_a_bad_unit_file_names_its_field(tmp_path, change, message):
+    config = tmp_path / "t1" / "config.toml"
+    config.parent.mkdir()
+    config.write_text("")
+    with pytest.raises(ConfigError, match=message):
+        Unit.load(_unit(tmp_path, [config], **change))
+
+
+def test_a_missing_config_is_named(tmp_path):
+    path = _unit(tmp_path, [tmp_path / "nowhere" / "config.toml"])
+    with pytest.raises(ConfigError, match=r"nowhere: no such experiment config"):
+        Unit.load(path)
+
+
+def test_what_a_structure_cannot_carry():
+    assert cannot_carry("TGOV1", ["rate_limit"], freed=False) == ["rate_limit"]
+    assert cannot_carry("IEEEG1", ["rate_limit"], freed=False) == ["rate_limit"]
+    assert cannot_carry("IEEEG1", ["rate_limit"], freed=True) == []
+    assert cannot_carry("GGOV1", ["deadband", "delay"], freed=False) == ["delay"]
