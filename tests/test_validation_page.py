@@ -202,6 +202,7 @@ def test_the_unit_section_holds_the_record_noise_diagnosis_and_provenance(tgov1_
     assert origin["gov.R"] == origin["gov.T1"] == "estimated"
     assert origin["gov.VMAX"] == origin["gov.T3"] == "documented"  # fixed in the config
     assert origin["gov.T2"] == origin["gov.Dt"] == "bench default"
+    assert origin["gov.eps_v"] == "bench default (no field in the record)"  # a smooth limit's sharpness
     estimated = next(p for p in page.record.parameters if p.name == "gov.R")
     assert estimated.interval[0] < fit.parameters["gov.R"] < estimated.interval[1]
     # the noise fitted to the quiet data: white, near the 0.0008 pu the data were made with

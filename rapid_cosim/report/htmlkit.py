@@ -21,6 +21,7 @@ h3 { font-size: 1.05em; }
 table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.9em; }
 th, td { padding: 0.2em 0.6em; border-bottom: 1px solid #e4e4e4; text-align: right; vertical-align: top; }
 th:first-child, td:first-child, td.text, th.text { text-align: left; }
+td:not(.text):not(:first-child) { white-space: nowrap; }
 tr.first td { border-top: 1px solid #999; }
 img { max-width: 100%; display: block; margin: 0.5em 0; }
 figure { margin: 0 0 1.5em; } figcaption { font-size: 0.9em; color: #444; }

@@ -69,7 +69,9 @@ def record_section(rec: DeliveredRecord, interval_note: str, level: float | None
     parts.append("<h3>Parameters</h3>" + table(["parameter", "label", "value", "origin", lvl, "searched"], rows))
     parts.append("<p class=note>Estimated: calibrated on the training tests. Documented: fixed in the experiments' "
                  "configs (the unit's documented constants). Bench default: neither, the model's own value, "
-                 f"written in the record as it stands. {e(interval_note)}</p>")
+                 "written in the record as it stands; one with no field in the record (an operating point or a "
+                 "smooth limit's sharpness) is not written, and the grid simulator uses its own "
+                 f"(rapid_cosim.exchange.tables). {e(interval_note)}</p>")
     return "\n".join(parts)
 
 

@@ -101,11 +101,12 @@ def delivered_record(run: ArchivedRun, x, unc: Uncertainty | None, *, bus: int =
         rec = standard_record(run.inputs, parameters, x, source=str(run.path))
     except RapidCosimError as e:
         return DeliveredRecord(None, None, None, str(e), tuple(estimated + _documented(run.inputs.experiments)))
+    dyr, dropped = psse_dyr.format_record(rec.model.name, rec.values, bus=bus, machine_id=machine_id)
     rows = list(estimated)
-    for key in sorted(rec.values, key=lambda k: (rec.origin[k] != DOCUMENTED, k)):
+    for key in sorted(rec.values, key=lambda k: (rec.origin[k] != DOCUMENTED, k in dropped, k)):
         if rec.origin[key] != ESTIMATED:
-            rows.append(ParameterRow(f"gov.{key}", rec.values[key], rec.origin[key]))
-    dyr, _ = psse_dyr.format_record(rec.model.name, rec.values, bus=bus, machine_id=machine_id)
+            origin = rec.origin[key] + (" (no field in the record)" if key in dropped else "")
+            rows.append(ParameterRow(f"gov.{key}", rec.values[key], origin))
     dyd = None
     note = (f"PSS/E .dyr and PSLF .dyd records of {rec.model.name}, machine {machine_id} at bus {bus}, as "
             "rapid-cosim export writes them (conversions: rapid_cosim.exchange.tables).")
