@@ -171,9 +171,10 @@ def test_the_bad_file_is_refused_before_any_work_by_the_cli(joint_run, tmp_path,
     assert "rmse.noise" in capsys.readouterr().err and not (tmp_path / "p.html").exists()
 
 
-def test_every_default_band_is_a_valid_band():
+def test_every_default_band_is_a_valid_band_and_the_example_file_states_them(repo):
     for metric, terms in DEFAULT_BANDS.items():
         assert set(terms) <= set(METRIC_TERMS[metric]) and terms
+    assert load_tolerances(repo / "docs" / "tolerances.toml").bands == DEFAULT_BANDS
 
 
 def test_the_unit_section_holds_the_record_noise_diagnosis_and_provenance(tgov1_unit, repo, tmp_path):
@@ -265,6 +266,11 @@ def test_the_page_renders_in_headless_chromium_with_every_figure_and_mark(tgov1_
     assert tables == 6  # summary, metrics, bands, parameters, noise, provenance (no diagnosis given)
     text = page.path.read_text()
     assert passes == text.count('class="mark pass"') and fails == text.count('class="mark fail"') and fails >= 3
+    from rapid_cosim.report.pdf import screenshot
+
+    png = screenshot(page.path, tmp_path / "top.png", width=800, height=600)
+    head = png.read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(head[16:20], "big") == 800
 
 
 @NEEDS_CHROMIUM

@@ -21,7 +21,7 @@ h3 { font-size: 1.05em; }
 table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.9em; }
 th, td { padding: 0.2em 0.6em; border-bottom: 1px solid #e4e4e4; text-align: right; vertical-align: top; }
 th:first-child, td:first-child, td.text, th.text { text-align: left; }
-td:not(.text):not(:first-child) { white-space: nowrap; }
+td:not(.text):not(:first-child), td.nowrap { white-space: nowrap; }
 tr.first td { border-top: 1px solid #999; }
 img { max-width: 100%; display: block; margin: 0.5em 0; }
 figure { margin: 0 0 1.5em; } figcaption { font-size: 0.9em; color: #444; }
@@ -66,9 +66,10 @@ def num(v, sign: bool = False, digits: int = 3) -> str:
     return f"{v:+.{digits}g}" if sign else f"{v:.{digits}g}"
 
 
-def table(head: list[str], rows: list[str], cls: str = "") -> str:
-    """A table whose header repeats on every printed page (``rows`` are ``<tr>`` strings)."""
-    ths = "".join(f"<th>{h}</th>" for h in head)
+def table(head: list[str], rows: list[str], cls: str = "", text: tuple[int, ...] = (0,)) -> str:
+    """A table whose header repeats on every printed page (``rows`` are ``<tr>`` strings;
+    the columns ``text`` hold words, their headers aligned left as the words are)."""
+    ths = "".join(f"<th class=text>{h}</th>" if k in text else f"<th>{h}</th>" for k, h in enumerate(head))
     klass = f' class="{cls}"' if cls else ""
     return f"<table{klass}><thead><tr>{ths}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
 

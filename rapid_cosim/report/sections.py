@@ -24,7 +24,7 @@ def summary(rows: Sequence[tuple[ValidationMetrics, tuple[Check, ...]]]) -> str:
         body.append(f'<tr data-test="{e(m.experiment)}"><td>{e(m.experiment)}</td><td class=text>{e(m.role)}</td>'
                     f"<td>{mark(verdict(checks))}</td><td>{judged} of {len(checks)}</td>"
                     f"<td class=text>{e(', '.join(failed)) or '—'}</td></tr>")
-    return table(["test", "role", "result", "metrics judged", "outside the band"], body)
+    return table(["test", "role", "result", "metrics judged", "outside the band"], body, text=(0, 1, 4))
 
 
 def metrics_table(rows: Sequence[tuple[ValidationMetrics, tuple[Check, ...]]]) -> str:
@@ -40,13 +40,13 @@ def metrics_table(rows: Sequence[tuple[ValidationMetrics, tuple[Check, ...]]]) -
                         f"<td class=text>{e(LABELS[c.metric])} ({UNITS[c.metric]})</td><td>{num(c.measured, digits=4)}</td>"
                         f"<td>{num(c.simulated, digits=4)}</td><td>{num(c.error, sign=True)}</td>"
                         f"<td>{'—' if c.band is None else '± ' + num(c.band)}</td><td>{mark(c.passed)}</td></tr>")
-    return table(["test", "metric", "measured", "simulated", "error", "band", "result"], body)
+    return table(["test", "metric", "measured", "simulated", "error", "band", "result"], body, text=(0, 1))
 
 
 def tolerance_table(tol: Tolerances) -> str:
-    rows = [f'<tr data-metric="{k}"><td class=text>{e(LABELS[k])}</td><td class=text>{e(tol.describe(k))}</td>'
+    rows = [f'<tr data-metric="{k}"><td class="text nowrap">{e(LABELS[k])}</td><td class=text>{e(tol.describe(k))}</td>'
             f"<td class=text>{e(tol.reason(k))}</td></tr>" for k in METRIC_TERMS]
-    return (table(["metric", "band (|simulated − measured| within)", "why"], rows)
+    return (table(["metric", "band (|simulated − measured| within)", "why"], rows, text=(0, 1, 2))
             + f"<p class=note>Source of the bands: {e(tol.source)}. {e(SOURCE_NOTE)}</p>")
 
 
@@ -66,7 +66,8 @@ def record_section(rec: DeliveredRecord, interval_note: str, level: float | None
         searched = "—" if p.searched is None else f"{p.searched[0]:g} … {p.searched[1]:g}"
         rows.append(f'<tr data-origin="{e(p.origin)}"><td><code>{e(p.name)}</code></td><td class=text>{e(p.label)}</td>'
                     f"<td>{p.value:.5g}</td><td class=text>{e(p.origin)}</td><td>{interval}</td><td>{searched}</td></tr>")
-    parts.append("<h3>Parameters</h3>" + table(["parameter", "label", "value", "origin", lvl, "searched"], rows))
+    parts.append("<h3>Parameters</h3>" + table(["parameter", "label", "value", "origin", lvl, "searched"], rows,
+                                                text=(0, 1, 3)))
     parts.append("<p class=note>Estimated: calibrated on the training tests. Documented: fixed in the experiments' "
                  "configs (the unit's documented constants). Bench default: neither, the model's own value, "
                  "written in the record as it stands; one with no field in the record (an operating point or a "
@@ -81,7 +82,7 @@ def noise_section(noise: NoiseSummary) -> str:
     levels = ", ".join(f"{k} {v:.3g}" for k, v in noise.levels.items())
     out = f"<p>Noise model: {e(noise.source)}.</p>"
     if rows:
-        out += table(["tests", "family", "model", "from"], rows)
+        out += table(["tests", "family", "model", "from"], rows, text=(0, 1, 2, 3))
     if levels:
         out += f"<p class=note>Pre-event noise level per test (pu, the metrics' scale): {e(levels)}.</p>"
     return out
@@ -109,5 +110,5 @@ def provenance_section(p: Provenance) -> str:
                 for k, v in p.archived_data.items()]
     versions = ", ".join(f"{k} {v}" for k, v in p.versions.items())
     return (f"<p>Archive <code>{e(p.archive)}</code>, SHA-256 <code>{e(p.archive_sha256)}</code>.</p>"
-            + table(["experiment", "file", "SHA-256"], rows + archived)
+            + table(["experiment", "file", "SHA-256"], rows + archived, text=(0, 1, 2))
             + f"<p class=note>Computed with {e(versions)}; {e(p.python)}.</p>")

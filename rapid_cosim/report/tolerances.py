@@ -123,7 +123,8 @@ class Tolerances:
         terms = self.bands.get(metric, {})
         if not terms:
             return "not judged"
-        words = {"relative": lambda v: f"{100 * v:g} % of measured", "noise": lambda v: f"{v:g} noise levels",
+        of = "the measured settled change" if metric == "rmse" else "measured"
+        words = {"relative": lambda v: f"{100 * v:g} % of {of}", "noise": lambda v: f"{v:g} noise levels",
                  "absolute": lambda v: f"{v:g} pu", "seconds": lambda v: f"{v:g} s"}
         return "the larger of " + " and ".join(words[k](v) for k, v in terms.items()) if len(terms) > 1 \
             else words[next(iter(terms))](next(iter(terms.values())))
