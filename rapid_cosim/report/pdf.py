@@ -61,7 +61,8 @@ def print_pdf(page: str | Path, out: str | Path, *, executable: str | None = Non
     out.parent.mkdir(parents=True, exist_ok=True)
     if out.exists():
         out.unlink()  # so that a failed print cannot leave an old PDF looking new
-    _run(["--no-pdf-header-footer", f"--print-to-pdf={out.resolve()}"], page, executable)
+    # no browser header or footer: the first flag for Chromium 120 on, the second before it
+    _run(["--no-pdf-header-footer", "--print-to-pdf-no-header", f"--print-to-pdf={out.resolve()}"], page, executable)
     if not out.exists() or out.read_bytes()[:5] != b"%PDF-":
         raise RapidCosimError(f"Chromium wrote no PDF for {page} (expected {out})")
     return out

@@ -14,8 +14,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-import numpy as np
-
 from ..calibration.record import DOCUMENTED, ESTIMATED, standard_record
 from ..errors import RapidCosimError
 from ..estimators.uncertainty import Uncertainty
@@ -181,7 +179,3 @@ def read_diagnosis(path: str | Path) -> DiagnosisSummary:
     except (ValueError, KeyError, TypeError, AttributeError) as e:
         raise RapidCosimError(f"{path}: not a diagnosis written by rapid-cosim diagnose ({type(e).__name__}: {e})") \
             from None
-
-
-def finite(v) -> bool:
-    return v is not None and bool(np.isfinite(v))
