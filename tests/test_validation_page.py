@@ -164,6 +164,28 @@ def test_a_bad_tolerance_file_is_refused_with_file_line_key_value_and_range(tmp_
         load_tolerances(bad)
 
 
+def test_a_response_that_never_settles_fails_and_an_undefined_time_is_not_judged():
+    import math
+
+    from rapid_cosim.report.tolerances import Tolerances, judge
+    from rapid_cosim.report.validation import ValidationMetrics, _moving_mean
+
+    def checks(settling, rise=(10.0, 10.5)):
+        m = ValidationMetrics("t", "pm", 0.001, 0.004, (0.066, 0.066), (0.067, 0.066), rise, (None, None), settling,
+                              0.0008)
+        return {c.metric: c for c in judge(m, Tolerances())}
+
+    assert checks((math.inf, 12.0))["settling_time"].passed is False  # the unit never settles, the model does
+    assert checks((12.0, math.inf))["settling_time"].passed is False
+    assert checks((math.inf, math.inf))["settling_time"].passed is True
+    assert checks((12.0, 14.0))["settling_time"].passed is True  # 2 s: within 20 % of 12 s (2.4 s)
+    assert checks((12.0, 15.0))["settling_time"].passed is False
+    c = checks((12.0, 12.0), rise=(None, None))
+    assert c["rise_time"].passed is None and c["time_to_peak"].passed is None  # not judged, not passed
+    assert c["rmse"].band == pytest.approx(max(2 * 0.0008, 0.05 * 0.066))
+    assert np.allclose(_moving_mean(np.ones(50), 10), 1.0)  # no padding pulls the ends toward zero
+
+
 def test_the_bad_file_is_refused_before_any_work_by_the_cli(joint_run, tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text("[validation]\nrmse = { noise = 0 }\n")
@@ -293,5 +315,6 @@ def test_the_pdf_is_the_page_printed(tgov1_unit, repo, tmp_path, capsys):
     assert text.count("✓ pass") == out.read_text().count('class="mark pass"')
     assert text.count("✗ fail") == out.read_text().count('class="mark fail"') >= 3
     assert hashlib.sha256(fit.archive.read_bytes()).hexdigest() in squeezed
+    assert "file://" not in text  # no browser header or footer (they name the page's address)
     figures = next(i for i, p in enumerate(pages) if "Measured and simulated" in p)
     assert figures > 0 and "Error metrics" not in pages[figures]  # the figures start a page
