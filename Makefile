@@ -17,7 +17,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures clean table1 figures rerun event1 joint diagnose structures identify bench-speed $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures clean table1 figures rerun event1 joint diagnose structures identify bench-speed report-example $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -82,6 +82,9 @@ structures: fmus  ## which governor structure (TG Type I, TGOV1, IEEEG1, GGOV1, 
 	$(RC) structures $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
 		--structures $(subst $(eval) ,$(comma),$(STRUCTURES)) --results $(RESULTS)/structures --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make structures: $$(( $$(date +%s) - $(T0) )) s wall time"
+
+report-example: fmus  ## the validation report (HTML, PDF) of a synthetic TGOV1 unit, two tests held out; its picture in docs/
+	$(PY) docs/report_example.py --results $(RESULTS)/report-example --picture docs/validation_report.png
 
 bench-structures: fmus  ## confusion matrix of structure selection on synthetic campaigns (SEEDS=5 per structure)
 	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),5) --n-jobs $(N_JOBS)

@@ -310,46 +310,14 @@ def export(archive: str | Path, out: str | Path, *, format: str | None = None, b
     written in a ``.dyd`` record (required there; a ``.dyr`` record has none: PSS/E takes
     MBASE from the ``.raw``). Returns the :class:`~rapid_cosim.exchange.Written` record;
     conversions are those of :mod:`rapid_cosim.exchange.tables`."""
-    from .exchange import FORMATS, MODELS, format_of
+    from .calibration.record import standard_record
+    from .exchange import FORMATS, format_of
 
     kind = format or format_of(out)
     if kind not in FORMATS:
         raise ParameterError(f"format {kind!r}: use dyr (PSS/E) or dyd (PSLF)")
     calib = load(archive)
-    experiments = calib.inputs.experiments
-    models = {e.model for e in experiments}
-    if len(models) != 1:
-        raise ConfigError(f"{archive}: its experiments run {len(models)} models ({', '.join(sorted(models))}); "
-                          "a record describes one")
-    (bench,) = models
-    starts = {n[4:]: p.start for n, p in get_simulator(calib.inputs.fmus[bench]).parameters.items()
-              if n.startswith("gov.") and p.settable}
-    def carries(m) -> bool:  # every parameter of the block, an operating point possibly bound (GGOV1's Pmwset)
-        return set(m.params) - {d.param for d in m.dropped if d.default is None} <= set(starts) <= set(m.params)
-
-    model = next((m for m in MODELS.values() if carries(m)), None)
-    if model is None:
-        raise ConfigError(f"{archive}: its bench {bench} carries none of the standard governors "
-                          f"({', '.join(MODELS)}); only their calibrations have a record")
-    carried = {f.param for f in model.fields if f.param} | {d.param for d in model.dropped if d.default is not None}
-    values = {k: float(v) for k, v in starts.items() if k in carried and v is not None}
-    fixed: dict[str, dict[str, float]] = {}
-    for exp in experiments:
-        for name, v in exp.fixed.items():
-            if name.startswith("gov.") and name[4:] in carried:
-                fixed.setdefault(name[4:], {})[exp.name] = float(v)
-    for key, by_experiment in fixed.items():
-        if len(set(by_experiment.values())) > 1:
-            raise ConfigError(f"{archive}: gov.{key} is fixed at different values in its experiments "
-                              f"({by_experiment}); a record holds one value")
-        values[key] = next(iter(by_experiment.values()))
-    if not np.all(np.isfinite(calib.x)):
-        raise ArchiveError(f"{archive}: no finite best point to export ({calib.message})")
-    for name, v in calib.parameters.items():
-        if name.startswith("gov."):
-            if "@" in name:
-                raise ConfigError(f"{archive}: {name.split('@')[0]} is estimated per experiment; a record holds "
-                                  "one value")
-            values[name[4:]] = v
+    record = standard_record(calib.inputs, calib.parameters, calib.x, source=str(archive))
+    model, values = record.model, record.values
     options = {"mva": mva, "bus_name": bus_name, "kv": kv} if kind == "dyd" else {}
     return FORMATS[kind].write_record(out, model.name, values, bus=bus, machine_id=machine_id, **options)

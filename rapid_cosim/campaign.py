@@ -8,7 +8,7 @@ returns what it made for the command line to print.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -179,14 +179,33 @@ def diagnosis_report(diagnosis, folder: str | Path, json_path: str | Path | None
     return report.read_text(), files
 
 
-def validation_page(archive: str | Path, out: str | Path | None = None, *, n_jobs: int = 1):
-    """The unit's validation page (:mod:`rapid_cosim.report.html`) for a finished run, at
-    ``out`` (default: the archive's name with .html). A method without intervals of its
-    own gets the Laplace approximation at the best point, when the noise levels are known."""
+def validation_page(archive: str | Path, out: str | Path | None = None, *, n_jobs: int = 1,
+                    tolerances: str | Path | None = None, heldout: Sequence[str | Path] = (),
+                    diagnosis: str | Path | None = None, pdf: str | Path | bool | None = None, bus: int = 1,
+                    machine_id: str = "1", mva: float | None = None, package: str | Path = "modelica/iGrGen",
+                    fmu_dir: str | Path = "fmus"):
+    """The unit's validation report (:mod:`rapid_cosim.report.html`) for a finished run, at
+    ``out`` (default: the archive's name with .html): ``tolerances`` a TOML file with a
+    ``[validation]`` table (default bands otherwise), ``heldout`` experiment configs
+    predicted at the run's calibration, ``diagnosis`` a ``diagnosis.json``, ``pdf`` True
+    (beside the page) or a path: the page printed by headless Chromium. A method without
+    intervals of its own gets the Laplace approximation at the best point, when the noise
+    levels are known."""
+    from .experiment import load_experiment
     from .report.archives import load_run
-    from .report.html import write_validation_page
+    from .report.html import PageOptions, write_validation_page
+    from .report.pdf import chromium, print_pdf
+    from .report.tolerances import Tolerances, load_tolerances
+    from .report.unit import read_diagnosis
     from .staged import hessian_uncertainty
 
+    # everything the user named is checked before anything is computed
+    options = PageOptions(tolerances=load_tolerances(tolerances) if tolerances else Tolerances(),
+                          heldout=tuple(load_experiment(p) for p in heldout),
+                          diagnosis=read_diagnosis(diagnosis) if diagnosis else None, bus=bus,
+                          machine_id=machine_id, mva=mva, package=package, fmu_dir=fmu_dir)
+    if pdf:
+        chromium()
     run = load_run(archive)
     unc, note = None, ""
     if run.result.uncertainty is None:
@@ -198,8 +217,11 @@ def validation_page(archive: str | Path, out: str | Path | None = None, *, n_job
                     "the pre-event noise's correlation (AR(1))")
         except RapidCosimError as e:
             note = f"the run's method gives none, and no Laplace approximation: {e}"
-    return write_validation_page(run, out or Path(archive).with_suffix(".html"), uncertainty=unc,
-                                 interval_note=note)
+    page = write_validation_page(run, out or Path(archive).with_suffix(".html"), uncertainty=unc,
+                                 interval_note=note, options=options)
+    if pdf:
+        page = replace(page, pdf=print_pdf(page.path, page.path.with_suffix(".pdf") if pdf is True else pdf))
+    return page
 
 
 def _ar1_inflation(exp) -> float:

@@ -152,13 +152,20 @@ def cmd_staged_test(args) -> int:
 
 def cmd_report(args) -> int:
     from .campaign import validation_page
+    from .report.tolerances import LABELS, verdict
 
-    page = validation_page(args.archive, args.out, n_jobs=args.n_jobs)
-    print(f"{page.path}: {page.n_figures} figure(s); per experiment RMSE, peak error, settled change and "
-          "response time")
-    for m in page.metrics:
-        print(f"  {m.experiment:<10} {m.output:<6} RMSE {m.rmse:.3g}  peak {m.peak_error:.3g}  "
-              f"settled change error {m.settled_error:+.3g}")
+    page = validation_page(args.archive, args.out, n_jobs=args.n_jobs, tolerances=args.tolerances,
+                           heldout=args.holdout or (), diagnosis=args.diagnosis, pdf=args.pdf or None, bus=args.bus,
+                           machine_id=args.id, mva=args.mva, package=args.package, fmu_dir=args.fmus)
+    print(f"{page.path}: {page.n_figures} figure(s); per test the error metrics against the tolerance bands")
+    for m, checks in zip(page.metrics, page.checks):
+        failed = [LABELS[c.metric] for c in checks if c.passed is False]
+        result = {True: "pass", False: "FAIL", None: "n/a"}[verdict(checks)]
+        print(f"  {m.experiment:<10} {m.role:<9} {result:<4}  RMSE {m.rmse:.3g}  settled change error "
+              f"{m.settled_error:+.3g}" + (f"  outside: {', '.join(failed)}" if failed else ""))
+    print(f"record: {page.record.model or 'none'}" + ("" if page.record.model else f" ({page.record.note})"))
+    if page.pdf:
+        print(f"PDF: {page.pdf}")
     return 0
 
 
@@ -378,6 +385,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("archive")
     p.add_argument("--out", help="HTML file (default: the archive's name with .html)")
     p.add_argument("--n-jobs", type=int, default=1, help="worker processes for the intervals (default %(default)s)")
+    p.add_argument("--tolerances", metavar="FILE", help="TOML file with a [validation] table of tolerance bands "
+                   "(default: the project's bands, stated on the page)")
+    p.add_argument("--holdout", nargs="+", metavar="CONFIG", help="held-out experiments, predicted at the calibration")
+    p.add_argument("--diagnosis", metavar="JSON", help="a diagnosis.json of rapid-cosim diagnose: its verdict and "
+                   "adequacy p-values on the page")
+    p.add_argument("--pdf", nargs="?", const=True, metavar="FILE", help="also print the page to PDF with headless "
+                   "Chromium (default: beside the page)")
+    p.add_argument("--bus", type=int, default=1, help="bus number in the records (default %(default)s)")
+    p.add_argument("--id", default="1", help="machine id in the records (default %(default)s)")
+    p.add_argument("--mva", type=float, help="the machine's MVA base, for the PSLF .dyd record")
+    p.add_argument("--package", default="modelica/iGrGen", help="Modelica package, for held-out tests' benches")
+    p.add_argument("--fmus", default="fmus", help="FMU folder (default %(default)s)")
 
     p = command("benches", cmd_benches, "build the FMUs and plot every test bench's step response")
     p.add_argument("--results", default="results", help="output directory (default %(default)s)")

@@ -1,126 +1,152 @@
-"""The validation page of a calibrated unit: one self-contained HTML file.
+"""The validation report of a calibrated unit: one self-contained HTML file (and, printed
+from it by headless Chromium, a PDF of the same: :mod:`.pdf`).
 
-It holds the parameters with their intervals, every experiment's error metrics
-(:mod:`.validation`) and its figure (recorded inputs, measured and simulated output,
-residuals). The figures are PNGs embedded as base64 ``data:`` URIs and the style sheet
-is inline, so the page opens offline, can be mailed, and is archived as one file.
+Per test, training and held out: the measured and simulated output with the residual,
+the metrics of :mod:`.validation` and each one's pass or fail against the tolerance
+bands of :mod:`.tolerances`. Per unit: the delivered record in the simulators' formats
+with every parameter and where it came from (:mod:`.unit`), the noise model, the
+diagnosis when one is given, and the provenance (:mod:`.provenance`). Figures are PNGs
+embedded as base64 ``data:`` URIs and the style sheets are inline, so the page opens
+offline, can be mailed, and is archived as one file.
 """
 
 from __future__ import annotations
 
-import base64
-import html
-import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Sequence
-
 import numpy as np
 
 from .. import __version__
+from ..calibration import inputs_from_experiments
+from ..errors import ConfigError
 from ..estimators.uncertainty import Uncertainty
-from .archives import ArchivedRun, caption, curves_at
-from .figures import plt
+from ..experiment import Experiment
+from .archives import ArchivedRun, FitCurves, caption, curves_at
 from .fits import plot_experiment
+from .htmlkit import STYLE, e, mark, png
+from .provenance import provenance
+from .sections import (diagnosis_section, metrics_table, noise_section, provenance_section, record_section, summary,
+                       tolerance_table)
+from .tolerances import Check, Tolerances, judge, verdict
+from .unit import DeliveredRecord, DiagnosisSummary, delivered_record, noise_summary
 from .validation import ValidationMetrics, metrics
 
-STYLE = """
-body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 60em; color: #222; }
-h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 2em; border-bottom: 1px solid #ccc; }
-table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.92em; }
-th, td { padding: 0.25em 0.7em; border-bottom: 1px solid #e4e4e4; text-align: right; }
-th:first-child, td:first-child { text-align: left; }
-img { max-width: 100%; display: block; margin: 0.5em 0 1.5em; }
-.note { color: #555; font-size: 0.9em; }
-"""
+TRAINING, HELD_OUT = "training", "held out"
+
+
+@dataclass(frozen=True)
+class PageOptions:
+    """What the report is told beyond the run: the bands, the held-out tests (predicted
+    at the training calibration), a diagnosis, and where the record's machine sits
+    (``mva``, its MVA base, for the .dyd record)."""
+
+    tolerances: Tolerances = field(default_factory=Tolerances)
+    heldout: tuple[Experiment, ...] = ()
+    diagnosis: DiagnosisSummary | None = None
+    bus: int = 1
+    machine_id: str = "1"
+    mva: float | None = None
+    package: str | Path = "modelica/iGrGen"
+    fmu_dir: str | Path = "fmus"
 
 
 @dataclass(frozen=True)
 class ValidationPage:
     path: Path
     metrics: tuple[ValidationMetrics, ...]
+    checks: tuple[tuple[Check, ...], ...]  # per test, in the order of metrics
     n_figures: int
+    record: DeliveredRecord
+    pdf: Path | None = None  # the same printed by headless Chromium, when asked for
+
+    @property
+    def passed(self) -> bool | None:
+        """Every test passes every judged metric (None: nothing judged)."""
+        verdicts = [verdict(c) for c in self.checks]
+        judged = [v for v in verdicts if v is not None]
+        return None if not judged else all(judged)
 
 
 def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Uncertainty | None = None,
-                          interval_note: str = "") -> ValidationPage:
+                          interval_note: str = "", options: PageOptions | None = None) -> ValidationPage:
     """``out`` (.html) for the archived ``run``; ``uncertainty`` gives the intervals when
     the run's own method gave none (``interval_note`` says where they come from)."""
+    opts = options or PageOptions()
     out = Path(out)
     problem = run.inputs.problem
     x = np.asarray(run.result.x, dtype=float)
     unc = run.result.uncertainty or uncertainty
-    sections, rows = [], []
-    for i, exp in enumerate(problem.experiments):
-        c = curves_at(run.inputs, x, i)
-        m = metrics(c)
-        rows.append(m)
-        fig = plot_experiment(exp, c, title=caption(exp))
-        sections.append(f"<h3>{_e(caption(exp))}</h3>\n<p class=note>{_e(exp.description)}</p>\n"
-                        f'<img alt="{_e(exp.name)}: measured and simulated {_e(c.output)}" '
-                        f'src="data:image/png;base64,{_png(fig)}">')
+    curves = [(curves_at(run.inputs, x, i), TRAINING) for i in range(len(problem.experiments))]
+    curves += [(c, HELD_OUT) for c in heldout_curves(run, x, opts)]
+    rows, figures = [], []
+    for c, role in curves:
+        m = metrics(c, role)
+        checks = judge(m, opts.tolerances)
+        rows.append((m, checks))
+        figures.append(_figure(c, m, checks))
+    record = delivered_record(run, x, unc, bus=opts.bus, machine_id=opts.machine_id, mva=opts.mva)
+    experiments = [*problem.experiments, *opts.heldout]
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    body = [f"<h1>Validation of the calibrated model: {_e(', '.join(e.name for e in problem.experiments))}</h1>",
-            f"<p class=note>Archive <code>{_e(str(run.path))}</code>; method {_e(run.result.method)}, "
+    n_pass = sum(verdict(c) is True for _, c in rows)
+    n_fail = sum(verdict(c) is False for _, c in rows)
+    note = interval_note if run.result.uncertainty is None else ""
+    body = [f"<h1>Validation of the calibrated model: {e(', '.join(x.name for x in experiments))}</h1>",
+            f"<p class=note>Archive <code>{e(str(run.path))}</code>; method {e(run.result.method)}, "
             f"best fitness {run.result.fun:.4g} after {run.result.nfev} simulations; "
             f"written {when} by rapid-cosim {__version__}.</p>",
-            "<h2>Parameters</h2>", _parameter_table(run, x, unc, interval_note),
-            "<h2>Error metrics per experiment</h2>", _metrics_table(rows),
-            "<p class=note>RMSE and peak error of the residual; settled change: from the pre-event level to "
-            "the mean of the last 10 % before the next event; response time: from the event to 90 % of the "
-            "settled change (1 s moving mean; blank when the change is under five noise levels). "
-            "Simulations include the profiled transducer offset.</p>",
-            "<h2>Measured and simulated</h2>", *sections]
+            f"<p id=overall>{n_pass} of {len(rows)} tests pass every judged metric, {n_fail} fail "
+            f"({sum(r == HELD_OUT for _, r in curves)} held out).</p>",
+            summary(rows),
+            "<h2>Error metrics against the tolerance bands</h2>", metrics_table(rows),
+            "<p class=note>Per test, from the event (<code>[fitness] pre_step_end</code>) to the end of the window or "
+            "a staged test's return. Changes are from the pre-event mean; the settled level is the mean of the last "
+            "10 % of the span; times are read on a 1 s moving mean (rise: to 90 % of the settled change; peak: only "
+            "when the measured response overshoots; settling: staying within 5 % of the change). Simulations "
+            "include the profiled transducer offset; held-out tests are predicted at the training calibration "
+            "(only their offset profiled). A test passes when every metric judged is within its band.</p>",
+            "<h3>Tolerance bands</h3>", tolerance_table(opts.tolerances),
+            "<h2>Delivered record</h2>",
+            record_section(record, note, unc.level if unc is not None else None),
+            "<h2>Noise model and diagnosis</h2>", noise_section(noise_summary(experiments)),
+            diagnosis_section(opts.diagnosis),
+            '<section class="figures"><h2>Measured and simulated</h2>', *figures, "</section>",
+            "<h2>Provenance</h2>", provenance_section(provenance(run.path, experiments))]
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("<!DOCTYPE html>\n<html lang=en>\n<head><meta charset=utf-8>"
-                   f"<title>rapid-cosim validation: {_e(run.path.name)}</title><style>{STYLE}</style></head>\n"
+                   f"<title>rapid-cosim validation: {e(run.path.name)}</title><style>{STYLE}</style></head>\n"
                    "<body>\n" + "\n".join(body) + "\n</body>\n</html>\n", encoding="utf-8")
-    return ValidationPage(out, tuple(rows), len(sections))
+    return ValidationPage(out, tuple(m for m, _ in rows), tuple(c for _, c in rows), len(figures), record)
 
 
-def _parameter_table(run: ArchivedRun, x, unc: Uncertainty | None, note: str) -> str:
-    space = run.inputs.problem.space
-    level = f"{100 * unc.level:.0f} % interval" if unc is not None else "interval"
-    head = f"<tr><th>parameter</th><th>label</th><th>estimate</th><th>{level}</th><th>searched</th></tr>"
-    rows = []
-    for k, (name, label) in enumerate(zip(run.inputs.problem.names, run.inputs.problem.labels)):
-        interval = "—" if unc is None else f"{unc.interval[k, 0]:.4g} … {unc.interval[k, 1]:.4g}"
-        rows.append(f"<tr><td><code>{_e(name)}</code></td><td>{_e(label)}</td><td>{x[k]:.5g}</td>"
-                    f"<td>{interval}</td><td>{space.lower[k]:g} … {space.upper[k]:g}</td></tr>")
-    source = (f"Intervals: {unc.method} ({_e(note)})." if unc is not None and note
-              else f"Intervals: {unc.method}." if unc is not None else "No interval: " + _e(note or "none given."))
-    return f"<table>{head}{''.join(rows)}</table>\n<p class=note>{source}</p>"
+def _figure(c: FitCurves, m: ValidationMetrics, checks: tuple[Check, ...]) -> str:
+    exp = c.detail.experiment
+    fig = plot_experiment(exp, c, title=f"{caption(exp)} ({m.role})")
+    return (f'<figure data-test="{e(exp.name)}"><h3>{e(caption(exp))}: {e(m.role)} {mark(verdict(checks))}</h3>'
+            f'<img alt="{e(exp.name)}: measured and simulated {e(c.output)}" src="data:image/png;base64,{png(fig)}">'
+            f"<figcaption>{e(exp.description)}</figcaption></figure>")
 
 
-def _metrics_table(rows: Sequence[ValidationMetrics]) -> str:
-    head = ("<tr><th>experiment</th><th>output</th><th>RMSE</th><th>noise</th><th>peak error</th>"
-            "<th>settled change<br>measured</th><th>simulated</th><th>error</th>"
-            "<th>response time<br>measured (s)</th><th>simulated (s)</th><th>error (s)</th></tr>")
-    body = []
-    for m in rows:
-        rel = (f" ({100 * m.settled_error / m.settled_change[0]:+.1f} %)"
-               if m.settled_change[0] and np.isfinite(m.settled_change[0]) else "")
-        body.append(f"<tr><td>{_e(m.experiment)}</td><td>{_e(m.output)}</td><td>{m.rmse:.3g}</td>"
-                    f"<td>{_num(m.noise)}</td><td>{m.peak_error:.3g}</td><td>{m.settled_change[0]:.4g}</td>"
-                    f"<td>{m.settled_change[1]:.4g}</td><td>{m.settled_error:+.3g}{rel}</td>"
-                    f"<td>{_num(m.response_time[0])}</td><td>{_num(m.response_time[1])}</td>"
-                    f"<td>{_num(m.response_time_error, sign=True)}</td></tr>")
-    return f"<table>{head}{''.join(body)}</table>"
+def heldout_curves(run: ArchivedRun, x, opts: PageOptions) -> list[FitCurves]:
+    """Each held-out test simulated at the training calibration: its estimated parameters
+    take the run's best values by name (a parameter the run did not estimate, or one
+    estimated per experiment, cannot be predicted and is refused)."""
+    if not opts.heldout:
+        return []
+    best = dict(zip(run.inputs.problem.names, map(float, x)))
+    trained = {e.name for e in run.inputs.experiments}
+    for exp in opts.heldout:
+        if exp.name in trained:
+            raise ConfigError(f"{exp.name} is a training test of {run.path}; a held-out test is one the run "
+                              "did not see", str(exp.config_path))
+    inputs = inputs_from_experiments(list(opts.heldout), package=opts.package, fmu_dir=opts.fmu_dir,
+                                     fmus=run.inputs.fmus)
+    names = inputs.problem.names
+    missing = [n for n in names if n not in best]
+    if missing:
+        raise ConfigError(f"held-out test(s) estimate {', '.join(missing)}, which {run.path} did not estimate "
+                          f"(it estimated {', '.join(best)}); a held-out test is predicted at the training values",
+                          str(opts.heldout[0].config_path), "estimate")
+    xh = np.array([best[n] for n in names])
+    return [curves_at(inputs, xh, i) for i in range(len(inputs.experiments))]
 
-
-def _num(v, sign: bool = False) -> str:
-    if v is None or not np.isfinite(v):
-        return "—"
-    return f"{v:+.3g}" if sign else f"{v:.3g}"
-
-
-def _png(fig) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _e(text: str) -> str:
-    return html.escape(str(text), quote=True)
