@@ -17,7 +17,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures clean table1 figures rerun event1 joint diagnose structures $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures clean table1 figures rerun event1 joint diagnose structures event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -61,6 +61,9 @@ rerun: fmus  ## re-run ARCHIVE=results/test1/pf10+nm.h5 from the archive alone; 
 
 event1: fmus  ## PSO10+NM and PF10+NM on the recorded under-frequency event (COMTRADE), with its figure
 	$(RC) staged-test experiments/event1 $(RUN_OPTS)
+
+event-electrical: fmus  ## PSO10+NM and PF10+NM on an ANDES grid event recorded as electrical power (P_e, H fixed)
+	$(RC) staged-test experiments/electrical/tgov1_on $(RUN_OPTS)
 
 joint: fmus  ## joint Bayesian fit of R and Ts over tests 1-8 and event1, and how consistent each one's estimate is
 	$(RC) staged-test $(TABLE1_TESTS) experiments/event1 $(RUN_OPTS) --quiet

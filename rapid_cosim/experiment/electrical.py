@@ -85,16 +85,11 @@ def check_machine(outputs: dict[str, str], fixed: dict[str, float], estimate, cf
 
 
 def model_rocof(exp) -> np.ndarray | None:
-    """The ROCOF the bench sees on the input table's rows (given, or derived as the
-    simulator derives it), or None without a frequency input."""
-    table = exp.input_table
-    if table is None:
+    """The ROCOF the bench sees on the input table's rows, or None without a frequency input."""
+    table = exp.input_table  # given, or derived there (split at the event)
+    if table is None or ROCOF not in table.names:
         return None
-    if ROCOF in table.names:
-        return table.values[:, table.names.index(ROCOF)]
-    if FREQUENCY not in table.names:
-        return None
-    return derive_rocof(table.time, table.values[:, table.names.index(FREQUENCY)], WINDOW)
+    return table.values[:, table.names.index(ROCOF)]
 
 
 def check_rocof_column(exp, cfg) -> None:
@@ -106,7 +101,8 @@ def check_rocof_column(exp, cfg) -> None:
     if spec is None or table is None or FREQUENCY not in table.names:
         return
     given = table.values[:, table.names.index(ROCOF)]
-    derived = derive_rocof(table.time, table.values[:, table.names.index(FREQUENCY)], WINDOW)
+    breaks = () if exp.pre_step_end is None else (exp.pre_step_end,)
+    derived = derive_rocof(table.time, table.values[:, table.names.index(FREQUENCY)], WINDOW, breaks)
     quiet = table.time < exp.pre_step_end if exp.pre_step_end is not None else np.zeros(table.time.size, bool)
     noise = float(np.std(derived[quiet])) if quiet.sum() > 10 else 0.0
     if np.sqrt(np.mean(derived ** 2)) <= 5.0 * noise or not np.any(derived):

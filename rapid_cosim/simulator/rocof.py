@@ -46,13 +46,18 @@ def points(dt: float, window: float = WINDOW) -> int:
     return max(n, ORDER + 3 if (ORDER + 3) % 2 else ORDER + 4)
 
 
-def derive_rocof(time: np.ndarray, values: np.ndarray, window: float = WINDOW) -> np.ndarray:
+def derive_rocof(time: np.ndarray, values: np.ndarray, window: float = WINDOW,
+                 breaks: tuple[float, ...] = ()) -> np.ndarray:
     """d(values)/dt on ``time`` by the zero-phase Savitzky-Golay derivative, piecewise
-    between steps; a piece too short or not evenly sampled gets second-order differences."""
+    between steps and at ``breaks`` (an event's known start: its ROCOF step is not spread
+    backwards, which biased a fast lag 14 to 25 % short); a piece too short or not evenly
+    sampled gets second-order differences."""
     t = np.asarray(time, dtype=float)
     v = np.asarray(values, dtype=float)
     out = np.zeros_like(v)
-    for seg in np.split(np.arange(t.size), np.flatnonzero(np.diff(t) == 0) + 1):
+    cuts = set((np.flatnonzero(np.diff(t) == 0) + 1).tolist())
+    cuts.update(int(i) for i in np.searchsorted(t, breaks) if 0 < i < t.size)
+    for seg in np.split(np.arange(t.size), sorted(cuts)):
         out[seg] = _piece(t[seg], v[seg], window)
     return out
 
@@ -81,10 +86,16 @@ def gain(freq_hz: float, dt: float, window: float = WINDOW) -> float:
     return float(abs(np.sum(c * np.exp(1j * w * k * dt))) / w)
 
 
-def with_rocof(table: InputTable, window: float = WINDOW) -> InputTable:
+def with_rocof(table: InputTable, window: float = WINDOW, breaks: tuple[float, ...] = ()) -> InputTable:
     """``table`` with ``rocof`` derived from ``f_dev`` (unchanged if it has one or no f_dev)."""
     if ROCOF in table.names or FREQUENCY not in table.names:
         return table
     f = table.values[:, table.names.index(FREQUENCY)]
     return InputTable(table.time, table.names + (ROCOF,),
-                      np.column_stack([table.values, derive_rocof(table.time, f, window)]))
+                      np.column_stack([table.values, derive_rocof(table.time, f, window, breaks)]))
+
+
+def without_rocof(table: InputTable) -> InputTable:
+    """``table`` without its ROCOF column: a derived one offered to a model without the input."""
+    keep = [k for k, n in enumerate(table.names) if n != ROCOF]
+    return InputTable(table.time, tuple(table.names[k] for k in keep), table.values[:, keep])

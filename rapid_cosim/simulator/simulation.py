@@ -37,7 +37,7 @@ from ..errors import ParameterError, SimulationError, SimulationTimeout
 from . import compiled
 from .fmu import FmuRef, LoadedFmu, ParameterInfo, cache_key
 from .inputs import InputTable
-from .rocof import FREQUENCY, ROCOF, with_rocof
+from .rocof import FREQUENCY, ROCOF, with_rocof, without_rocof
 
 RUNNERS = ("compiled", "python", "exponential")  # archives record these names
 DEFAULT_RUNNER = "exponential"
@@ -140,6 +140,8 @@ class Simulator:
             return None
         if ROCOF in self.inputs and FREQUENCY in table.names and ROCOF not in table.names:
             table = with_rocof(table)  # a recorded-frequency bench always gets its ROCOF (.rocof)
+        elif ROCOF in table.names and ROCOF not in self.inputs and FREQUENCY in table.names:
+            table = without_rocof(table)  # an experiment's derived ROCOF, offered to a model without it
         self.fmu.check_inputs(table.names)
         return table
 
