@@ -23,6 +23,7 @@ plant's true parameters). Cases run in parallel processes (``--n-jobs``).
 from __future__ import annotations
 
 import argparse
+import pickle
 import shutil
 import sys
 import tempfile
@@ -80,7 +81,7 @@ def main(argv: list[str]) -> int:
     from rapid_cosim.compiler import build_models
     from rapid_cosim.diagnose.campaigns import SINGLE_SIZE
     from rapid_cosim.diagnose.catalogue import BASE_BENCH, EFFECTS
-    from rapid_cosim.diagnose.study import FOREIGN, HIDDEN, confusion_text, draw_case, run_case
+    from rapid_cosim.diagnose.study import FOREIGN, HIDDEN, draw_case, run_case
     from rapid_cosim.diagnose.workflow import DiagnoseOptions
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -91,7 +92,12 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--n-jobs", type=int, default=2, help="cases in parallel")
     parser.add_argument("--max-effects", type=int, default=2)
     parser.add_argument("--keep", help="work folder to keep (default: a temporary one)")
+    parser.add_argument("--report", metavar="WORK", help="print the results kept in WORK again, run nothing")
     args = parser.parse_args(argv)
+    if args.report:
+        with open(Path(args.report) / "results.pkl", "rb") as f:
+            _print(*pickle.load(f))
+        return 0
 
     work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="rapid_cosim_study_"))
     package = work / "package" / "iGrGen"
@@ -110,8 +116,14 @@ def main(argv: list[str]) -> int:
 
     def one(case, label):
         opts = replace(options, judge=_truth_labels(case.truth))
-        result = run_case(case, work / label, options=opts, package=package, fmu_dir=fmu_dir)
-        result.check = _reached_from_truth(result) if case.kind == "event" and case.truth == "rate_limit" else None
+        try:
+            result = run_case(case, work / label, options=opts, package=package, fmu_dir=fmu_dir)
+            result.check = _reached_from_truth(result) if case.kind == "event" and case.truth == "rate_limit" \
+                else None
+        except Exception as e:  # one campaign's crash is a finding, not the end of the study
+            import traceback
+
+            return Crash(case, f"{type(e).__name__}: {e}", traceback.format_exc())
         return result
 
     print(f"{len(cases)} campaigns + 1 single-step-size campaign, {args.n_jobs} in parallel; work folder {work}")
@@ -119,25 +131,47 @@ def main(argv: list[str]) -> int:
         [*(joblib.delayed(one)(c, "cases") for c in cases), joblib.delayed(one)(single, "single")])
     *results, single_result = results
     elapsed = time.perf_counter() - t0
+    with open(work / "results.pkl", "wb") as f:  # --report WORK prints them again
+        pickle.dump((results, single_result, elapsed), f)
+    _print(results, single_result, elapsed)
+    if not args.keep:
+        shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+class Crash:
+    """A campaign whose diagnosis raised: reported first, with its traceback."""
+
+    def __init__(self, case, error: str, trace: str):
+        self.case, self.error, self.trace = case, error, trace
+
+
+def _print(results, single_result, elapsed) -> None:
+    from rapid_cosim.diagnose.study import confusion_text
+
+    crashed = [r for r in [*results, single_result] if isinstance(r, Crash)]
+    results = [r for r in results if not isinstance(r, Crash)]
     print()
+    if crashed:
+        print(f"CRASHED: {len(crashed)} campaign(s); the rates below are over the campaigns that finished:")
+        for c in crashed:
+            print(f"  {c.case.label}: {c.error}\n{c.trace}")
     for kind in ("staged", "event"):
         subset = [r for r in results if r.case.kind == kind]
         if subset:
             print(f"{kind} campaigns:")
             print(confusion_text(subset))
             print()
-    report(results, single_result)
+    report(results, None if isinstance(single_result, Crash) else single_result)
     per_case = [r.seconds for r in results]
     print(f"time: {elapsed:.0f} s in all (drawing the cases included), {np.median(per_case):.0f} s per campaign "
           f"(median; staged {np.median([r.seconds for r in results if r.case.kind == 'staged']):.0f} s, events "
           f"{np.median([r.seconds for r in results if r.case.kind == 'event'] or [0]):.0f} s; one process each)")
-    if not args.keep:
-        shutil.rmtree(work, ignore_errors=True)
-    return 0
 
 
 def report(results, single_result) -> None:
     from rapid_cosim.diagnose.catalogue import CATALOGUE, VARIANTS as VARIANT_EFFECTS
+    from rapid_cosim.diagnose.study import FOREIGN
 
     null = [r for r in results if r.case.truth == "none"]
     if null:
@@ -184,10 +218,11 @@ def report(results, single_result) -> None:
         print(f"event rate-limit campaigns: the multistart reached the best point in {len(checked) - len(missed)}/"
               f"{len(checked)} (a local fit from the true parameters found better by more than 2 in BIC in "
               f"{len(missed)})")
-    d = single_result.diagnosis
-    print(f"single step size, deadband hidden: verdict {d.effect}"
-          + (f" between {' and '.join(d.candidates)}" if d.effect == "ambiguous" else "")
-          + (f"; next: {d.separating_test['advice']}" if d.separating_test else ""))
+    if single_result is not None:
+        d = single_result.diagnosis
+        print(f"single step size, deadband hidden: verdict {d.effect}"
+              + (f" between {' and '.join(d.candidates)}" if d.effect == "ambiguous" else "")
+              + (f"; next: {d.separating_test['advice']}" if d.separating_test else ""))
     for r in results:
         if not r.correct:
             print(f"  missed {r.case.label}: {r.diagnosis.verdict} {r.diagnosis.candidates} "

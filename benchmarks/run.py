@@ -20,6 +20,10 @@ input       the FrequencyInput bench driven by a 110 s recorded frequency at 25 
 pf          one particle-filter iteration of 100 particles on staged test 1, one core,
             with each runner; then batches of 100 to 4000 sets on one and two workers.
 archive     writing and reading a run's archive.
+fmi         every kind of FMU (FMI 2.0 / 3.0 x Model Exchange / Co-Simulation): speed
+            against a fresh fmpy.simulate_fmu, accuracy against closed forms, the
+            Co-Simulation C driver against its fmpy loop, and memory over 10,000
+            simulations and 1,000 instantiations per kind (see fmi_kinds.py).
 
 Times are the best of a few repeats (the machine may be shared); ratios compare paths
 measured in the same run.
@@ -187,6 +191,40 @@ def bench_recorded_pmu(sim) -> None:
                       dict(output_times=t, input_time=t, inputs={"f_dev": f_dev}, outputs=["pm"]), batch_target=0.3)
 
 
+def bench_api() -> None:
+    """``rc.simulate`` as a notebook user calls it, against the paths before: a fresh
+    ``fmpy.simulate_fmu`` and a simulator built per call (what ``rc.simulate`` did)."""
+    import fmpy
+
+    import rapid_cosim as rc
+    from rapid_cosim.simulator import Simulator
+    from rapid_cosim.synthetic import jittered_times, pmu_noise, under_frequency_event
+
+    exp = _test1()
+    staged = str(_fmu(exp.model))
+    grid = dict(stop_time=90.0, output_interval=0.1)
+    fresh_fmpy = _best(lambda: fmpy.simulate_fmu(staged, stop_time=90.0, output_interval=0.1, solver="CVode",
+                                                  start_values={"gov.Ts": 2.0}, output=["pm"]), 3)
+    per_call = _best(lambda: Simulator(staged).simulate({"gov.Ts": 2.0}, **grid), 3)
+    repeated = _best(lambda: [rc.simulate(staged, {"gov.Ts": 2.0}, **grid) for _ in range(200)], 3) / 200
+    print("rc.simulate, one call per parameter set, one core:")
+    print(f"  staged test 1's bench, 90 s at 10 Hz: fresh fmpy.simulate_fmu {1e3 * fresh_fmpy:8.3f} ms; a simulator"
+          f" built per call {1e3 * per_call:6.3f} ms; rc.simulate repeated {1e3 * repeated:6.3f} ms"
+          f"   x{fresh_fmpy / repeated:.0f} over fmpy, x{per_call / repeated:.0f} over per-call (target <= 0.15 ms)")
+    rng = np.random.default_rng(0)
+    t = jittered_times(120.0, 50.0, 0.003, rng)
+    f_dev = under_frequency_event(t, t_event=20.0) + pmu_noise(t.size, rate=50.0, sigma=1e-3, window=0.3, rng=rng)
+    event = str(_fmu("iGrGen.TestBenches.FrequencyInput"))
+    table = np.zeros(t.size, dtype=[("time", float), ("f_dev", float)])
+    table["time"], table["f_dev"] = t, f_dev
+    fresh_fmpy = _best(lambda: fmpy.simulate_fmu(event, stop_time=float(t[-1]), output_interval=0.02, solver="CVode",
+                                                  start_values={"gov.Ts": 2.0}, input=table, output=["pm"]), 3)
+    kw = dict(output_times=t, input_time=t, inputs={"f_dev": f_dev}, outputs=["pm"])
+    one = _best(lambda: [rc.simulate(event, {"gov.Ts": 2.0}, **kw) for _ in range(20)], 3) / 20
+    print(f"  PMU event, 120 s at 50 frames/s ({t.size} samples, jittered, noisy): fresh fmpy.simulate_fmu "
+          f"{1e3 * fresh_fmpy:8.3f} ms; rc.simulate {1e3 * one:6.3f} ms   x{fresh_fmpy / one:.0f} (target <= 1 ms)")
+
+
 def bench_pf() -> None:
     from rapid_cosim.estimators import PFOptions, particle_filter
     from rapid_cosim.engine import make_engine
@@ -228,7 +266,14 @@ def bench_archive() -> None:
         print(f"  {key:40s} {value}")
 
 
-SECTIONS = {"simulation": bench_simulation, "input": bench_input, "pf": bench_pf, "archive": bench_archive}
+def bench_fmi_kinds() -> None:
+    from fmi_kinds import bench_fmi
+
+    bench_fmi()
+
+
+SECTIONS = {"simulation": bench_simulation, "api": bench_api, "input": bench_input, "pf": bench_pf,
+            "archive": bench_archive, "fmi": bench_fmi_kinds}
 
 
 def main(argv: list[str]) -> int:

@@ -9,7 +9,8 @@ The public API, in the manner of scipy.optimize::
     fit.to_frame()            # one row per parameter (pandas)
 
 ``calibrate``, ``resume``, ``rerun`` and ``load`` return one :class:`Calibration`;
-``diagnose`` finds what a model misses; ``simulate`` runs one model or FMU;
+``diagnose`` finds what a model misses; ``simulate`` runs one model or FMU; ``export``
+writes a calibration of a standard governor as a PSS/E ``.dyr`` or PSLF ``.dyd`` record;
 :class:`Experiment` is made from a config file or in code.
 
 The package follows the way data flows, each module knowing only those before it
@@ -24,9 +25,9 @@ The package follows the way data flows, each module knowing only those before it
 
 __version__ = "0.2.0"
 
-from .api import Calibration, calibrate, diagnose, load, rerun, resume, simulate  # noqa: E402
+from .api import Calibration, calibrate, diagnose, export, load, rerun, resume, simulate  # noqa: E402
 from .experiment import Experiment  # noqa: E402
 from .simulator import Trajectory  # noqa: E402
 
-__all__ = ["Calibration", "Experiment", "Trajectory", "calibrate", "diagnose", "load", "rerun", "resume",
+__all__ = ["Calibration", "Experiment", "Trajectory", "calibrate", "diagnose", "export", "load", "rerun", "resume",
            "simulate", "__version__"]

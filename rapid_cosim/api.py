@@ -1,4 +1,4 @@
-"""The Python API: calibrate, resume, rerun, load, diagnose, simulate.
+"""The Python API: calibrate, resume, rerun, load, diagnose, simulate, export.
 
 Every calibration returns one :class:`Calibration`, in the manner of scipy's
 ``OptimizeResult`` (``x``, ``fun``, ``nfev``, ``nit``, ``success``, ``message``) plus what
@@ -228,9 +228,10 @@ def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mappi
              stop_time: float | None = None, output_interval: float | None = None, output_times=None,
              outputs: Sequence[str] | None = None, input_time=None, inputs: Mapping[str, np.ndarray] | None = None,
              runner: str = DEFAULT_RUNNER, timeout: float | None = None, package: str | Path = PACKAGE,
-             fmu_dir: str | Path = FMU_DIR, compiler: str = "auto") -> Trajectory | BatchResult:
-    """Simulate a model of the package (a class name, built if needed) or any FMI 2.0
-    Model Exchange FMU (a path ending in ``.fmu``).
+             fmu_dir: str | Path = FMU_DIR, compiler: str = "auto",
+             communication_step: float | None = None) -> Trajectory | BatchResult:
+    """Simulate a model of the package (a class name, built if needed) or any FMI 2.0 or
+    3.0 FMU, Model Exchange or Co-Simulation (a path ending in ``.fmu``).
 
     ``parameters`` is one set (names to numbers): a :class:`Trajectory` is returned, and
     a failure raises. Or a batch: a sequence of such mappings, or a mapping of names to
@@ -238,11 +239,15 @@ def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mappi
     :class:`BatchResult` whose ``values`` are (sets x times x outputs), a failed set
     carrying its status and message instead of raising. The FMU is loaded once per
     process (and again only when its file changes), so repeated calls cost a simulation.
+
+    A model that asks to terminate (FMI terminateSimulation) before ``stop_time`` gives
+    the trajectory up to then, with a warning. ``communication_step`` (s) bounds a
+    Co-Simulation FMU's communication step, or sets it where the FMU needs a fixed one.
     """
     fmu = ensure_fmu(str(model), package=package, fmu_dir=fmu_dir, compiler=compiler)
     sim = get_simulator(fmu, timeout=timeout)
     grid = dict(stop_time=stop_time, output_interval=output_interval, output_times=output_times, outputs=outputs,
-                input_time=input_time, inputs=inputs, runner=runner)
+                input_time=input_time, inputs=inputs, runner=runner, communication_step=communication_step)
     batch = _as_batch(parameters)
     if batch is None:
         return sim.simulate(parameters, **grid)
@@ -269,3 +274,58 @@ def _as_batch(parameters) -> tuple[list[str], np.ndarray] | None:
     if any(set(p) != set(names) for p in sets):
         raise ParameterError("every parameter set of a batch must name the same parameters")
     return names, np.array([[float(p[n]) for n in names] for p in sets])
+
+
+def export(archive: str | Path, out: str | Path, *, format: str | None = None, bus: int = 1, machine_id: str = "1",
+           mva: float | None = None, bus_name: str = "", kv: float = 0.0):
+    """Write the calibration in ``archive`` as the grid simulators' record of its standard
+    governor (TGOV1, IEEEG1, GGOV1 or HYGOV, told by the bench's ``gov.*`` parameters):
+    a PSS/E ``.dyr`` or PSLF ``.dyd`` record (``format``, default by ``out``'s suffix) for
+    machine ``machine_id`` at ``bus``. The values are the archive's best estimates over
+    its fixed values over the bench's defaults; ``mva``, the machine's MVA base, is
+    written in a ``.dyd`` record (required there; a ``.dyr`` record has none: PSS/E takes
+    MBASE from the ``.raw``). Returns the :class:`~rapid_cosim.exchange.Written` record;
+    conversions are those of :mod:`rapid_cosim.exchange.tables`."""
+    from .exchange import FORMATS, MODELS, format_of
+
+    kind = format or format_of(out)
+    if kind not in FORMATS:
+        raise ParameterError(f"format {kind!r}: use dyr (PSS/E) or dyd (PSLF)")
+    calib = load(archive)
+    experiments = calib.inputs.experiments
+    models = {e.model for e in experiments}
+    if len(models) != 1:
+        raise ConfigError(f"{archive}: its experiments run {len(models)} models ({', '.join(sorted(models))}); "
+                          "a record describes one")
+    (bench,) = models
+    starts = {n[4:]: p.start for n, p in get_simulator(calib.inputs.fmus[bench]).parameters.items()
+              if n.startswith("gov.") and p.settable}
+    def carries(m) -> bool:  # every parameter of the block, an operating point possibly bound (GGOV1's Pmwset)
+        return set(m.params) - {d.param for d in m.dropped if d.default is None} <= set(starts) <= set(m.params)
+
+    model = next((m for m in MODELS.values() if carries(m)), None)
+    if model is None:
+        raise ConfigError(f"{archive}: its bench {bench} carries none of the standard governors "
+                          f"({', '.join(MODELS)}); only their calibrations have a record")
+    carried = {f.param for f in model.fields if f.param} | {d.param for d in model.dropped if d.default is not None}
+    values = {k: float(v) for k, v in starts.items() if k in carried and v is not None}
+    fixed: dict[str, dict[str, float]] = {}
+    for exp in experiments:
+        for name, v in exp.fixed.items():
+            if name.startswith("gov.") and name[4:] in carried:
+                fixed.setdefault(name[4:], {})[exp.name] = float(v)
+    for key, by_experiment in fixed.items():
+        if len(set(by_experiment.values())) > 1:
+            raise ConfigError(f"{archive}: gov.{key} is fixed at different values in its experiments "
+                              f"({by_experiment}); a record holds one value")
+        values[key] = next(iter(by_experiment.values()))
+    if not np.all(np.isfinite(calib.x)):
+        raise ArchiveError(f"{archive}: no finite best point to export ({calib.message})")
+    for name, v in calib.parameters.items():
+        if name.startswith("gov."):
+            if "@" in name:
+                raise ConfigError(f"{archive}: {name.split('@')[0]} is estimated per experiment; a record holds "
+                                  "one value")
+            values[name[4:]] = v
+    options = {"mva": mva, "bus_name": bus_name, "kv": kv} if kind == "dyd" else {}
+    return FORMATS[kind].write_record(out, model.name, values, bus=bus, machine_id=machine_id, **options)

@@ -49,7 +49,8 @@ def cmd_simulate(args) -> int:
 
     traj = simulate(args.model, _assignments(args.set), stop_time=args.stop_time,
                     output_interval=args.output_interval, outputs=args.outputs.split(",") if args.outputs else None,
-                    timeout=args.timeout, runner=args.runner, **_models(args))
+                    timeout=args.timeout, runner=args.runner, communication_step=args.communication_step,
+                    **_models(args))
     names = list(traj.outputs)
     out = open(args.out, "w", newline="") if args.out else sys.stdout
     try:
@@ -236,6 +237,20 @@ def cmd_structures(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    from .api import export
+
+    written = export(args.archive, args.out, format=args.format, bus=args.bus, machine_id=args.id, mva=args.mva,
+                     bus_name=args.bus_name, kv=args.kv)
+    print(f"wrote {written.path}: {written.model} of machine {args.id} at bus {args.bus}")
+    print(written.text, end="")
+    if written.dropped:
+        print("not in the record (no field): " + ", ".join(f"{k} = {v:g}" for k, v in written.dropped.items()))
+    if (args.format or Path(args.out).suffix.lstrip(".")) == "dyr" and args.mva is not None:
+        print("note: a .dyr record carries no base; PSS/E takes the machine's MBASE from the .raw")
+    return 0
+
+
 def cmd_demo(args) -> int:
     from .campaign import demo
 
@@ -301,6 +316,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output-interval", type=float, default=0.05)
     p.add_argument("--outputs", help="comma-separated variables to record (default: the model's outputs)")
     p.add_argument("--timeout", type=float, default=None, help="wall-clock limit in seconds")
+    p.add_argument("--communication-step", type=float, default=None, metavar="SECONDS",
+                   help="Co-Simulation FMUs: the largest communication step (the fixed one where the FMU "
+                        "cannot vary it); default: the output grid")
     p.add_argument("--out", help="CSV file (default: standard output)")
     runner_option(p)
     model_options(p)
@@ -394,6 +412,17 @@ def build_parser() -> argparse.ArgumentParser:
     selection_options(p, "results/structures")
     p.add_argument("--structures", required=True,
                    help="comma-separated structure files, e.g. experiments/structures/TGTypeI.toml,...")
+
+    p = command("export", cmd_export, "write a calibration of TGOV1, IEEEG1, GGOV1 or HYGOV as a PSS/E .dyr or "
+                "PSLF .dyd record (values on the machine base; conversions in the README)")
+    p.add_argument("archive", help="the calibration's archive (.h5)")
+    p.add_argument("--out", required=True, help="record file to write, .dyr or .dyd")
+    p.add_argument("--format", choices=["dyr", "dyd"], help="default: by the suffix of --out")
+    p.add_argument("--bus", type=int, default=1, help="the machine's bus number (default %(default)s)")
+    p.add_argument("--id", default="1", help="the machine id (default %(default)s)")
+    p.add_argument("--mva", type=float, help="the machine's MVA base (required for .dyd)")
+    p.add_argument("--bus-name", default="", help="the bus name of a .dyd record")
+    p.add_argument("--kv", type=float, default=0.0, help="the bus's base kV of a .dyd record (default %(default)s)")
 
     p = command("demo", cmd_demo, "build the FMUs, calibrate one staged test with both chains, "
                 "write its figure and table")

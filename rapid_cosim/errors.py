@@ -99,3 +99,18 @@ class RunInterrupted(RapidCosimError):
 
 class ArchiveLocked(ArchiveError):
     """Another live process holds the archive for writing."""
+
+
+class RecordError(RapidCosimError):
+    """A grid simulator's record (PSS/E ``.dyr``, PSLF ``.dyd``) this toolkit cannot read
+    as an iGrGen model: located by file and line, naming the field, its value and what is
+    allowed."""
+
+    def __init__(self, message: str, file: str | None = None, line: int | None = None,
+                 field: str | None = None, value: object = None, allowed: str | None = None):
+        self.file, self.line, self.field, self.value, self.allowed, self.detail = \
+            file, line, field, value, allowed, message
+        where = f"{file}:{line}" if file and line else (file or "")
+        what = f"field {field} = {value!r}: " if field is not None else ""
+        tail = f" (allowed: {allowed})" if allowed else ""
+        super().__init__(f"{where}: {what}{message}{tail}" if where else f"{what}{message}{tail}")

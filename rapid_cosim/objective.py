@@ -62,9 +62,10 @@ def simulate_experiment(exp: Experiment, fmu: FmuRef | str, params: Mapping[str,
     if fine:
         return sim.simulate(params, start_time=s.start_time, stop_time=s.stop_time,
                             output_interval=s.output_interval, outputs=list(exp.outputs), runner=runner,
-                            inputs=exp.input_table)
+                            inputs=exp.input_table, communication_step=s.communication_step)
     return sim.simulate(params, start_time=s.start_time, output_times=exp.windowed_data().time,
-                        outputs=list(exp.outputs), runner=runner, inputs=exp.input_table)
+                        outputs=list(exp.outputs), runner=runner, inputs=exp.input_table,
+                        communication_step=s.communication_step)
 
 
 class ExperimentBatch:
@@ -79,7 +80,7 @@ class ExperimentBatch:
         self.prepared = get_simulator(fmu, timeout=s.timeout).prepare(
             list(exp.fixed) + [name for name, _ in assignment], start_time=s.start_time,
             output_times=exp.windowed_data().time, outputs=list(exp.outputs), runner=runner,
-            inputs=exp.input_table)
+            inputs=exp.input_table, communication_step=s.communication_step)
 
     def __call__(self, X: np.ndarray):
         values = np.empty((X.shape[0], self.fixed.size + len(self.columns)))

@@ -20,6 +20,7 @@ from .errors import ConfigError
 from .experiment import EstimateSpec, Experiment, config_key
 from .search import SearchSpace
 from .simulator import ParameterInfo
+from .simulator.fmu import OUTPUT_TYPES, REAL_TYPES
 from .simulator.rocof import FREQUENCY, ROCOF
 
 @dataclass(frozen=True, eq=False)
@@ -97,7 +98,7 @@ def check_signals(experiment: Experiment, types: Mapping[str, str], model_inputs
     """Every output compared is a variable the model can record (by its FMI type), every
     ``[inputs]`` entry one of its inputs (Real), and every input of the model driven."""
     file = str(experiment.config_path)
-    recordable = ("Real", "Integer", "Enumeration", "Boolean")
+    recordable = (*OUTPUT_TYPES, "Enumeration")  # FMI 2.0 and 3.0 numeric types
     for out in experiment.outputs:
         key = config_key("data.outputs", out)
         if out not in types:
@@ -105,17 +106,17 @@ def check_signals(experiment: Experiment, types: Mapping[str, str], model_inputs
             hint = f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ""
             raise ConfigError(f"model {experiment.model} has no output '{out}'{hint}", file, key)
         if types[out] not in recordable:
-            raise ConfigError(f"'{out}' is a {types[out]} variable; Real, Integer, Enumeration and Boolean "
-                              "ones can be compared", file, key)
+            raise ConfigError(f"'{out}' is a {types[out]} variable; numeric ones (Real, Integer, Enumeration "
+                              "and Boolean; in FMI 3.0 the Float and Int types) can be compared", file, key)
     listing = ", ".join(model_inputs) or "(none)"
     for spec in experiment.inputs:
         key = config_key("inputs", spec.name)
         if spec.name not in model_inputs:
             raise ConfigError(f"model {experiment.model} has no input '{spec.name}'; its inputs: {listing}",
                               file, key)
-        if types[spec.name] != "Real":
+        if types[spec.name] not in REAL_TYPES:
             raise ConfigError(f"input '{spec.name}' is a {types[spec.name]} input; rapid-cosim drives Real "
-                              "inputs only", file, key)
+                              "(FMI 3.0: Float64) inputs only", file, key)
     driven = {s.name for s in experiment.inputs}
     if FREQUENCY in driven:  # a recorded-frequency bench's ROCOF is derived from it (simulator.rocof)
         driven.add(ROCOF)

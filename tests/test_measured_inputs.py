@@ -145,8 +145,7 @@ def test_inputs_from_another_file_align_by_time(droop_fmus, tmp_path):
     assert rc.rerun(tmp_path / "run.h5").identical
 
 
-@pytest.mark.parametrize("fmu_key, message", [
-    ("cs", r"\[experiment.fmu\].*Plant-cs.fmu: a Co-Simulation FMU without a Model Exchange interface"),
+@pytest.mark.parametrize("fmu_key, message", [  # Co-Simulation-only FMUs run: tests/test_fmu_kinds.py
     ("other", r"\[experiment.fmu\].*no binary for this platform.*aarch64-darwin"),
 ])
 def test_fmus_that_cannot_run_are_refused_by_key(droop_fmus, tmp_path, fmu_key, message):

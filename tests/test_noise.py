@@ -10,6 +10,7 @@ from rapid_cosim.errors import ConfigError
 from rapid_cosim.experiment import Experiment
 from rapid_cosim.fitness import batch_residuals, batch_rssd, combination_weights, experiment_fitness
 from rapid_cosim.noise import NoiseFit, QuietStretch, RecorderNoise, fit_noise, quiet_windows
+from rapid_cosim.noise.estimate import DRAW_FACTOR
 
 FIELD_LIKE = RecorderNoise(0.0012, ((0.0008, 0.9),), 0.1)  # what the field tests' quiet data show
 
@@ -91,6 +92,19 @@ def test_draws_spread_as_the_estimate_is_uncertain():
     draws = np.array([m.log_parameters() for m in fit.draw(np.random.default_rng(0), 4000)])
     assert np.allclose(np.std(draws, axis=0), fit.standard_errors(), rtol=0.1)
     assert np.array_equal(NoiseFit.known(FIELD_LIKE).draw(rng, 3)[0].log_parameters(), FIELD_LIKE.log_parameters())
+
+
+def test_an_undetermined_component_draws_bounded_models():
+    """A covariance the quiet data cannot pin down (huge, or not finite) still draws
+    recorders: each parameter within the truncation factor of the estimate."""
+    fit = fit_noise(_stretches(FIELD_LIKE, np.random.default_rng(6)))
+    theta = fit.model.log_parameters()
+    for cov in (np.diag(np.full(theta.size, 400.0)), np.full((theta.size, theta.size), np.nan)):
+        wide = NoiseFit(fit.model, cov, fit.tests, fit.n_samples, fit.n_stretches, fit.deviance, fit.families,
+                        fit.acf, fit.acf_model)
+        draws = np.array([m.log_parameters() for m in wide.draw(np.random.default_rng(1), 500)])
+        assert np.all(np.abs(draws - theta) <= np.log(DRAW_FACTOR) + 1e-12)
+        assert np.ptp(draws, axis=0).min() > 0.5 * np.log(DRAW_FACTOR)
 
 
 def _staged(noise: dict | None = None, t_return=60.0, n=1101):

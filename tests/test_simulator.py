@@ -50,6 +50,18 @@ def test_a_repeated_grid_reuses_its_prepared_batch_and_results_stay_apart(fmus):
         a.time[0] = 1.0
 
 
+def test_a_recorded_input_is_remembered_by_content_not_by_identity(fmus):
+    sim = Simulator(fmus["FrequencyInput"])
+    t = np.linspace(0.0, 20.0, 401)
+    f_dev = np.where(t > 5.0, -0.1, 0.0)
+    a = sim.simulate({}, output_times=t, input_time=t, inputs={"f_dev": f_dev})
+    b = sim.simulate({}, output_times=t.copy(), input_time=t.copy(), inputs={"f_dev": f_dev.copy()})
+    assert len(sim._batches) == 1 and np.array_equal(a["pm"], b["pm"])
+    f_dev[t > 10.0] = -0.2  # the same array changed in place: a new batch, a new answer
+    c = sim.simulate({}, output_times=t, input_time=t, inputs={"f_dev": f_dev})
+    assert len(sim._batches) == 2 and c["pm"][-1] > a["pm"][-1] + 0.5 * 0.1 / 50 / 0.05
+
+
 def test_trajectory_covers_a_stop_time_off_the_grid(staged):
     traj = staged.simulate({}, stop_time=10.03, output_interval=0.05)
     assert traj.time[-1] >= 10.03 and np.allclose(np.diff(traj.time), 0.05)

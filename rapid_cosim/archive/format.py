@@ -19,7 +19,8 @@ Layout (HDF5 1.8 file format, so any HDF5 >= 1.8 reads it)::
     /iterations/extras     uint8, one self-describing record per iteration (see below)
     /evaluations/x, fitness, failed, weights, iteration, rssd   one row per evaluation
     /result                x, posterior/...; attrs fun, nfev, nit, wall_time, stop_reason,
-                           n_failed. Present once the run is finished.
+                           n_failed, failure_messages (JSON list; absent when none failed
+                           or in archives older than it). Present once the run is finished.
 
 The iteration and evaluation datasets are each one set for the whole run, appended to
 row by row. While a run is live they are longer than their content (see below):
@@ -357,6 +358,8 @@ def write_result(f: h5py.File, result: EstimationResult) -> None:
         wall_time=float(result.wall_time), stop_reason=str(result.stop_reason),
         n_failed=int(result.n_failed),
     )
+    if result.failure_messages:
+        r.attrs["failure_messages"] = json.dumps(list(result.failure_messages))
     u = result.uncertainty
     if u is not None:  # the group keeps the name it had when only SMC posteriors were stored
         p = r.create_group("posterior")

@@ -259,7 +259,8 @@ class RunArchive:
                 method=self.method, names=self.names, x=r["x"][()], fun=float(r.attrs["fun"]),
                 nfev=int(r.attrs["nfev"]), nit=int(r.attrs["nit"]), wall_time=float(r.attrs["wall_time"]),
                 stop_reason=str(r.attrs["stop_reason"]), history=history, n_failed=int(r.attrs["n_failed"]),
-                uncertainty=self.uncertainty())
+                uncertainty=self.uncertainty(),
+                failure_messages=tuple(json.loads(str(r.attrs.get("failure_messages", "[]")))))
 
     def uncertainty(self) -> Uncertainty | None:
         if self.status != "finished":

@@ -27,6 +27,7 @@ from ..estimators import parse_method, run_chain
 from ..estimators.base import EstimationResult, Iteration
 from ..experiment import Experiment
 from ..objective import ProblemObjective
+from ..simulator import get_simulator
 from .inputs import RunInputs, inputs_from_archive, log_likelihood_for
 from .options import RunOptions, stage_options
 from .replay import RecordingObjective, same_iteration
@@ -55,8 +56,15 @@ class _Progress:
             self.bar.close()
 
 
+def _simulation_paths(inputs: RunInputs, options: RunOptions) -> dict[str, str]:
+    """Per model, what simulates it: the FMU's kind and the driver ("FMI 3.0 Co-Simulation,
+    C driver"), as archives record it."""
+    return {model: get_simulator(ref).run_path(options.runner) for model, ref in inputs.fmus.items()}
+
+
 def _archive_options(options: RunOptions, inputs: RunInputs) -> dict:
     return {**options.to_json(), "rapid_cosim_version": __version__,
+            "simulation_paths": _simulation_paths(inputs, options),
             "experiments": {e.name: {"config_path": str(e.config_path), "model": e.model,
                                      "time_column": e.time_column,
                                      "files": {s.file: s.time for s in e.inputs if s.file is not None}}
@@ -131,6 +139,7 @@ def start_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *, pr
             data=_all_data(problem.experiments),
             n_experiments=len(problem.experiments)) as writer, _interruptible(writer):
         result = _execute(inputs, options, objective, lambda it: writer.append(it, objective.rssd_of(it.x)), progress)
+        result = replace(result, failure_messages=tuple(objective.objective.failures.messages))
         writer.finish(result)
     return result
 
@@ -179,7 +188,9 @@ def resume_run(archive: str | Path, *, n_jobs: int | None = None, backend: str |
             writer.append(replace(it, wall_time=it.wall_time + clock["offset"]), objective.rssd_of(it.x))
 
         result = _execute(inputs, options, objective, on_iteration, progress)
-        result = replace(result, wall_time=result.wall_time + clock["offset"])
+        # the failures kept are those this process simulated (replayed ones are not run again)
+        result = replace(result, wall_time=result.wall_time + clock["offset"],
+                         failure_messages=tuple(objective.objective.failures.messages))
         writer.finish(result)
     return result
 
@@ -215,8 +226,11 @@ def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None
         options = _resumed_options(view, n_jobs, backend, scheduler)
         stored = view.iterations()
         archived = view.result()
+        recorded = view.options.get("simulation_paths")
     objective = _objective(inputs, options)
     differences: list[str] = []
+    if recorded and recorded != _simulation_paths(inputs, options):
+        differences.append(f"simulation path: archived {recorded}, now {_simulation_paths(inputs, options)}")
 
     def on_iteration(it: Iteration) -> None:
         if it.index >= len(stored):
@@ -232,6 +246,8 @@ def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None
         if not (np.array_equal(result.x, archived.x) and result.fun == archived.fun and result.nfev == archived.nfev
                 and result.nit == archived.nit):
             differences.append("final result")
+        elif archived.failure_messages and archived.failure_messages != tuple(objective.objective.failures.messages):
+            differences.append("the failed simulations' messages")
     elif len(stored) > result.nit:
         differences.append(f"the archive holds {len(stored)} iterations, the re-run made only {result.nit}")
     return RerunReport(identical=not differences, iterations_compared=min(len(stored), result.nit),

@@ -9,6 +9,7 @@ A structure is a small TOML file (``experiments/structures/TGOV1.toml``)::
     input_bench = "iGrGen.TestBenches.FrequencyInputTGOV1"  # a recorded event's (optional)
 
     [fixed]        # what the plant documentation gives for this structure
+    documented = "unit.dyr"  # optional: its constants from the unit's .dyr/.dyd record
     "gov.VMAX" = 1.0
     [estimate]     # what the tests must determine, with bounds
     "gov.R" = { min = 0.02, max = 0.12, label = "R" }
@@ -50,7 +51,7 @@ import numpy as np
 
 from ..calibration import RunOptions, best_run, inputs_from_experiments
 from ..errors import ConfigError
-from ..experiment import Experiment, parse_experiment, render_config
+from ..experiment import Experiment, documented, parse_experiment, render_config
 from ..simulator import get_simulator
 from ..noise import campaign_noise
 from .adequacy import adequacy
@@ -85,8 +86,13 @@ class Structure:
         if not raw.get("estimate"):
             raise ConfigError("estimates nothing: give [estimate] with the parameters the tests must determine",
                               str(path), "estimate")
-        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), dict(raw.get("fixed", {})),
-                   dict(raw["estimate"]), str(path))
+        fixed, estimate = dict(raw.get("fixed", {})), dict(raw["estimate"])
+        if documented.KEY in fixed:  # a .dyr/.dyd record of the unit, relative to the structure file
+            _, added, starts, _ = documented.record_constants(fixed.pop(documented.KEY), fixed, estimate,
+                                                              path.parent, str(path))
+            fixed = {**added, **fixed}
+            estimate = {k: {**v, "start": starts[k]} if k in starts else v for k, v in estimate.items()}
+        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate, str(path))
 
     def experiment(self, exp: Experiment, noise=None) -> Experiment:
         """``exp`` with this structure as its model (``noise``: the recorder's model, for

@@ -73,6 +73,9 @@ class EstimationResult:
     history: tuple[Iteration, ...]
     n_failed: int = 0
     uncertainty: Uncertainty | None = None  # a posterior's, for Bayesian methods
+    # the first failed simulations' messages (why each failed: a time-out, a model that
+    # asked to terminate before the last measured sample...), as the objective kept them
+    failure_messages: tuple[str, ...] = ()
 
     def best(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.names, self.x)}

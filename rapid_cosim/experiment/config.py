@@ -19,6 +19,8 @@ Schema (keys not shown here are rejected, with a suggestion when one is close)::
                                             # pe: electrical power (experiment.electrical)
 
     [fixed]                                 # FMU parameter values held fixed (numbers)
+    documented = "unit.dyr"                 # optional: the gov.* constants of a PSS/E .dyr or
+                                            # PSLF .dyd record (rapid_cosim.experiment.documented)
     "gov.p_ref" = 0.6
     "src.df" = -0.2
     "src.t_step" = 10.0
@@ -50,6 +52,9 @@ Schema (keys not shown here are rejected, with a suggestion when one is close)::
     output_interval = 0.02   # fine grid, then sampled onto the measured times;
                              # default: half the median measured sample interval
     timeout = 10.0           # wall-clock seconds per simulation, default 30
+    communication_step = 0.01  # Co-Simulation FMUs only: the largest communication step
+                             # (the fixed one where the FMU cannot vary it); default: the
+                             # measured samples and input rows (see simulator.cosim)
 
 Estimate entries: ``min`` and ``max`` (required numbers, ``min < max``), ``label``
 (default: the name), ``scale`` (``"linear"``, or ``"log"`` for a positive range spanning
@@ -86,6 +91,7 @@ import numpy as np
 from ..data import MeasuredData, MissingColumn, close_matches, describe_missing, load_measurements, noise_level
 from ..data import split_hdf5_path
 from ..errors import ConfigError, DataError
+from . import documented
 from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, EstimateSpec, Experiment,
                          SimulationSettings)
 from .electrical import check_machine, check_rocof_column, with_rocof_noise
@@ -100,7 +106,7 @@ _SECTIONS: dict[str, frozenset[str] | None] = {
     "fixed": None,  # parameter names
     "estimate": None,
     "fitness": frozenset({"window", "weights", "offset", "noise", "pre_step_end"}),
-    "simulation": frozenset({"start_time", "stop_time", "output_interval", "timeout"}),
+    "simulation": frozenset({"start_time", "stop_time", "output_interval", "timeout", "communication_step"}),
     "noise": None,  # output names (rapid_cosim.experiment.recorder)
 }
 _REQUIRED_SECTIONS = ("experiment", "data")
@@ -134,6 +140,9 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(_toml_message(e, text), file) from None
+    if isinstance(raw.get("fixed"), dict) and documented.KEY in raw["fixed"]:  # written out: see documented
+        text = documented.expand(text, raw, path)
+        raw = tomllib.loads(text)
     cfg = _Reader(file)
 
     cfg.check_keys(raw, frozenset(_SECTIONS), "")
@@ -441,7 +450,11 @@ def _read_simulation(s: dict, inside: MeasuredData, cfg: "_Reader") -> Simulatio
                           f"({start:g} s to {stop:g} s)", cfg.file, "simulation.output_interval")
     timeout = _positive(cfg.number(s.get("timeout", DEFAULT_TIMEOUT), "simulation.timeout"),
                         cfg, "simulation.timeout")
-    return SimulationSettings(start, stop, interval, timeout)
+    step = None
+    if "communication_step" in s:
+        step = _positive(cfg.number(s["communication_step"], "simulation.communication_step"),
+                         cfg, "simulation.communication_step")
+    return SimulationSettings(start, stop, interval, timeout, step)
 
 
 class _Reader:

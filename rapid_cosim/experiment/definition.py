@@ -47,6 +47,7 @@ class SimulationSettings:
     stop_time: float
     output_interval: float
     timeout: float
+    communication_step: float | None = None  # a Co-Simulation FMU's largest (or fixed) step
 
 
 @dataclass(frozen=True, eq=False)

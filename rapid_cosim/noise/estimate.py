@@ -27,6 +27,7 @@ from .model import FAMILIES, RecorderNoise, n_components
 from .quiet import QuietStretch, quiet_stretches, recorder_groups
 
 LAGS = 12  # autocorrelation lags reported against the model's
+DRAW_FACTOR = 3.0  # noise models drawn for the adequacy null stay within this factor of the estimate
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,10 +68,17 @@ class NoiseFit:
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
 
     def draw(self, rng: np.random.Generator, size: int) -> list[RecorderNoise]:
-        """Noise models drawn from the estimate's approximate sampling distribution."""
+        """Noise models drawn from the estimate's approximate sampling distribution,
+        truncated at a factor :data:`DRAW_FACTOR` from the estimate. A component the quiet
+        data hardly determine (a correlation time longer than its stretches) has a huge
+        or undefined log-scale variance; its normal approximation would then draw
+        absurd models (sigma 1e206, tau infinite), which no recorder is."""
         theta = self.model.log_parameters()
         cov = 0.5 * (self.covariance + self.covariance.T)
+        if not np.all(np.isfinite(cov)):
+            cov = np.diag(np.full(theta.size, (math.log(DRAW_FACTOR) / 2) ** 2))
         draws = rng.multivariate_normal(theta, cov, size=size, method="eigh")
+        draws = np.clip(draws, theta - math.log(DRAW_FACTOR), theta + math.log(DRAW_FACTOR))
         return [RecorderNoise.from_log_parameters(self.family, d, self.model.dt) for d in draws]
 
     def to_json(self) -> dict:

@@ -1,11 +1,13 @@
-"""The compiled batch runners (``runner.c``, ``expint.c``): built once per machine,
-driven by ctypes.
+"""The compiled batch runners (``runner.c``, ``expint.c``, ``cosim.c``): built once per
+machine, driven by ctypes.
 
-One library holds both: ``expint.c`` (the exponential integrator of the "exponential"
+One library holds them: ``expint.c`` (the exponential integrator of the "exponential"
 runner) includes ``runner.c`` (CVODE, the "compiled" runner), whose path it falls back
-to, so the two are one translation unit and ``runner.c``'s code is compiled unchanged.
-The library is compiled with the system C compiler (``$CC``, default ``cc``, as the
-embedded FMUs are) against the FMI 2.0 headers that fmpy ships, and cached by the hash
+to, so the two are one translation unit and ``runner.c``'s code is compiled unchanged;
+``cosim.c``, the Co-Simulation driver (see :mod:`.cosim`), is a second one. Both read FMI
+3.0 FMUs through ``fmi3_table.h``. The library is compiled with the system C compiler
+(``$CC``, default ``cc``, as the embedded FMUs are) against the FMI 2.0 and 3.0 headers
+that fmpy ships, and cached by the hash
 of its sources, the compiler and the platform, under ``$RAPID_COSIM_CACHE`` (default
 ``~/.cache/rapid-cosim``, or the temporary folder where the home is not writable). It
 is built to a side file and renamed into place, so workers starting at once are safe
@@ -40,7 +42,8 @@ from .fmu import LoadedFmu
 from .inputs import InputTable
 
 SOURCE = Path(__file__).with_name("expint.c")  # includes runner.c
-SOURCES = (Path(__file__).with_name("runner.c"), SOURCE)
+COSIM_SOURCE = Path(__file__).with_name("cosim.c")
+SOURCES = (Path(__file__).with_name("runner.c"), SOURCE, COSIM_SOURCE, Path(__file__).with_name("fmi3_table.h"))
 
 # Set status codes of runner.c
 OK, SOLVER, FMI, NONFINITE, TIMEOUT, TERMINATED = range(6)
@@ -83,7 +86,7 @@ def library_path() -> Path:
     include = Path(fmpy.__file__).parent / "c-code"
     part = lib.with_name(f"{lib.name}.{os.getpid()}.part")
     cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", f"-I{include}", str(SOURCE),
-           "-o", str(part), "-lm", "-ldl"]
+           str(COSIM_SOURCE), "-o", str(part), "-lm", "-ldl"]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True)
     except FileNotFoundError:
@@ -107,7 +110,7 @@ def _library() -> ctypes.CDLL:
         lib = ctypes.CDLL(str(library_path()))
         lib.rc_open.restype = c_void_p
         lib.rc_open.argtypes = [c_char_p, c_char_p, c_char_p, c_char_p, c_int, c_int, c_double,
-                                POINTER(c_char_p), c_char_p, c_int]
+                                POINTER(c_char_p), c_char_p, c_int, c_int]
         lib.rc_close.argtypes = [c_void_p]
         lib.rc_close.restype = None
         # arrays go by address (see _address): converting them to ctypes pointers costs a
@@ -123,6 +126,14 @@ def _library() -> ctypes.CDLL:
         lib.rc_run_exp.restype = c_int
         lib.rc_plan_counters.argtypes = [c_void_p, POINTER(ctypes.c_longlong)]
         lib.rc_plan_counters.restype = c_int
+        lib.cs_open.restype = c_void_p
+        lib.cs_open.argtypes = [c_char_p, c_char_p, c_char_p, c_char_p, c_int, c_int, POINTER(c_uint), c_int,
+                                c_char_p, c_int]
+        lib.cs_close.argtypes = [c_void_p]
+        lib.cs_close.restype = None
+        lib.cs_run.argtypes = [c_void_p, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p]
+        lib.cs_run.restype = c_int
+        lib.cs_msg_len.restype = c_int
         _LIBRARY = lib
     return _LIBRARY
 
@@ -154,8 +165,8 @@ class CompiledRunner:
         err = ctypes.create_string_buffer(1024)
         md = fmu.model_description
         self._handle = lib.rc_open(str(fmu.binary).encode(), md.modelName.encode(), md.guid.encode(),
-                                   fmu.resource_uri.encode(), fmu.n_states, fmu.n_event_indicators,
-                                   relative_tolerance, paths, err, len(err))
+                                   fmu.resource_location.encode(), fmu.n_states, fmu.n_event_indicators,
+                                   relative_tolerance, paths, err, len(err), 3 if fmu.fmi3 else 2)
         if not self._handle:
             raise SimulationError(f"{fmu.name}: the compiled runner could not open the FMU: {err.value.decode()}")
         self._msg_len = lib.rc_msg_len()

@@ -1,9 +1,13 @@
 """An FMU file -> a checked, extracted model: what the simulator needs to know of it.
 
-Any FMI 2.0 Model Exchange FMU is accepted, whoever built it. It is checked once, on
-load, with one clear error per problem: the FMI version, a Model Exchange interface, a
-binary for this platform, and variables a run cannot drive (non-Real inputs or
-parameters, String outputs) are refused by name when they are asked for.
+Any FMI 2.0 or 3.0 FMU with a Model Exchange or a Co-Simulation interface is accepted,
+whoever built it. Model Exchange is used where the FMU has it (rapid-cosim's own
+integrators, :mod:`.compiled`); a Co-Simulation-only FMU runs with its own solver
+(:mod:`.cosim`). It is checked once, on load, with one clear error per problem: the FMI
+version, an interface, a binary for this platform, and variables a run cannot drive
+(non-Real inputs or parameters, String, Binary or array outputs) are refused by name when
+they are asked for. Outputs that are not numbers are left out when none are named
+(:attr:`LoadedFmu.skipped_outputs`).
 
 :class:`FmuRef` carries an FMU by content, so that it can travel to other processes or
 machines and be archived; :func:`load_fmu` keeps one extracted copy per FMU and process
@@ -30,8 +34,14 @@ from fmpy import extract, read_model_description
 
 from ..errors import FmuError, ParameterError
 
-# How the runner reads an output of each FMI type (see runner.c).
-OUTPUT_TYPES = {"Real": 0, "Integer": 1, "Enumeration": 1, "Boolean": 2}
+# How the runners read an output of each FMI type (the codes of fmi3_table.h; FMI 2.0 has
+# the first three, Enumeration read as an Integer, in FMI 3.0 as an Int64).
+OUTPUT_TYPES = {"Real": 0, "Float64": 0, "Integer": 1, "Int32": 1, "Boolean": 2, "Float32": 3, "Int8": 4,
+                "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10}
+ENUMERATION = {"2.0": 1, "3.0": 9}
+REAL_TYPES = ("Real", "Float64")  # what parameters and inputs may be (FMI 2.0, FMI 3.0)
+MODEL_EXCHANGE, CO_SIMULATION = "ModelExchange", "CoSimulation"
+INTERFACE_NAMES = {MODEL_EXCHANGE: "Model Exchange", CO_SIMULATION: "Co-Simulation"}
 
 
 @dataclass(frozen=True)
@@ -67,9 +77,12 @@ class FmuRef:
 
 
 class LoadedFmu:
-    """An FMU extracted once, its model description read and checked."""
+    """An FMU extracted once, its model description read and checked.
 
-    def __init__(self, path: str | Path):
+    ``interface`` is the one it runs through: Model Exchange where the FMU has it, else
+    Co-Simulation (``interface=`` chooses, for an FMU that has both)."""
+
+    def __init__(self, path: str | Path, interface: str | None = None):
         self.path = Path(path)
         if not self.path.is_file():
             raise FmuError(f"{self.path}: no such FMU file")
@@ -79,17 +92,26 @@ class LoadedFmu:
             md = read_model_description(str(self.path), validate=False)
         except Exception as e:  # fmpy raises bare exceptions for missing or broken XML
             raise FmuError(f"{self.path}: cannot read modelDescription.xml ({e})") from None
-        if md.fmiVersion != "2.0":
-            raise FmuError(f"{self.path}: FMI {md.fmiVersion}; rapid-cosim simulates FMI 2.0 Model Exchange FMUs")
-        if md.modelExchange is None:
-            kinds = "Co-Simulation" if md.coSimulation is not None else "no"
-            raise FmuError(f"{self.path}: a {kinds} FMU without a Model Exchange interface; "
-                           "export it with Model Exchange (FMI 2.0 ME) to calibrate it here")
+        version = "3.0" if str(md.fmiVersion).startswith("3.") else md.fmiVersion
+        if version not in ("2.0", "3.0"):
+            raise FmuError(f"{self.path}: FMI {md.fmiVersion}; rapid-cosim simulates FMI 2.0 and 3.0 FMUs")
+        offered = [name for name, part in ((MODEL_EXCHANGE, md.modelExchange), (CO_SIMULATION, md.coSimulation))
+                   if part is not None]
+        if not offered:
+            raise FmuError(f"{self.path}: an FMU with neither a Model Exchange nor a Co-Simulation interface "
+                           "(Scheduled Execution is not simulated here)")
+        if interface is not None and interface not in offered:
+            raise FmuError(f"{self.path}: no {INTERFACE_NAMES.get(interface, interface)} interface; the FMU offers "
+                           f"{', '.join(INTERFACE_NAMES[o] for o in offered)}")
         self.model_description = md
-        self.identifier = md.modelExchange.modelIdentifier
+        self.fmi_version = version
+        self.interface = interface or offered[0]
+        part = md.modelExchange if self.interface == MODEL_EXCHANGE else md.coSimulation
+        self.identifier = part.modelIdentifier
         with zipfile.ZipFile(self.path) as zf:
             names = set(zf.namelist())
-        binary = f"binaries/{fmpy.platform}/{self.identifier}{fmpy.sharedLibraryExtension}"
+        folder = fmpy.platform_tuple if self.fmi3 else fmpy.platform
+        binary = f"binaries/{folder}/{self.identifier}{fmpy.sharedLibraryExtension}"
         if binary not in names:
             have = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2})
             raise FmuError(f"{self.path}: no binary for this platform ({binary}); the FMU has binaries for "
@@ -99,25 +121,67 @@ class LoadedFmu:
         self.binary = self.dir / binary
         variables = md.modelVariables
         self.value_references = {v.name: v.valueReference for v in variables}
-        self.types = {v.name: v.type for v in variables}
+        # arrays (FMI 3.0 dimensions) are not simulated: their type says so
+        self.types = {v.name: v.type if not getattr(v, "dimensions", None) else f"{v.type}[]" for v in variables}
         self.parameters: dict[str, ParameterInfo] = {
             v.name: ParameterInfo(name=v.name, start=_float(v.start), min=_float(v.min), max=_float(v.max),
                                   unit=v.unit or "", description=v.description or "",
-                                  settable=v.causality == "parameter" and v.type == "Real", type=v.type)
+                                  settable=v.causality == "parameter" and self.types[v.name] in REAL_TYPES,
+                                  type=self.types[v.name])
             for v in variables if v.causality in ("parameter", "calculatedParameter")}
         self.outputs = [v.name for v in variables if v.causality == "output"]
         self.inputs = [v.name for v in variables if v.causality == "input"]
         self.variables = [v.name for v in variables]
         self.n_states = md.numberOfContinuousStates
         self.n_event_indicators = md.numberOfEventIndicators
+        intermediate = _intermediate_update(self.path) if self.fmi3 else set()
+        cs = md.coSimulation
+        # Co-Simulation: how inputs reach the FMU's solver between communication points
+        if cs is None or not self.inputs:
+            self.input_interpolation = "hold"
+        elif not self.fmi3:
+            self.input_interpolation = "derivatives" if cs.canInterpolateInputs else "hold"
+        else:
+            self.input_interpolation = "intermediate" if cs.providesIntermediateUpdate and \
+                set(self.inputs) <= intermediate else "hold"
+        self.variable_step = bool(cs is not None and cs.canHandleVariableCommunicationStepSize)
 
     @property
     def name(self) -> str:
         return self.model_description.modelName
 
     @property
+    def fmi3(self) -> bool:
+        return self.fmi_version == "3.0"
+
+    @property
+    def co_simulation(self) -> bool:
+        """Runs through its Co-Simulation interface (the FMU's own solver)."""
+        return self.interface == CO_SIMULATION
+
+    @property
+    def kind(self) -> str:
+        """E.g. "FMI 3.0 Co-Simulation"."""
+        return f"FMI {self.fmi_version} {INTERFACE_NAMES[self.interface]}"
+
+    @property
     def resource_uri(self) -> str:
         return (self.dir / "resources").as_uri()
+
+    @property
+    def resource_location(self) -> str:
+        """What instantiation is given: FMI 2.0 a URI, FMI 3.0 a path ending in a separator."""
+        return str(self.dir / "resources") + os.sep if self.fmi3 else self.resource_uri
+
+    @property
+    def numeric_outputs(self) -> list[str]:
+        """The outputs a run records when none are named: those that are numbers."""
+        return [n for n in self.outputs if self.types[n] in OUTPUT_TYPES or self.types[n] == "Enumeration"]
+
+    @property
+    def skipped_outputs(self) -> list[str]:
+        """Outputs left out when none are named (String, Binary, Clock, arrays)."""
+        return [n for n in self.outputs if n not in self.numeric_outputs]
 
     def close(self) -> None:
         self._finalizer()
@@ -133,9 +197,9 @@ class LoadedFmu:
                 close = difflib.get_close_matches(name, self.parameters, n=3)
                 hint = f"; did you mean {', '.join(close)}?" if close else ""
                 raise ParameterError(f"{self.name} has no parameter {name!r}{hint}")
-            if info.type != "Real":
-                raise ParameterError(f"{name} of {self.name} is a {info.type} parameter; only Real "
-                                     "parameters can be set or estimated")
+            if info.type not in REAL_TYPES:
+                raise ParameterError(f"{name} of {self.name} is a {info.type} parameter; only Real (FMI 3.0: "
+                                     "Float64) parameters can be set or estimated")
             if not info.settable:
                 raise ParameterError(f"{name} of {self.name} is calculated from other parameters and cannot be set")
             try:
@@ -158,11 +222,15 @@ class LoadedFmu:
             close = {n: difflib.get_close_matches(n, self.variables, n=3) for n in unknown}
             hints = "; ".join(f"{n}" + (f" (did you mean {', '.join(c)}?)" if c else "") for n, c in close.items())
             raise ParameterError(f"{self.name} has no variable(s) {hints}")
-        bad = [f"{n} ({self.types[n]})" for n in names if self.types[n] not in OUTPUT_TYPES]
+        def code(n):
+            kind = self.types[n]
+            return ENUMERATION[self.fmi_version] if kind == "Enumeration" else OUTPUT_TYPES.get(kind)
+
+        bad = [f"{n} ({self.types[n]})" for n in names if code(n) is None]
         if bad:
-            raise ParameterError(f"{self.name}: cannot record {', '.join(bad)}; Real, Integer, Enumeration and "
-                                 "Boolean variables can be recorded")
-        return [OUTPUT_TYPES[self.types[n]] for n in names]
+            raise ParameterError(f"{self.name}: cannot record {', '.join(bad)}; numeric variables (Real, Integer, "
+                                 "Enumeration and Boolean; in FMI 3.0 the Float and Int types) can be recorded")
+        return [code(n) for n in names]
 
     def check_inputs(self, names: Sequence[str]) -> None:
         """The inputs given are exactly the FMU's inputs, all of type Real."""
@@ -171,10 +239,22 @@ class LoadedFmu:
         if missing or extra:
             raise ParameterError(f"{self.name} has inputs {self.inputs or '(none)'}; "
                                  f"missing {missing}, unknown {extra}")
-        bad = [f"{n} ({self.types[n]})" for n in names if self.types[n] != "Real"]
+        bad = [f"{n} ({self.types[n]})" for n in names if self.types[n] not in REAL_TYPES]
         if bad:
             raise ParameterError(f"{self.name}: input(s) {', '.join(bad)} are not Real; rapid-cosim drives "
-                                 "Real inputs only")
+                                 "Real (FMI 3.0: Float64) inputs only")
+
+
+def _intermediate_update(path: Path) -> set[str]:
+    """FMI 3.0 variables with ``intermediateUpdate="true"`` (fmpy 0.3.32 does not read the
+    attribute)."""
+    import xml.etree.ElementTree as ET
+
+    with zipfile.ZipFile(path) as zf:
+        root = ET.fromstring(zf.read("modelDescription.xml"))
+    variables = root.find("ModelVariables")
+    return {v.get("name") for v in (variables if variables is not None else [])
+            if v.get("intermediateUpdate") in ("true", "1")}
 
 
 def _float(value) -> float | None:

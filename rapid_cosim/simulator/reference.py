@@ -10,7 +10,9 @@ the runner must do, and runs archives made before the runner existed. fmpy 0.3.3
 pinned for the binding.
 
 Time events (``nextEventTime``) and input tables (:mod:`.inputs`) are handled; an FMU
-with event indicators (state events) is refused, as this loop does no root-finding.
+with event indicators (state events) is refused, as this loop does no root-finding. A
+terminate request ends the run as in the compiled runner: the rows up to it stand
+(:class:`Terminated` carries them), unless it came at or after the last output time.
 """
 
 from __future__ import annotations
@@ -163,6 +165,19 @@ class Integrator:
             pass
 
 
+class Terminated(SimulationError):
+    """The model asked to terminate before the last output time: ``out`` holds the rows
+    up to that moment, NaN after."""
+
+    def __init__(self, message: str, out: np.ndarray):
+        super().__init__(message)
+        self.out = out
+
+
+class _TerminateRequest(Exception):
+    pass
+
+
 def _check(flag: int, what: str) -> None:
     if flag != 0:
         raise SimulationError(f"{what} failed with flag {flag}")
@@ -228,7 +243,13 @@ class ReferenceLoop:
             set_inputs(start_time)
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
-        has_event, t_event = self._update_discrete(fmu)
+        component, m = fmu.component, len(names)
+        out = (fmi2Real * (times.size * m))()  # filled in place, row by row
+        t, k = start_time, 0
+        try:
+            has_event, t_event = self._update_discrete(fmu)
+        except _TerminateRequest:
+            return self._stopped(names, types, out, 0, t, times, set_inputs)
         fmu.enterContinuousTimeMode()
         stop_time = float(times[-1])
         max_step = (stop_time - start_time) / 50.0
@@ -244,16 +265,13 @@ class ReferenceLoop:
         solver.before_rhs = set_inputs
         step_row = inputs.next_step(start_time) if inputs is not None else -1
         limit["row"] = step_row
-        component, m = fmu.component, len(names)
         all_real = not any(types)
         vrs = (fmi2ValueReference * m)(*[vr[n] for n in names])
-        out = (fmi2Real * (times.size * m))()  # filled in place, row by row
         row_bytes, base = m * ctypes.sizeof(fmi2Real), ctypes.addressof(out)
         # fmi2GetReal taking the destination as a plain address, to write into ``out`` rows
         get_real = _GET_REAL(ctypes.cast(fmu.dll.fmi2GetReal, ctypes.c_void_p).value)
         reach = (times + 1e-12 * np.maximum(1.0, np.abs(times))).tolist()  # an event this close is "at" t
         deadline = None if timeout is None else time_module.perf_counter() + timeout
-        t = start_time
         for k, tk in enumerate(times.tolist()):
             while True:  # time events up to tk: the FMU's and the input's steps, earliest first
                 ts = float(inputs.time[step_row]) if step_row >= 0 else np.inf
@@ -268,7 +286,10 @@ class ReferenceLoop:
                 fmu.enterEventMode()
                 if set_inputs is not None:
                     set_inputs(t)
-                has_event, t_event = self._update_discrete(fmu)
+                try:
+                    has_event, t_event = self._update_discrete(fmu)
+                except _TerminateRequest:
+                    return self._stopped(names, types, out, k, t, times, set_inputs)
                 fmu.enterContinuousTimeMode()
                 solver.reset(t)
             if tk > t:
@@ -286,6 +307,23 @@ class ReferenceLoop:
         fmu.terminate()
         return np.frombuffer(out, dtype=float).reshape(times.size, m).copy()
 
+    def _stopped(self, names, types, out, k, t, times, set_inputs) -> np.ndarray:
+        """The model asked to terminate at t while working towards row k (runner.c's
+        ``terminated``): the rows before k stand, and row k if t is its time."""
+        m = len(names)
+        values = np.frombuffer(out, dtype=float).reshape(times.size, m).copy()
+        rows = k
+        if k < times.size and t >= times[k] - 1e-12 * max(1.0, abs(times[k])):
+            if set_inputs is not None:
+                set_inputs(t)
+            values[k] = self._read_typed(names, types)
+            rows = k + 1
+        self._instance.terminate()
+        values[rows:] = np.nan
+        if rows >= times.size:
+            return values
+        raise Terminated(f"the model asked to terminate at t={t:g}", values)
+
     def _read_typed(self, names, types) -> list[float]:
         fmu, vr = self._instance, self.fmu.value_references
         getters = (fmu.getReal, fmu.getInteger, fmu.getBoolean)
@@ -297,7 +335,7 @@ class ReferenceLoop:
         while needed:
             needed, terminate, _, _, defined, t_next = fmu.newDiscreteStates()
             if terminate:
-                raise SimulationError("the model asked to terminate")
+                raise _TerminateRequest()
         return bool(defined), float(t_next)
 
     def _recover(self) -> None:

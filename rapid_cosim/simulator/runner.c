@@ -32,7 +32,16 @@
  *
  * Failures stay with their set: a CVODE failure, an FMI error, a non-finite output or a
  * set over its wall-clock budget gets a status and a message; the instance is reset (or
- * re-instantiated) and the batch goes on.
+ * re-instantiated) and the batch goes on. A model that asks to terminate (terminateSimulation
+ * at an event or a completed step) ends its set there: the outputs at the times before
+ * (and at) that moment stand, the rest are NaN, with the status "terminated"; one that
+ * stops at or after the last output time has given every output and its set is ok.
+ *
+ * FMI 3.0 Model Exchange FMUs run through the same code: rc_open(fmi_version 3) fills the
+ * function table with adapters (fmi3_* below) that have FMI 2.0's shape and call the FMI 3.0
+ * functions (fmi3_table.h), one indirect call more per FMI call. The instance handle is then
+ * the adapter's record. Output types FMI 2.0 has not (Float32, the sized integers) are
+ * read through get_typed.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
@@ -44,6 +53,7 @@
 #include <time.h>
 
 #include "fmi2Functions.h"
+#include "fmi3_table.h"
 
 #define RC_EXPORT __attribute__((visibility("default")))
 
@@ -117,6 +127,8 @@ typedef struct {
     fmi2NewDiscreteStatesTYPE *new_discrete_states;
     fmi2EnterContinuousTimeModeTYPE *enter_continuous;
     fmi2CompletedIntegratorStepTYPE *completed_step;
+    /* an output of an FMI 3.0 type code (fmi3_table.h) as a double; FMI 3.0 only */
+    fmi2Status (*get_typed)(fmi2Component c, int code, fmi2ValueReference vr, double *value);
 } Fmi2;
 
 /* Set status codes (mirrored in rapid_cosim/simulator/compiled.py). */
@@ -134,7 +146,7 @@ typedef struct {
     const double *times;
     int n_out;
     const fmi2ValueReference *out_vrs;
-    const int *out_types; /* 0 Real, 1 Integer, 2 Boolean */
+    const int *out_types; /* 0 Real, 1 Integer, 2 Boolean; FMI 3.0: the codes of fmi3_table.h */
     int n_inputs;
     const fmi2ValueReference *input_vrs;
     int n_rows;
@@ -147,6 +159,8 @@ typedef struct {
 typedef struct {
     Sundials sun;
     Fmi2 fmi;
+    Fmi3 fmi3;   /* FMI 3.0: the FMU's functions, which the adapters in fmi call */
+    int version; /* 2 or 3 */
     void *fmu_lib;
     void *sun_libs[5];
     fmi2CallbackFunctions callbacks;
@@ -179,6 +193,7 @@ typedef struct {
     char message[MSG_LEN];
     char fmu_log[MSG_LEN];
     int fmi_failed;
+    int rows_done; /* output rows a terminated set gave */
 } Runner;
 
 static void set_message(Runner *r, const char *fmt, ...) {
@@ -327,6 +342,135 @@ static int load_sundials(Runner *r, const char *const paths[5], char *err, int e
     return 0;
 }
 
+/* ---- FMI 3.0 Model Exchange through FMI 2.0's shape ---- */
+
+typedef struct {
+    fmi3Instance inst;
+    const Fmi3 *f;
+    double start;
+} Fmi3Adapter;
+
+#define A3(c) ((Fmi3Adapter *)(c))
+#define I3(c) (A3(c)->inst)
+#define F3(c) (A3(c)->f)
+
+static void fmi3_logger(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message) {
+    Runner *r = (Runner *)env;
+    (void)category;
+    if (r && status >= fmi3Warning) snprintf(r->fmu_log, MSG_LEN, "%s", message ? message : "");
+}
+static fmi2Component fmi3_instantiate(fmi2String name, fmi2Type type, fmi2String token, fmi2String resources,
+                                      const fmi2CallbackFunctions *cb, fmi2Boolean visible, fmi2Boolean logging) {
+    Runner *r = (Runner *)cb->componentEnvironment;
+    Fmi3Adapter *a = calloc(1, sizeof(Fmi3Adapter));
+    (void)type;
+    if (!a) return NULL;
+    a->f = &r->fmi3;
+    a->inst = r->fmi3.instantiate_me(name, token, resources, visible != 0, logging != 0, r, fmi3_logger);
+    if (!a->inst) {
+        free(a);
+        return NULL;
+    }
+    return a;
+}
+static void fmi3_free_instance(fmi2Component c) {
+    F3(c)->free_instance(I3(c));
+    free(c);
+}
+static fmi2Status fmi3_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, fmi2Real tol, fmi2Real start,
+                                        fmi2Boolean stop_defined, fmi2Real stop) {
+    (void)tol_defined; (void)tol; (void)stop_defined; (void)stop;
+    A3(c)->start = start;
+    return fmi2OK;
+}
+static fmi2Status fmi3_enter_init(fmi2Component c) {
+    return (fmi2Status)F3(c)->enter_init(I3(c), false, 0.0, A3(c)->start, false, 0.0);
+}
+static fmi2Status fmi3_exit_init(fmi2Component c) { return (fmi2Status)F3(c)->exit_init(I3(c)); }
+static fmi2Status fmi3_reset(fmi2Component c) { return (fmi2Status)F3(c)->reset(I3(c)); }
+static fmi2Status fmi3_terminate(fmi2Component c) { return (fmi2Status)F3(c)->terminate(I3(c)); }
+static fmi2Status fmi3_set_real(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
+    return (fmi2Status)F3(c)->set_float64(I3(c), vr, n, v, n);
+}
+static fmi2Status fmi3_get_real(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
+    return (fmi2Status)F3(c)->get_float64(I3(c), vr, n, v, n);
+}
+static fmi2Status fmi3_get_integer(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]) {
+    size_t k;
+    for (k = 0; k < n; k++) {
+        fmi3Int32 x = 0;
+        fmi3Status s = F3(c)->get_int32(I3(c), &vr[k], 1, &x, 1);
+        if (s >= fmi3Error) return (fmi2Status)s;
+        v[k] = x;
+    }
+    return fmi2OK;
+}
+static fmi2Status fmi3_get_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]) {
+    size_t k;
+    for (k = 0; k < n; k++) {
+        fmi3Boolean x = 0;
+        fmi3Status s = F3(c)->get_boolean(I3(c), &vr[k], 1, &x, 1);
+        if (s >= fmi3Error) return (fmi2Status)s;
+        v[k] = x ? fmi2True : fmi2False;
+    }
+    return fmi2OK;
+}
+static fmi2Status fmi3_get_typed(fmi2Component c, int code, fmi2ValueReference vr, double *value) {
+    return (fmi2Status)fmi3_read(F3(c), I3(c), code, vr, value);
+}
+static fmi2Status fmi3_set_time(fmi2Component c, fmi2Real t) { return (fmi2Status)F3(c)->set_time(I3(c), t); }
+static fmi2Status fmi3_set_states(fmi2Component c, const fmi2Real x[], size_t n) {
+    return (fmi2Status)F3(c)->set_states(I3(c), x, n);
+}
+static fmi2Status fmi3_get_states(fmi2Component c, fmi2Real x[], size_t n) {
+    return (fmi2Status)F3(c)->get_states(I3(c), x, n);
+}
+static fmi2Status fmi3_get_derivatives(fmi2Component c, fmi2Real dx[], size_t n) {
+    return (fmi2Status)F3(c)->get_derivatives(I3(c), dx, n);
+}
+static fmi2Status fmi3_get_event_indicators(fmi2Component c, fmi2Real z[], size_t n) {
+    return (fmi2Status)F3(c)->get_event_indicators(I3(c), z, n);
+}
+static fmi2Status fmi3_get_nominals(fmi2Component c, fmi2Real x[], size_t n) {
+    return (fmi2Status)F3(c)->get_nominals(I3(c), x, n);
+}
+static fmi2Status fmi3_enter_event_mode(fmi2Component c) { return (fmi2Status)F3(c)->enter_event_mode(I3(c)); }
+static fmi2Status fmi3_new_discrete_states(fmi2Component c, fmi2EventInfo *info) {
+    fmi3Boolean need = false, terminate = false, nominals = false, values = false, defined = false;
+    fmi3Float64 next = 0.0;
+    fmi3Status s = F3(c)->update_discrete(I3(c), &need, &terminate, &nominals, &values, &defined, &next);
+    info->newDiscreteStatesNeeded = need ? fmi2True : fmi2False;
+    info->terminateSimulation = terminate ? fmi2True : fmi2False;
+    info->nominalsOfContinuousStatesChanged = nominals ? fmi2True : fmi2False;
+    info->valuesOfContinuousStatesChanged = values ? fmi2True : fmi2False;
+    info->nextEventTimeDefined = defined ? fmi2True : fmi2False;
+    info->nextEventTime = next;
+    return (fmi2Status)s;
+}
+static fmi2Status fmi3_enter_continuous(fmi2Component c) { return (fmi2Status)F3(c)->enter_continuous(I3(c)); }
+static fmi2Status fmi3_completed_step(fmi2Component c, fmi2Boolean nosp, fmi2Boolean *enter, fmi2Boolean *term) {
+    fmi3Boolean e = false, t = false;
+    fmi3Status s = F3(c)->completed_step(I3(c), nosp != 0, &e, &t);
+    *enter = e ? fmi2True : fmi2False;
+    *term = t ? fmi2True : fmi2False;
+    return (fmi2Status)s;
+}
+
+static int load_fmu3(Runner *r, char *err, int err_len) {
+    Fmi2 *f = &r->fmi;
+    if (fmi3_load(r->fmu_lib, &r->fmi3, 1, err, err_len)) return 1;
+    f->instantiate = fmi3_instantiate; f->free_instance = fmi3_free_instance;
+    f->setup_experiment = fmi3_setup_experiment; f->enter_init = fmi3_enter_init; f->exit_init = fmi3_exit_init;
+    f->reset = fmi3_reset; f->terminate = fmi3_terminate; f->set_real = fmi3_set_real; f->get_real = fmi3_get_real;
+    f->get_integer = fmi3_get_integer; f->get_boolean = fmi3_get_boolean; f->set_time = fmi3_set_time;
+    f->set_states = fmi3_set_states; f->get_states = fmi3_get_states; f->get_derivatives = fmi3_get_derivatives;
+    f->get_event_indicators = fmi3_get_event_indicators; f->get_nominals = fmi3_get_nominals;
+    f->enter_event_mode = fmi3_enter_event_mode; f->new_discrete_states = fmi3_new_discrete_states;
+    f->enter_continuous = fmi3_enter_continuous; f->completed_step = fmi3_completed_step;
+    f->get_typed = fmi3_get_typed;
+    return 0;
+}
+
 static int load_fmu(Runner *r, const char *path, char *err, int err_len) {
     Fmi2 *f = &r->fmi;
     r->fmu_lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
@@ -334,6 +478,7 @@ static int load_fmu(Runner *r, const char *path, char *err, int err_len) {
         snprintf(err, err_len, "cannot load the FMU binary %s: %s", path, dlerror());
         return 1;
     }
+    if (r->version == 3) return load_fmu3(r, err, err_len);
 #define F(field, name) *(void **)(&f->field) = sym(r->fmu_lib, name, err, err_len)
     F(instantiate, "fmi2Instantiate"); F(free_instance, "fmi2FreeInstance");
     F(setup_experiment, "fmi2SetupExperiment"); F(enter_init, "fmi2EnterInitializationMode");
@@ -367,7 +512,7 @@ RC_EXPORT void rc_close(Runner *r);
 /* The FMU instantiated once and CVODE set up once; rc_run re-initialises both per set. */
 RC_EXPORT Runner *rc_open(const char *fmu_binary, const char *instance_name, const char *guid,
                           const char *resource_uri, int n_states, int n_indicators, double rtol,
-                          const char *const sundials_paths[5], char *err, int err_len) {
+                          const char *const sundials_paths[5], char *err, int err_len, int fmi_version) {
     Runner *r = calloc(1, sizeof(Runner));
     int i;
     double *tol;
@@ -383,6 +528,7 @@ RC_EXPORT Runner *rc_open(const char *fmu_binary, const char *instance_name, con
         return NULL;
     }
     r->n_states = n_states;
+    r->version = fmi_version == 3 ? 3 : 2;
     r->n_dim = n_states > 0 ? n_states : 1; /* CVODE needs one state; a stateless model gets a dummy */
     r->n_indicators = n_indicators;
     r->rtol = rtol;
@@ -396,7 +542,8 @@ RC_EXPORT Runner *rc_open(const char *fmu_binary, const char *instance_name, con
     r->limit_row = -1;
     if (load_sundials(r, sundials_paths, err, err_len) || load_fmu(r, fmu_binary, err, err_len)) goto fail;
     if (instantiate(r)) {
-        snprintf(err, err_len, "fmi2Instantiate failed%s%s", r->fmu_log[0] ? ": " : "", r->fmu_log);
+        snprintf(err, err_len, "%s failed%s%s", r->version == 3 ? "fmi3InstantiateModelExchange" : "fmi2Instantiate",
+                 r->fmu_log[0] ? ": " : "", r->fmu_log);
         goto fail;
     }
     if (r->sun.SUNContext_Create(0, &r->ctx)) { snprintf(err, err_len, "SUNContext_Create failed"); goto fail; }
@@ -487,10 +634,7 @@ static int update_discrete(Runner *r, int *has_event, double *t_event) {
     info.terminateSimulation = fmi2False;
     while (info.newDiscreteStatesNeeded) {
         FMI(r->fmi.new_discrete_states(r->c, &info), "fmi2NewDiscreteStates");
-        if (info.terminateSimulation) {
-            set_message(r, "the model asked to terminate%s%s", r->fmu_log[0] ? ": " : "", r->fmu_log);
-            return RC_TERMINATED;
-        }
+        if (info.terminateSimulation) return RC_TERMINATED; /* the caller says where (terminated) */
     }
     *has_event = info.nextEventTimeDefined != fmi2False;
     *t_event = info.nextEventTime;
@@ -606,7 +750,7 @@ static int advance(Runner *r, double t_out, double *t, int *has_event, double *t
             continue;
         }
         FMI(r->fmi.completed_step(r->c, fmi2True, &enter, &terminate), "fmi2CompletedIntegratorStep");
-        if (terminate) { set_message(r, "the model asked to terminate at t=%g", t_ret); return RC_TERMINATED; }
+        if (terminate) return RC_TERMINATED;
         if (enter && (s = handle_event(r, t_ret, has_event, t_event))) return s;
         break;
     }
@@ -624,10 +768,13 @@ static int read_outputs(Runner *r, double *row) {
             fmi2Integer v;
             FMI(r->fmi.get_integer(r->c, &vr, 1, &v), "fmi2GetInteger");
             row[j] = (double)v;
-        } else {
+        } else if (b->out_types[j] == 2) {
             fmi2Boolean v;
             FMI(r->fmi.get_boolean(r->c, &vr, 1, &v), "fmi2GetBoolean");
             row[j] = v ? 1.0 : 0.0;
+        } else {
+            if (!r->fmi.get_typed) { set_message(r, "output %d has an FMI 3.0 type", j); return RC_FMI; }
+            FMI(r->fmi.get_typed(r->c, b->out_types[j], vr, &row[j]), "fmi3Get (typed output)");
         }
         if (!isfinite(row[j])) {
             set_message(r, "output %d is %g", j, row[j]);
@@ -636,6 +783,24 @@ static int read_outputs(Runner *r, double *row) {
     }
     return RC_OK;
 }
+
+/* The model asked to terminate at t while the runner worked towards output row k: the rows
+ * before k stand, and row k too if t is its time (the values as the model holds them). */
+static int terminated(Runner *r, int k, double t, double *out) {
+    const Batch *b = r->b;
+    char log[MSG_LEN];
+    memcpy(log, r->fmu_log, MSG_LEN);
+    r->rows_done = k;
+    if (k < b->n_times && t >= b->times[k] - 1e-12 * fmax(1.0, fabs(b->times[k]))) {
+        if (!(b->n_inputs && set_inputs(r, t)) && read_outputs(r, out + (size_t)k * b->n_out) == RC_OK)
+            r->rows_done = k + 1;
+    }
+    set_message(r, "the model asked to terminate at t=%g%s%s", t, log[0] ? ": " : "", log);
+    return RC_TERMINATED;
+}
+
+/* A status from a step of run_set while working towards row k at time t. */
+#define STOPPED(s, k, t) ((s) == RC_TERMINATED ? terminated(r, (k), (t), out) : (s))
 
 static int run_set(Runner *r, const double *params, double *out, double *t_reached) {
     const Batch *b = r->b;
@@ -652,7 +817,7 @@ static int run_set(Runner *r, const double *params, double *out, double *t_reach
     if (set_inputs(r, t)) { set_message(r, "setting inputs failed at the start"); return RC_FMI; }
     FMI(r->fmi.enter_init(r->c), "fmi2EnterInitializationMode");
     FMI(r->fmi.exit_init(r->c), "fmi2ExitInitializationMode");
-    if ((s = update_discrete(r, &has_event, &t_event))) return s;
+    if ((s = update_discrete(r, &has_event, &t_event))) return STOPPED(s, 0, t);
     FMI(r->fmi.enter_continuous(r->c), "fmi2EnterContinuousTimeMode");
     max_step = (b->times[b->n_times - 1] - b->start_time) / 50.0;
     if (r->span[0] != b->start_time || r->span[1] != b->times[b->n_times - 1]) {
@@ -670,11 +835,11 @@ static int run_set(Runner *r, const double *params, double *out, double *t_reach
             double te = has_event ? t_event : INFINITY;
             double next = te < ts ? te : ts;
             if (!(next <= reach)) break;
-            if (next > t && (s = advance(r, next, &t, &has_event, &t_event))) return s;
+            if (next > t && (s = advance(r, next, &t, &has_event, &t_event))) return STOPPED(s, k, t);
             if (ts <= next) r->limit_row = step_row = next_input_step(r, ts); /* the step is taken now */
-            if ((s = handle_event(r, t, &has_event, &t_event))) return s;
+            if ((s = handle_event(r, t, &has_event, &t_event))) return STOPPED(s, k, t);
         }
-        if (tk > t && (s = advance(r, tk, &t, &has_event, &t_event))) return s;
+        if (tk > t && (s = advance(r, tk, &t, &has_event, &t_event))) return STOPPED(s, k, t);
         *t_reached = t;
         if (b->n_inputs && set_inputs(r, t)) { set_message(r, "setting inputs failed at t=%g", t); return RC_FMI; }
         if (all_real) {
@@ -707,7 +872,28 @@ static void recover(Runner *r) {
     instantiate(r);
 }
 
-/* Run every set of the batch. out: n_sets x n_times x n_out (NaN after a failure);
+/* After a set: a failure's outputs are NaN and the instance recovers; a terminated set keeps
+ * the rows it gave (NaN after them), and is ok if it gave them all. */
+static int finish_set(Runner *r, int status, double *o) {
+    const Batch *b = r->b;
+    size_t per_row = (size_t)b->n_out, j;
+    if (status == RC_OK) return RC_OK;
+    if (status == RC_TERMINATED) {
+        for (j = (size_t)r->rows_done * per_row; j < (size_t)b->n_times * per_row; j++) o[j] = NAN;
+        r->fmi.terminate(r->c);
+        if (r->rows_done >= b->n_times) {
+            r->message[0] = 0;
+            return RC_OK;
+        }
+        return RC_TERMINATED;
+    }
+    for (j = 0; j < (size_t)b->n_times * per_row; j++) o[j] = NAN;
+    recover(r);
+    return status;
+}
+
+/* Run every set of the batch. out: n_sets x n_times x n_out (NaN after a failure, or after
+ * the rows a terminated set gave);
  * status and t_reached: one per set; messages: n_sets x MSG_LEN. Returns the number of
  * failed sets, or -1 if the instance could not be re-created (the rest then fail). */
 RC_EXPORT int rc_run(Runner *r, const Batch *b, double *out, int *status, double *t_reached, char *messages) {
@@ -728,13 +914,9 @@ RC_EXPORT int rc_run(Runner *r, const Batch *b, double *out, int *status, double
             continue;
         }
         r->deadline = b->timeout > 0 ? now() + b->timeout : 0.0;
-        status[i] = run_set(r, b->param_values + (size_t)b->n_params * i, o, &t_reached[i]);
+        status[i] = finish_set(r, run_set(r, b->param_values + (size_t)b->n_params * i, o, &t_reached[i]), o);
         memcpy(messages + (size_t)MSG_LEN * i, r->message, MSG_LEN);
-        if (status[i] != RC_OK) {
-            for (j = 0; j < per_set; j++) o[j] = NAN;
-            failed++;
-            recover(r);
-        }
+        if (status[i] != RC_OK) failed++;
     }
     r->b = NULL;
     return r->c ? failed : -1;

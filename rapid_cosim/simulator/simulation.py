@@ -22,11 +22,26 @@ where its error control keeps handing steps to CVODE.
 A failed set is never an exception inside a batch: it gets a status and a message (and
 NaN outputs), and the rest of the batch runs. :meth:`Simulator.simulate` runs one set
 and raises :class:`SimulationError` or :class:`SimulationTimeout` instead.
+
+FMI 3.0 Model Exchange FMUs run through the same C runners (an adapter gives the FMI 3.0
+functions FMI 2.0's shape: ``runner.c``). Co-Simulation-only FMUs, FMI 2.0 or 3.0, run
+with their own solver through :mod:`.cosim`: the C driver for runners "compiled" and
+"exponential", fmpy's slave classes for "python". :meth:`Simulator.path` names the path a
+runner takes; archives record it.
+
+A model may ask to terminate (FMI's terminateSimulation). Its set then keeps the outputs
+up to that moment (NaN after) with the status "terminated", a failure in a batch and in a
+calibration; :meth:`Simulator.simulate` returns the trajectory up to that time with a
+:class:`ModelTerminated` warning. A set that stops at or after its last output time has
+given everything asked and is ok.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
+import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -41,6 +56,16 @@ from .rocof import FREQUENCY, ROCOF, with_rocof, without_rocof
 
 RUNNERS = ("compiled", "python", "exponential")  # archives record these names
 DEFAULT_RUNNER = "exponential"
+
+
+class ModelTerminated(UserWarning):
+    """The model asked to terminate the simulation before its last output time; the
+    trajectory ends there."""
+
+
+class OutputsSkipped(UserWarning):
+    """Outputs that are not numbers (String, Binary, arrays) were left out of a run that
+    named none."""
 
 
 @dataclass(frozen=True)
@@ -92,20 +117,25 @@ def time_base(start_time: float, stop_time: float | None, output_interval: float
 
 
 class Simulator:
-    """A Model Exchange FMU ready to run many times with different parameters."""
+    """An FMU ready to run many times with different parameters: FMI 2.0 or 3.0, through
+    its Model Exchange interface where it has one (``interface="CoSimulation"`` chooses
+    the other for an FMU with both), else its Co-Simulation interface."""
 
     def __init__(self, fmu: str | Path, *, timeout: float | None = None, relative_tolerance: float = 1e-6,
-                 runner: str = DEFAULT_RUNNER):
-        self.fmu = LoadedFmu(fmu)
+                 runner: str = DEFAULT_RUNNER, interface: str | None = None):
+        self.fmu = LoadedFmu(fmu, interface)
         self.path = self.fmu.path
         self.timeout = timeout
         self.relative_tolerance = relative_tolerance
         self.runner = check_runner(runner)
         self._runners: dict[str, object] = {}
         self._batches: dict[tuple, PreparedBatch] = {}
+        self._noted = False
 
     # the FMU's declarations
     name = property(lambda self: self.fmu.name)
+    interface = property(lambda self: self.fmu.interface)
+    kind = property(lambda self: self.fmu.kind)  # e.g. "FMI 3.0 Co-Simulation"
     model_description = property(lambda self: self.fmu.model_description)
     parameters: dict[str, ParameterInfo] = property(lambda self: self.fmu.parameters)  # type: ignore[assignment]
     outputs = property(lambda self: self.fmu.outputs)
@@ -115,17 +145,44 @@ class Simulator:
     def check_parameters(self, values: Mapping[str, float]) -> dict[str, float]:
         return self.fmu.check_parameters(values)
 
+    def run_path(self, runner: str | None = None) -> str:
+        """What runs a simulation with ``runner``: the FMU's kind and the driver, e.g.
+        "FMI 2.0 Model Exchange, exponential runner" or "FMI 3.0 Co-Simulation, C driver"."""
+        name = check_runner(runner or self.runner)
+        if self.fmu.co_simulation:
+            return f"{self.fmu.kind}, {'fmpy loop' if name == 'python' else 'C driver'}"
+        return f"{self.fmu.kind}, {name} runner"
+
     def _runner(self, runner: str | None):
         name = check_runner(runner or self.runner)
-        if name not in self._runners:
-            if name in ("compiled", "exponential"):
+        key = ("cosim-python" if name == "python" else "cosim") if self.fmu.co_simulation else name
+        if key not in self._runners:
+            if self.fmu.co_simulation:
+                from .cosim import CosimDriver, CosimLoop
+
+                kind = CosimLoop if name == "python" else CosimDriver
+                self._runners[key] = kind(self.fmu, self.relative_tolerance)
+            elif name in ("compiled", "exponential"):
                 method = "exponential" if name == "exponential" else "cvode"
-                self._runners[name] = compiled.CompiledRunner(self.fmu, self.relative_tolerance, method)
+                self._runners[key] = compiled.CompiledRunner(self.fmu, self.relative_tolerance, method)
             else:
+                if self.fmu.fmi3:
+                    raise ParameterError(f"{self.name} is an FMI 3.0 Model Exchange FMU; the Python reference loop "
+                                         "runs FMI 2.0 ones: choose the compiled or exponential runner")
                 from .reference import ReferenceLoop
 
-                self._runners[name] = ReferenceLoop(self.fmu, self.relative_tolerance)
-        return name, self._runners[name]
+                self._runners[key] = ReferenceLoop(self.fmu, self.relative_tolerance)
+        return name, self._runners[key]
+
+    def _default_outputs(self) -> list[str]:
+        """Every numeric output; the others noted once per simulator."""
+        skipped = self.fmu.skipped_outputs
+        if skipped and not self._noted:
+            self._noted = True
+            warnings.warn(f"{self.name}: output(s) {', '.join(f'{n} ({self.fmu.types[n]})' for n in skipped)} are "
+                          "not numbers and are not recorded; name the outputs to record to silence this",
+                          OutputsSkipped, stacklevel=4)
+        return self.fmu.numeric_outputs
 
     def _input_table(self, input_time, inputs) -> InputTable | None:
         if isinstance(inputs, InputTable):
@@ -149,16 +206,20 @@ class Simulator:
                 stop_time: float | None = None, output_interval: float | None = None,
                 outputs: Sequence[str] | None = None, start_time: float = 0.0,
                 input_time: np.ndarray | None = None, inputs: Mapping[str, np.ndarray] | InputTable | None = None,
-                runner: str | None = None) -> "PreparedBatch":
+                runner: str | None = None, communication_step: float | None = None) -> "PreparedBatch":
         """A batch whose parameters set, outputs, times and inputs are fixed, to be run
-        with many value tables (see :meth:`simulate_batch`)."""
-        record = list(outputs) if outputs is not None else list(self.outputs)
+        with many value tables (see :meth:`simulate_batch`). ``communication_step`` (s)
+        bounds a Co-Simulation FMU's communication step (see :mod:`.cosim`); Model
+        Exchange FMUs ignore it."""
+        record = list(outputs) if outputs is not None else self._default_outputs()
         types = self.fmu.output_types(record)
         times = time_base(start_time, stop_time, output_interval, output_times)
         table = self._input_table(input_time, inputs)
         kind, run = self._runner(runner)
         names = list(names)
-        if kind in ("compiled", "exponential"):
+        if self.fmu.co_simulation:
+            call = run.prepare(names, record, types, start_time, times, table, self.timeout, communication_step)
+        elif kind in ("compiled", "exponential"):
             call = run.prepare(names, record, types, start_time, times, table, self.timeout)
         else:
             def call(values):
@@ -176,13 +237,11 @@ class Simulator:
         return self._prepared(names, kwargs).run(values, check=check)
 
     def _prepared(self, names: Sequence[str], kwargs: dict) -> "PreparedBatch":
-        """:meth:`prepare`, remembered for a repeated call on the same grid without inputs
-        (a notebook's parameter sweep through ``rc.simulate``), the latest few kept."""
-        if kwargs.get("inputs") is not None or kwargs.get("output_times") is not None:
-            return self.prepare(names, **kwargs)
-        outputs = kwargs.get("outputs")
-        key = (tuple(names), None if outputs is None else tuple(outputs), self.timeout,
-               *(kwargs.get(k) for k in ("start_time", "stop_time", "output_interval", "runner")))
+        """:meth:`prepare`, remembered for a repeated call on the same grid and inputs (a
+        notebook's parameter sweep through ``rc.simulate``), the latest few kept. Arrays
+        enter the key by a digest of their bytes: planning a recorded event costs more than
+        its run, hashing it (SHA-1) a tenth of that."""
+        key = (tuple(names), self.timeout, *((k, _content(kwargs[k])) for k in sorted(kwargs)))
         batch = self._batches.pop(key, None) or self.prepare(names, **kwargs)
         self._batches[key] = batch  # most recent last
         while len(self._batches) > _PREPARED_KEPT:
@@ -193,6 +252,8 @@ class Simulator:
         out = np.full((values.shape[0], times.size, len(record)), np.nan)
         status = np.zeros(values.shape[0], dtype=np.int32)
         messages = []
+        from .reference import Terminated
+
         for i, row in enumerate(values):
             try:
                 out[i] = loop.run(dict(zip(names, row.tolist())), record, types, start_time, times, table,
@@ -202,6 +263,10 @@ class Simulator:
                     messages.append("an output is not finite")
                     continue
                 messages.append("")
+            except Terminated as e:
+                out[i] = e.out
+                status[i] = compiled.TERMINATED
+                messages.append(str(e))
             except SimulationTimeout as e:
                 status[i] = compiled.TIMEOUT
                 messages.append(str(e))
@@ -214,20 +279,35 @@ class Simulator:
                  output_interval: float | None = None, output_times: np.ndarray | None = None,
                  outputs: Sequence[str] | None = None, start_time: float = 0.0,
                  input_time: np.ndarray | None = None, inputs: Mapping[str, np.ndarray] | InputTable | None = None,
-                 check: bool = True, runner: str | None = None) -> Trajectory:
+                 check: bool = True, runner: str | None = None, communication_step: float | None = None) -> Trajectory:
         """One run; see :meth:`simulate_batch`. A failure raises :class:`SimulationError`
-        (:class:`SimulationTimeout` for the wall-clock budget)."""
+        (:class:`SimulationTimeout` for the wall-clock budget). A model that asks to
+        terminate before the last output time gives the trajectory up to that time, with a
+        :class:`ModelTerminated` warning."""
         params = self.check_parameters(parameters or {}) if check else dict(parameters or {})
         result = self.simulate_batch(list(params), np.array([list(params.values())]), output_times=output_times,
                                      stop_time=stop_time, output_interval=output_interval, outputs=outputs,
                                      start_time=start_time, input_time=input_time, inputs=inputs, runner=runner,
-                                     check=False)
+                                     check=False, communication_step=communication_step)
         status = int(result.status[0])
         if status == compiled.TIMEOUT:
             raise SimulationTimeout(f"{result.messages[0]} (time-out {self.timeout} s)")
+        if status == compiled.TERMINATED:
+            return self._until_terminated(result)
         if status != compiled.OK:
             raise SimulationError(result.messages[0])
         return result.trajectory(0)
+
+    def _until_terminated(self, result: "BatchResult") -> Trajectory:
+        values = result.values[0]
+        rows = rows_given(values)
+        stopped = re.search(r"asked to terminate at t=(\S+?)(?::|$)", result.messages[0])
+        when = f" at t={stopped.group(1)} s" if stopped else ""
+        last = f"t={result.time[rows - 1]:g} s" if rows else "no output time"
+        warnings.warn(f"{self.name} asked to terminate the simulation{when}, before the last output time "
+                      f"{result.time[-1]:g} s: the trajectory ends at {last} ({rows} of {result.time.size} "
+                      "output times)", ModelTerminated, stacklevel=3)
+        return Trajectory(result.time[:rows].copy(), {n: values[:rows, j].copy() for j, n in enumerate(result.outputs)})
 
     def close(self) -> None:
         self._batches.clear()
@@ -254,6 +334,29 @@ class PreparedBatch:
         described = tuple(m and f"{self.sim.name} failed with {_describe(dict(zip(self.names, row)))}: {m}"
                           for m, row in zip(messages, values))
         return BatchResult(self.time, self.outputs, out, np.asarray(status), described)
+
+
+def _content(value):
+    """A hashable stand-in for a keyword of :meth:`Simulator.prepare` (see ``_prepared``)."""
+    if value is None or isinstance(value, (str, int, float)):
+        return value
+    if isinstance(value, InputTable):
+        return ("table", value.names, _content(value.time), _content(value.values))
+    if isinstance(value, Mapping):
+        return tuple((k, _content(v)) for k, v in value.items())
+    array = np.asarray(value)
+    if array.dtype == object:
+        return tuple(map(_content, value))
+    return (array.dtype.str, array.shape, hashlib.sha1(np.ascontiguousarray(array).data).digest())
+
+
+def rows_given(values: np.ndarray) -> int:
+    """How many leading output rows a set gave (a terminated set's outputs are NaN after
+    them; the rows given are finite, as every runner checks)."""
+    if values.shape[1] == 0:
+        return values.shape[0]
+    bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
+    return int(bad[0]) if bad.size else values.shape[0]
 
 
 def _describe(params: Mapping[str, float]) -> str:

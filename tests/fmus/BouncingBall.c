@@ -29,7 +29,7 @@ static void model_derivatives(Model *m) {
     m->b[0] = m->r[2] < 0;
 }
 static void model_indicators(Model *m, double *z) { z[0] = m->b[1] ? 1.0 : m->r[0]; }
-static void model_event(Model *m, fmi2EventInfo *info) {
+static void model_event(Model *m, EventInfo *info) {
     if (!m->b[1] && m->r[0] <= 0.0 && m->r[2] < 0.0) {
         m->r[0] = 0.0;
         m->r[2] = -m->r[5] * m->r[2];
@@ -38,6 +38,6 @@ static void model_event(Model *m, fmi2EventInfo *info) {
             m->r[2] = 0.0;
             m->b[1] = 1;
         }
-        info->valuesOfContinuousStatesChanged = fmi2True;
+        info->values_changed = 1;
     }
 }

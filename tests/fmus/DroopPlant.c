@@ -10,6 +10,8 @@
 #define N_INDICATORS 0
 #define STATE_VRS {0}
 #define DER_VRS {1}
+#define N_INPUTS 1
+#define INPUT_VRS {5}
 #include "fmu_template.h"
 
 static void model_start(Model *m) {
@@ -20,4 +22,4 @@ static void model_start(Model *m) {
 static void model_initialize(Model *m) { m->r[0] = m->r[4] - m->r[5] / m->r[2]; }
 static void model_derivatives(Model *m) { m->r[1] = (m->r[4] - m->r[5] / m->r[2] - m->r[0]) / m->r[3]; }
 static void model_indicators(Model *m, double *z) { (void)m; (void)z; }
-static void model_event(Model *m, fmi2EventInfo *info) { (void)m; (void)info; }
+static void model_event(Model *m, EventInfo *info) { (void)m; (void)info; }
