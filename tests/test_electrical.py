@@ -214,7 +214,9 @@ EVENTS = ["tgov1_on", "tgov1_off", "ieeeg1_on"]
 
 def _variant(folder: Path, kind: str):
     text = (folder / "config.toml").read_text()
-    if kind == "H estimated":
+    if kind == "noise-free":
+        text = text.replace('file = "data.csv"', 'file = "clean.csv"')
+    elif kind == "H estimated":
         text = text.replace('"mach.H" = 6.5\n', "").replace(
             "[estimate]\n", '[estimate]\n"mach.H" = { min = 2.0, max = 12.0, label = "H" }\n')
     elif kind == "as if pm":
@@ -235,14 +237,33 @@ def test_andes_events_calibrate_on_electrical_power(repo, fmus, event):
     fixed = _errors(repo, fmus, event, "H fixed")
     droop = "gov.K" if "gov.K" in fixed else "gov.R"
     assert abs(fixed[droop]) < 0.02
-    slow = {"gov.T3", "gov.T5"}  # the reheater / second stage; the fast lag (T1, T4) is 5-16 % short
+    slow = {"gov.T3", "gov.T5"}  # the reheater / second stage
     assert all(abs(e) < 0.15 for name, e in fixed.items() if name in slow)
+    # the fast lag (T1, T4): these three noise draws give -14, -5 and -14 %; over 20 draws
+    # per event its error is -2.5 +- 8.0, +0.5 +- 4.9 and -3.4 +- 5.4 % (mean +- sd; see the
+    # noise-free test below)
     assert all(abs(e) < 0.20 for e in fixed.values())
     free = _errors(repo, fmus, event, "H estimated")
     assert abs(free["mach.H"]) < 0.10 and abs(free[droop]) < 0.02
     assert all(abs(e) < 0.20 for e in free.values())
     as_pm = _errors(repo, fmus, event, "as if pm")  # the bias electrical power removes
     assert abs(as_pm[droop]) > 0.05 and max(abs(e) for e in as_pm.values()) > 0.5
+
+
+@pytest.mark.parametrize("event", EVENTS)
+def test_without_the_recorders_noise_the_fast_lag_is_within_4_percent(repo, fmus, event):
+    """The same samples without noise (clean.csv), the ROCOF still derived: what is left
+    of the fast lag's error is the model's, not the noise draw's. Measured: T1 -1.5 and
+    +0.2 %, T4 -3.1 %. Of that, the filter's part is 0.2 to 0.3 % (ANDES's exact ROCOF
+    instead: -1.2, +0.5, -2.8 %); the rest is a convention: ANDES's GENROU has P_e = T_e
+    (P_e = pout - 2H dw/dt within 5e-6 pu), this bench Kundur's P_e = w T_e, which differ
+    by (w - 1) times the inertial power, 3 to 6e-4 pu in the spike. With that undone every
+    parameter came out within 0.01 %."""
+    clean = _errors(repo, fmus, event, "noise-free")
+    droop = "gov.K" if "gov.K" in clean else "gov.R"
+    fast = "gov.T4" if droop == "gov.K" else "gov.T1"
+    assert abs(clean[droop]) < 0.005 and abs(clean[fast]) < 0.04
+    assert all(abs(e) < 0.01 for name, e in clean.items() if name not in (droop, fast))
 
 
 def test_the_andes_events_are_what_their_generator_wrote(repo):

@@ -20,9 +20,9 @@ Before it writes an event, the script checks ANDES's governor against ours: this
 bench, driven by ANDES's own speed, must give ANDES's governor output (pout x Sb/Sn)
 within 2e-4 pu (the notes measured 4e-5), or the event is not written.
 
-Each event is a folder: ``data.csv`` (time, FREQ, P), ``config.toml`` (electrical power,
-H fixed at the documented 6.5 s) and ``truth.json`` (the governor's parameters and the
-check). Run from the repository root; ``EVENTS`` are committed, ``STUDY`` adds seven more
+Each event is a folder: ``data.csv`` (time, FREQ, P), ``clean.csv`` (the same samples
+without the recorder's noise), ``config.toml`` (electrical power, H fixed at the documented
+6.5 s) and ``truth.json`` (the governor's parameters and the check). Run from the repository root; ``EVENTS`` are committed, ``STUDY`` adds seven more
 for ``make bench-electrical`` (written under results/ by default)::
 
     .venv/bin/python experiments/electrical/generate.py            # the committed three
@@ -138,16 +138,26 @@ def fixed_params(event: Event) -> dict:
     return TGOV1_FIXED if event.governor == "TGOV1" else IEEEG1_FIXED
 
 
-def record(event: Event, run: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The recorder's samples: time, frequency (Hz) and electrical power (MW), with noise."""
+def record(event: Event, run: dict, noise: bool = True,
+           seed: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The recorder's samples: time, frequency (Hz) and electrical power (MW), with noise
+    (drawn from ``seed``, default the event's), or without (``clean.csv``: what the fast
+    lag's error owes to the noise draw, tests/test_electrical.py)."""
     from rapid_cosim.synthetic import NoiseModel, pmu_noise
 
-    rng = np.random.default_rng(event.seed)
+    rng = np.random.default_rng(event.seed if seed is None else seed)
     t = np.arange(0.0, DURATION + 1e-9, 1.0 / RATE)
-    f = F_NOM * np.interp(t, run["t"], run["w"]) + pmu_noise(t.size, rate=RATE, sigma=1e-3, window=0.3, rng=rng)
-    noise = NoiseModel(white_sigma=0.9, ar1_sigma=1.2, phi=0.95, offset=1.5)
-    p = SN * np.interp(t, run["t"], run["pe"]) + noise.sample(t.size, rng)
+    f_noise = pmu_noise(t.size, rate=RATE, sigma=1e-3, window=0.3, rng=rng)
+    p_noise = NoiseModel(white_sigma=0.9, ar1_sigma=1.2, phi=0.95, offset=1.5).sample(t.size, rng)
+    f = F_NOM * np.interp(t, run["t"], run["w"]) + noise * f_noise
+    p = SN * np.interp(t, run["t"], run["pe"]) + noise * p_noise
     return t, f, p
+
+
+def write_data(path: Path, t: np.ndarray, f: np.ndarray, p: np.ndarray) -> None:
+    with path.open("w") as fh:
+        fh.write("time,FREQ,P\n")
+        fh.writelines(f"{a:.4f},{b:.6f},{c:.3f}\n" for a, b, c in zip(t, f, p))
 
 
 def config(event: Event, p_ref: float, electrical: bool = True, h: dict | None = None) -> dict:
@@ -181,11 +191,9 @@ def write_event(event: Event, folder: Path, fmu_dir: str | Path = "fmus") -> Pat
     error = governor_check(event, run, fmu_dir)
     if error > 2e-4:
         raise RuntimeError(f"{event.name}: our {event.governor} is {error:.2e} pu off ANDES's; not written")
-    t, f, p = record(event, run)
     folder.mkdir(parents=True, exist_ok=True)
-    with (folder / "data.csv").open("w") as fh:
-        fh.write("time,FREQ,P\n")
-        fh.writelines(f"{a:.4f},{b:.6f},{c:.3f}\n" for a, b, c in zip(t, f, p))
+    write_data(folder / "data.csv", *record(event, run))
+    write_data(folder / "clean.csv", *record(event, run, noise=False))
     (folder / "config.toml").write_text(render_config(config(event, float(run["pout"][0]))))
     truth = {**asdict(event), "p_ref": float(run["pout"][0]), "H": H_DOC, "governor_check_pu": error,
              "andes": "2.0.0"}
