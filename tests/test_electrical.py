@@ -86,6 +86,17 @@ def test_the_rocof_filter_is_exact_on_a_quadratic_and_its_noise_gain_is_measured
     assert np.std(draws) == pytest.approx(noise_gain(0.02), rel=0.05)
 
 
+def test_the_sample_at_the_event_time_keeps_the_rocof_before_it():
+    """A frequency that starts falling at 5 s, sampled at 5 s: the sample at the break is
+    the last before the event (its P_e has not moved), the next one the first after."""
+    t = np.arange(0.0, 10.0, 0.02)
+    f = -0.1 * np.clip(t - 5.0, 0.0, None)
+    rocof = derive_rocof(t, f, breaks=(5.0,))
+    at = int(np.argmin(np.abs(t - 5.0)))
+    assert rocof[at] == pytest.approx(0.0, abs=1e-9) and rocof[at + 1] == pytest.approx(-0.1, rel=1e-6)
+    assert np.max(np.abs(rocof[:at + 1])) < 1e-9 and np.max(np.abs(rocof[at + 1:] + 0.1)) < 1e-9
+
+
 def test_a_bench_without_rocof_gets_the_derived_one(fmus):
     f, rocof = _event(T)
     sim = Simulator(fmus["FrequencyInputTGOV1"])
@@ -182,9 +193,9 @@ def test_megawatts_without_a_rating_is_an_error(tmp_path):
 
 
 @pytest.mark.parametrize("factor, unit, message", [
-    (-1.0, "Hz/s", r"-0.99\d times the derivative of the frequency \(f_dev\): a wrong sign\? allowed 0.5 to 2"),
-    (1000.0, "Hz/s", r"99\d times the derivative.*wrong unit.*allowed 0.5 to 2"),
-    (1.0 / F_NOM, "Hz/s", r"0.016\d times the derivative.*wrong unit"),
+    (-1.0, "Hz/s", r"-(0.9[89]|1.0[12]) times the derivative of the frequency \(f_dev\): a wrong sign\? allowed 0.5 to 2"),
+    (1000.0, "Hz/s", r"(9[89]\d|1.0[12]e\+03) times the derivative.*wrong unit.*allowed 0.5 to 2"),
+    (1.0 / F_NOM, "Hz/s", r"0.01[67]\d? times the derivative.*wrong unit"),
 ])
 def test_a_rocof_column_that_is_not_the_frequencys_derivative_is_an_error(tmp_path, factor, unit, message):
     _, rocof = _event(T)
@@ -239,9 +250,9 @@ def test_andes_events_calibrate_on_electrical_power(repo, fmus, event):
     assert abs(fixed[droop]) < 0.02
     slow = {"gov.T3", "gov.T5"}  # the reheater / second stage
     assert all(abs(e) < 0.15 for name, e in fixed.items() if name in slow)
-    # the fast lag (T1, T4): these three noise draws give -14, -5 and -14 %; over 20 draws
-    # per event its error is -2.5 +- 8.0, +0.5 +- 4.9 and -3.4 +- 5.4 % (mean +- sd; see the
-    # noise-free test below)
+    # the fast lag (T1, T4): these three noise draws give -13, -4 and -14 %; over 20 other
+    # draws per event its error is -1.7 +- 8.0, +0.9 +- 4.9 and -2.8 +- 5.3 % (mean +- sd;
+    # see the noise-free test below and benchmarks/electrical_study.py)
     assert all(abs(e) < 0.20 for e in fixed.values())
     free = _errors(repo, fmus, event, "H estimated")
     assert abs(free["mach.H"]) < 0.10 and abs(free[droop]) < 0.02
@@ -253,12 +264,11 @@ def test_andes_events_calibrate_on_electrical_power(repo, fmus, event):
 @pytest.mark.parametrize("event", EVENTS)
 def test_without_the_recorders_noise_the_fast_lag_is_within_4_percent(repo, fmus, event):
     """The same samples without noise (clean.csv), the ROCOF still derived: what is left
-    of the fast lag's error is the model's, not the noise draw's. Measured: T1 -1.5 and
-    +0.2 %, T4 -3.1 %. Of that, the filter's part is 0.2 to 0.3 % (ANDES's exact ROCOF
-    instead: -1.2, +0.5, -2.8 %); the rest is a convention: ANDES's GENROU has P_e = T_e
-    (P_e = pout - 2H dw/dt within 5e-6 pu), this bench Kundur's P_e = w T_e, which differ
-    by (w - 1) times the inertial power, 3 to 6e-4 pu in the spike. With that undone every
-    parameter came out within 0.01 %."""
+    of the fast lag's error is the model's, not the noise draw's. Measured: T1 -0.7 and
+    +0.7 %, T4 -2.6 %. With ANDES's exact ROCOF instead: -1.2, +0.5, -2.8 %; the rest is a
+    convention: ANDES's GENROU has P_e = T_e (P_e = pout - 2H dw/dt within 5e-6 pu), this
+    bench Kundur's P_e = w T_e, which differ by (w - 1) times the inertial power, 3 to
+    6e-4 pu in the spike. With that undone every parameter came out within 0.01 %."""
     clean = _errors(repo, fmus, event, "noise-free")
     droop = "gov.K" if "gov.K" in clean else "gov.R"
     fast = "gov.T4" if droop == "gov.K" else "gov.T1"
