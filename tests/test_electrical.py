@@ -296,3 +296,18 @@ def test_generated_recorded_frequency_benches_have_electrical_power(repo, tmp_pa
     run = Simulator(fmu.fmu).simulate({"mach.H": 6.5, "f_nom": F_NOM}, output_times=T, input_time=T,
                                       inputs={"f_dev": f}, outputs=["pm", "pe"])
     assert np.max(np.abs(run["pe"] - run["pm"])) > 0.02  # the machine is in the generated bench
+
+
+def test_an_estimated_inertia_is_pointed_to_the_generators_record(repo, fmus, tmp_path):
+    """A governor record has no field for H: export names the GENROU field it goes in."""
+    from rapid_cosim.exchange import ExchangeWarning
+
+    folder = repo / "experiments" / "electrical" / "tgov1_on"
+    fit = rc.calibrate([_variant(folder, "H estimated")], method="ms", seed=1, archive=tmp_path / "run.h5",
+                       fmu_dir=fmus["FrequencyInput"].parent)
+    h = fit.parameters["mach.H"]
+    with pytest.warns(ExchangeWarning, match=rf"H = {h:.4g} s as CON\(J\+4\).*'GENROU'"):
+        written = rc.export(tmp_path / "run.h5", tmp_path / "unit.dyr")
+    assert written.model == "TGOV1" and "mach.H" not in written.text
+    with pytest.warns(ExchangeWarning, match=r"H = [\d.]+ s as 'h'.*genrou"):
+        rc.export(tmp_path / "run.h5", tmp_path / "unit.dyd", mva=900.0)
