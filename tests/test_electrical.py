@@ -311,3 +311,17 @@ def test_an_estimated_inertia_is_pointed_to_the_generators_record(repo, fmus, tm
     assert written.model == "TGOV1" and "mach.H" not in written.text
     with pytest.warns(ExchangeWarning, match=r"H = [\d.]+ s as 'h'.*genrou"):
         rc.export(tmp_path / "run.h5", tmp_path / "unit.dyd", mva=900.0)
+
+
+@pytest.mark.parametrize("kind", ["H fixed", "H estimated"])
+def test_a_structure_keeps_the_events_machine(repo, kind):
+    """Structure selection swaps the governor, not the machine: H stays as the event gave it."""
+    from rapid_cosim.diagnose.structures import Structure
+
+    exp = _variant(repo / "experiments" / "electrical" / "tgov1_on", kind)
+    swapped = Structure.load(repo / "experiments" / "structures" / "IEEEG1.toml").experiment(exp)
+    assert swapped.model == "iGrGen.TestBenches.FrequencyInputIEEEG1" and "pe" in swapped.outputs
+    if kind == "H fixed":
+        assert swapped.fixed["mach.H"] == 6.5
+    else:
+        assert {s.name: (s.min, s.max) for s in swapped.estimate}["mach.H"] == (2.0, 12.0)
