@@ -21,7 +21,8 @@ bench, driven by ANDES's own speed, must give ANDES's governor output (pout x Sb
 within 2e-4 pu (the notes measured 4e-5), or the event is not written.
 
 Each event is a folder: ``data.csv`` (time, FREQ, P), ``clean.csv`` (the same samples
-without the recorder's noise), ``config.toml`` (electrical power, H fixed at the documented
+without the recorder's noise), ``mechanical.csv`` (P the governor's mechanical power, the
+same noise), ``config.toml`` (electrical power, H fixed at the documented
 6.5 s) and ``truth.json`` (the governor's parameters and the check). Run from the repository root; ``EVENTS`` are committed, ``STUDY`` adds seven more
 for ``make bench-electrical`` (written under results/ by default)::
 
@@ -138,11 +139,13 @@ def fixed_params(event: Event) -> dict:
     return TGOV1_FIXED if event.governor == "TGOV1" else IEEEG1_FIXED
 
 
-def record(event: Event, run: dict, noise: bool = True,
-           seed: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def record(event: Event, run: dict, noise: bool = True, seed: int | None = None,
+           power: str = "pe") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The recorder's samples: time, frequency (Hz) and electrical power (MW), with noise
     (drawn from ``seed``, default the event's), or without (``clean.csv``: what the fast
-    lag's error owes to the noise draw, tests/test_electrical.py)."""
+    lag's error owes to the noise draw, tests/test_electrical.py). ``power="pout"``: the
+    governor's mechanical power instead, with the same noise draw (``mechanical.csv``: the
+    same event as a staged test would record it, for structure selection on both)."""
     from rapid_cosim.synthetic import NoiseModel, pmu_noise
 
     rng = np.random.default_rng(event.seed if seed is None else seed)
@@ -150,7 +153,7 @@ def record(event: Event, run: dict, noise: bool = True,
     f_noise = pmu_noise(t.size, rate=RATE, sigma=1e-3, window=0.3, rng=rng)
     p_noise = NoiseModel(white_sigma=0.9, ar1_sigma=1.2, phi=0.95, offset=1.5).sample(t.size, rng)
     f = F_NOM * np.interp(t, run["t"], run["w"]) + noise * f_noise
-    p = SN * np.interp(t, run["t"], run["pe"]) + noise * p_noise
+    p = SN * np.interp(t, run["t"], run[power]) + noise * p_noise
     return t, f, p
 
 
@@ -194,6 +197,7 @@ def write_event(event: Event, folder: Path, fmu_dir: str | Path = "fmus") -> Pat
     folder.mkdir(parents=True, exist_ok=True)
     write_data(folder / "data.csv", *record(event, run))
     write_data(folder / "clean.csv", *record(event, run, noise=False))
+    write_data(folder / "mechanical.csv", *record(event, run, power="pout"))
     (folder / "config.toml").write_text(render_config(config(event, float(run["pout"][0]))))
     truth = {**asdict(event), "p_ref": float(run["pout"][0]), "H": H_DOC, "governor_check_pu": error,
              "andes": "2.0.0"}
