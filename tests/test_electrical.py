@@ -325,3 +325,23 @@ def test_a_structure_keeps_the_events_machine(repo, kind):
         assert swapped.fixed["mach.H"] == 6.5
     else:
         assert {s.name: (s.min, s.max) for s in swapped.estimate}["mach.H"] == (2.0, 12.0)
+
+
+def test_structure_selection_reads_an_events_electrical_power_as_its_mechanical(repo, fmus, tmp_path):
+    """TG Type I, TGOV1 and IEEEG1 on tgov1_on's P_e and on its P_m (mechanical.csv, the
+    same noise draw): the same verdict and the same structures within the threshold. With
+    the ROCOF step one sample early (before c42deea) P_e's verdict was "unexplained"."""
+    import sys
+
+    from rapid_cosim.calibration import RunOptions
+    from rapid_cosim.diagnose.structures import select_structure
+
+    sys.path.insert(0, str(repo / "benchmarks"))
+    from electrical_study import candidate_structures, variant
+
+    folder = repo / "experiments" / "electrical" / "tgov1_on"
+    verdicts = [select_structure(candidate_structures(), [variant(folder, kind)], workdir=tmp_path / kind[:3],
+                                 options=RunOptions(method="ms", seed=1), fmu_dir=fmus["FrequencyInput"].parent,
+                                 log=lambda *_: None) for kind in ("P_e, H fixed", "P_m recorded")]
+    assert verdicts[0].structure == verdicts[1].structure != "unexplained"
+    assert set(verdicts[0].candidates) == set(verdicts[1].candidates) and "TGOV1" in verdicts[0].candidates
