@@ -345,3 +345,18 @@ def test_structure_selection_reads_an_events_electrical_power_as_its_mechanical(
                                  log=lambda *_: None) for kind in ("P_e, H fixed", "P_m recorded")]
     assert verdicts[0].structure == verdicts[1].structure != "unexplained"
     assert set(verdicts[0].candidates) == set(verdicts[1].candidates) and "TGOV1" in verdicts[0].candidates
+
+
+def test_the_adequacy_null_of_electrical_power_carries_the_rocofs_noise(repo):
+    """The residual of a correct model of P_e holds the recorder's noise and the derived
+    ROCOF's; the null's replicates must hold both, whitened alike: variance ratio 1 (0.82
+    with the recorder's noise alone)."""
+    from rapid_cosim.diagnose.null import replicates_for
+    from rapid_cosim.diagnose.structures import Structure
+    from rapid_cosim.noise import campaign_noise
+
+    exp = _variant(repo / "experiments" / "electrical" / "tgov1_on", "H fixed")
+    fits = campaign_noise([exp])
+    whitened = Structure.load(repo / "experiments" / "structures" / "TGOV1.toml").experiment(exp, fits[exp.name].model)
+    ratios = replicates_for([whitened], fits, 200).statistics(None, [])[exp.name][0]
+    assert np.mean(ratios) == pytest.approx(1.0, abs=0.05)

@@ -115,27 +115,39 @@ def check_rocof_column(exp, cfg) -> None:
                           f"(f_dev): {why}? allowed {lo:g} to {hi:g}", cfg.file, config_key("inputs", ROCOF))
 
 
-def with_rocof_noise(exp):
-    """``exp`` with the ROCOF's noise, through 2 H / f_nom, added to the noise of ``pe``
-    (H fixed, or the top of its bounds when estimated: the noise is not underestimated)."""
+def rocof_component(exp) -> tuple[float, float] | None:
+    """The derived ROCOF's noise in the bench's ``pe`` as a slow component (sigma in pu,
+    correlation time in s): 2 H / f_nom times the ROCOF's spread over the quiet pre-event
+    samples (H fixed, or the top of its bounds when estimated: the noise is not
+    underestimated), correlated over about half the filter's window; None without it."""
     if ELECTRICAL not in exp.outputs or exp.pre_step_end is None:
-        return exp
+        return None
     rocof = model_rocof(exp)
     if rocof is None:
-        return exp
+        return None
     quiet = exp.input_table.time < exp.pre_step_end
     if quiet.sum() < 10:
-        return exp
+        return None
     bounds = {s.name: s.max for s in exp.estimate}
     h = exp.fixed.get(INERTIA, bounds.get(INERTIA))
     extra = 2.0 * h / exp.fixed.get("f_nom", 50.0) * float(np.std(rocof[quiet]))
-    if not extra > 0:
+    return (extra, WINDOW / 2) if extra > 0 else None
+
+
+def with_rocof_noise(exp):
+    """``exp`` with the ROCOF's noise (:func:`rocof_component`) added to the noise of
+    ``pe``: to its sigma, and to its noise model as a slow component. The recorder's
+    noise, estimated from the recorded power, does not contain it; a diagnosis's null
+    adds it too (:mod:`rapid_cosim.diagnose.null`)."""
+    component = rocof_component(exp)
+    if component is None:
         return exp
+    extra = component[0]
     sigma = exp.noise_sigma
     if sigma is not None and ELECTRICAL in sigma:
         sigma = {**sigma, ELECTRICAL: math.hypot(sigma[ELECTRICAL], extra)}
     models = dict(exp.noise_models)
-    if ELECTRICAL in models:  # filtered noise, correlated over about half the filter's window
+    if ELECTRICAL in models:
         m = models[ELECTRICAL]
-        models[ELECTRICAL] = replace(m, components=m.components + ((extra, WINDOW / 2),))
+        models[ELECTRICAL] = replace(m, components=m.components + (component,))
     return replace(exp, noise_sigma=sigma, noise_models=models)
