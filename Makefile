@@ -17,7 +17,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures clean table1 figures rerun event1 joint diagnose structures identify bench-speed report-example $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical clean table1 figures rerun event1 joint diagnose structures identify bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -62,6 +62,9 @@ rerun: fmus  ## re-run ARCHIVE=results/test1/pf10+nm.h5 from the archive alone; 
 event1: fmus  ## PSO10+NM and PF10+NM on the recorded under-frequency event (COMTRADE), with its figure
 	$(RC) staged-test experiments/event1 $(RUN_OPTS)
 
+event-electrical: fmus  ## ANDES grid events recorded as electrical power: one fit (H estimated), the bias table P_e vs as if P_m
+	$(PY) benchmarks/electrical_study.py --show tgov1_on
+
 joint: fmus  ## joint Bayesian fit of R and Ts over tests 1-8 and event1, and how consistent each one's estimate is
 	$(RC) staged-test $(TABLE1_TESTS) experiments/event1 $(RUN_OPTS) --quiet
 	$(RC) joint --tests 1-8,event1 $(RUN_OPTS)
@@ -91,6 +94,9 @@ bench-structures: fmus  ## confusion matrix of structure selection on synthetic 
 
 bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5)
 	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS)
+
+bench-electrical: fmus  ## ten ANDES events (generate.py --study, needs andes: the test extra): errors, structures and effects, P_e vs P_m
+	$(PY) benchmarks/electrical_study.py --study $(RESULTS)/electrical --structures --json $(RESULTS)/electrical/study.json
 
 bench-speed: fmus  ## where a diagnosis spends its time: field, four-test and event campaigns, before and after
 	$(PY) benchmarks/speed.py

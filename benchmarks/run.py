@@ -24,6 +24,9 @@ fmi         every kind of FMU (FMI 2.0 / 3.0 x Model Exchange / Co-Simulation): 
             against a fresh fmpy.simulate_fmu, accuracy against closed forms, the
             Co-Simulation C driver against its fmpy loop, and memory over 10,000
             simulations and 1,000 instantiations per kind (see fmi_kinds.py).
+swing       the swing term's cost per simulation (issue 26): one recorded event on the
+            TGOV1 bench without the swing term and with it, per runner, single calls and
+            batches, the ratio (see swing_cost.py).
 
 Times are the best of a few repeats (the machine may be shared); ratios compare paths
 measured in the same run.
@@ -266,6 +269,12 @@ def bench_archive() -> None:
         print(f"  {key:40s} {value}")
 
 
+def bench_swing() -> None:
+    from swing_cost import bench_swing as run
+
+    run()
+
+
 def bench_fmi_kinds() -> None:
     from fmi_kinds import bench_fmi
 
@@ -273,7 +282,7 @@ def bench_fmi_kinds() -> None:
 
 
 SECTIONS = {"simulation": bench_simulation, "api": bench_api, "input": bench_input, "pf": bench_pf,
-            "archive": bench_archive, "fmi": bench_fmi_kinds}
+            "archive": bench_archive, "fmi": bench_fmi_kinds, "swing": bench_swing}
 
 
 def main(argv: list[str]) -> int:

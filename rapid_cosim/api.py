@@ -15,6 +15,7 @@ line is a thin layer over these functions.
 from __future__ import annotations
 
 import tempfile
+import warnings
 from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
@@ -311,7 +312,7 @@ def export(archive: str | Path, out: str | Path, *, format: str | None = None, b
     MBASE from the ``.raw``). Returns the :class:`~rapid_cosim.exchange.Written` record;
     conversions are those of :mod:`rapid_cosim.exchange.tables`."""
     from .calibration.record import standard_record
-    from .exchange import FORMATS, format_of
+    from .exchange import FORMATS, ExchangeWarning, format_of, machine_note
 
     kind = format or format_of(out)
     if kind not in FORMATS:
@@ -320,4 +321,8 @@ def export(archive: str | Path, out: str | Path, *, format: str | None = None, b
     record = standard_record(calib.inputs, calib.parameters, calib.x, source=str(archive))
     model, values = record.model, record.values
     options = {"mva": mva, "bus_name": bus_name, "kv": kv} if kind == "dyd" else {}
-    return FORMATS[kind].write_record(out, model.name, values, bus=bus, machine_id=machine_id, **options)
+    written = FORMATS[kind].write_record(out, model.name, values, bus=bus, machine_id=machine_id, **options)
+    note = machine_note({n: v for n, v in calib.parameters.items() if n.startswith("mach.")}, kind)
+    if note:  # an electrical-power event's H (and D): the generator's record, not the governor's
+        warnings.warn(note, ExchangeWarning, stacklevel=2)
+    return written

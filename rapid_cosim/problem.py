@@ -21,6 +21,7 @@ from .experiment import EstimateSpec, Experiment, config_key
 from .search import SearchSpace
 from .simulator import ParameterInfo
 from .simulator.fmu import OUTPUT_TYPES, REAL_TYPES
+from .simulator.rocof import FREQUENCY, ROCOF
 
 @dataclass(frozen=True, eq=False)
 class Problem:
@@ -116,7 +117,10 @@ def check_signals(experiment: Experiment, types: Mapping[str, str], model_inputs
         if types[spec.name] not in REAL_TYPES:
             raise ConfigError(f"input '{spec.name}' is a {types[spec.name]} input; rapid-cosim drives Real "
                               "(FMI 3.0: Float64) inputs only", file, key)
-    undriven = [n for n in model_inputs if n not in {s.name for s in experiment.inputs}]
+    driven = {s.name for s in experiment.inputs}
+    if FREQUENCY in driven:  # a recorded-frequency bench's ROCOF is derived from it (simulator.rocof)
+        driven.add(ROCOF)
+    undriven = [n for n in model_inputs if n not in driven]
     if undriven:
         raise ConfigError(f"model {experiment.model} has input(s) {', '.join(undriven)} that no [inputs] entry "
                           f"drives (e.g. {undriven[0]} = {{ column = \"...\" }})", file, "inputs")

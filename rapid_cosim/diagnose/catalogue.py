@@ -4,7 +4,9 @@ its parameters with bounds, and how to compose it with others into a test bench.
 Every effect is a Modelica extension of a base bench: the staged test (``iGrGen.
 TestBenches.StagedTest``) or the recorded-frequency bench (``FrequencyInput``).
 Frequency-path blocks go between the source (or the input) and the governor, valve-side
-effects swap the governor for a TG Type I variant, the transducer goes after it. Single
+effects swap the governor for a TG Type I variant, the transducer goes after it. A
+recorded-frequency bench also has the electrical power pe (iGrGen.Machines.SwingPower on
+the mechanical power, after a temperature limit; the transducer lag acts on pm only). Single
 effects on the staged test have hand-written benches in the package; the rest
 (combinations, the greedy second effect, effects on the recorded-frequency bench, and
 calibrated results) are generated here as Modelica text.
@@ -249,7 +251,9 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
     else:  # as TestBenches.FrequencyInput: the recorded deviation in Hz, on the f_nom base
         f_nom = values.pop("f_nom", 50.0)
         lines += [f'  parameter Types.Frequency f_nom(min=1) = {f_nom:.10g} "frequency base";',
-                  '  input Types.Frequency f_dev "measured frequency minus nominal";']
+                  '  input Types.Frequency f_dev "measured frequency minus nominal";',
+                  '  input Types.FrequencyRate rocof "rate of change of the measured frequency (Hz/s)";',
+                  f"  Machines.SwingPower mach{_modifiers(values, 'mach')};"]
         path = None
 
     def feed(block: str) -> None:
@@ -271,15 +275,26 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
         lines.append(f"  Effects.OutputLimit lim(p_ref = gov.p_ref{', ' + own[1:-1] if own else ''});")
         connects.append(f"connect({out}, lim.u);")
         out = "lim.y"
+    if not is_staged(base):  # the machine takes the mechanical power (after a temperature limit)
+        connects += [f"connect({out}, mach.pm);", "mach.dw.signal = f_dev / f_nom;",
+                     "mach.dwdt.signal = rocof / f_nom;"]
+        if governor(base) == "GGOV1":
+            connects.append("connect(mach.pe, gov.pelec);")
+    elif governor(base) == "GGOV1":  # a staged test's stiff grid: electrical power is mechanical
+        connects.append("connect(gov.pm, gov.pelec);")
     if "measurement_lag" in effects:
         lines.append(f"  Effects.MeasurementLag meas{_modifiers(values, 'meas')};")
         connects.append(f"connect({out}, meas.u);")
         out = "meas.y"
     out += ".signal"
     lines.append('  output Types.PerUnit pm "mechanical power as recorded (pu)";')
+    if not is_staged(base):
+        lines.append('  output Types.PerUnit pe "electrical power at the terminals (pu)";')
     lines.append("equation")
     lines += [f"  {c}" for c in connects]
     lines.append(f"  pm = {out};")
+    if not is_staged(base):  # the transducer lag acts on pm only (not composed on pe)
+        lines.append("  pe = mach.pe.signal;")
     named = ", ".join(effects) or "no effect"
     lines += [f'  annotation(Documentation(info="<html><p>The {kind} ({base}) with {named}, composed from '
               "iGrGen.Effects and iGrGen.Governors by rapid-cosim's discrepancy workflow "

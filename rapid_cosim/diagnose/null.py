@@ -23,12 +23,13 @@ Step 2 is the same for every candidate of a diagnosis and is done once
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import stats
 
+from ..experiment.electrical import rocof_component
 from ..fitness import whitenings
 from ..noise import NoiseFit, sample_draws
 
@@ -49,17 +50,23 @@ class ScoredTest:
     whitening: object
     offset: bool
     noise: NoiseFit
+    extra: tuple[tuple[float, float], ...] = ()  # slow components the residual carries beyond the recorder's
 
 
 def replicates_for(experiments, noise_fits: Mapping[str, NoiseFit], replicates: int = REPLICATES,
                    seed: int = 0) -> "NoiseReplicates":
     """The noise replicates of whitened experiments (one compared output each), whitened
-    as their fitness whitens them."""
+    as their fitness whitens them. An electrical-power test's residual carries the derived
+    ROCOF's noise besides the recorder's (:func:`rapid_cosim.experiment.electrical.rocof_component`):
+    its replicates carry it too, or a correct model's residual would look too large (a
+    null without it put the variance ratio of correct models at 0.8 where they gave 1)."""
     tests = []
     for exp in experiments:
         (w,) = whitenings(exp).values()
         (_, index, _), = exp.scored.columns
-        tests.append(ScoredTest(exp.name, exp.windowed_data().time[index], w, exp.offset, noise_fits[exp.name]))
+        component = rocof_component(exp)
+        tests.append(ScoredTest(exp.name, exp.windowed_data().time[index], w, exp.offset, noise_fits[exp.name],
+                                (component,) if component else ()))
     return NoiseReplicates(tests, replicates, seed=seed)
 
 
@@ -92,6 +99,8 @@ class NoiseReplicates:
         self._stats: dict[bytes, dict] = {}
         for t in self.tests:
             models = recorders[id(t.noise)]
+            if t.extra:
+                models = [replace(m, components=m.components + t.extra) for m in models]
             out = np.empty((self.replicates, t.times.size), dtype=np.float32)
             for a in range(0, self.replicates, BLOCK):
                 raw = sample_draws(models[a:a + BLOCK], t.times, rng)

@@ -61,7 +61,7 @@ from .null import replicates_for
 from .selection import THRESHOLD, noise_floors, score
 from .separate import separating_menu
 
-KEPT_FIXED = ("src.", "gov.p_ref", "f_nom")
+KEPT_FIXED = ("src.", "gov.p_ref", "f_nom", "mach.")  # the test's and the unit's machine (H, D), not the governor's
 
 
 @dataclass(frozen=True)
@@ -122,8 +122,9 @@ class Structure:
         data = dict(raw["data"])
         data_file = Path(data["file"])
         data["file"] = str(data_file if data_file.is_absolute() else (Path(exp.config_path).parent / data_file))
+        machine = {k: v for k, v in raw.get("estimate", {}).items() if k.startswith("mach.")}  # H estimated
         sections = {**raw, "experiment": {**raw["experiment"], "model": bench}, "data": data,
-                    "fixed": {**fixed, **self.fixed}, "estimate": self.estimate}
+                    "fixed": {**fixed, **self.fixed}, "estimate": {**self.estimate, **machine}}
         if noise is not None:
             (output,) = [o for o in exp.outputs if exp.weights[o] > 0]
             sections["noise"] = {output: noise.to_config()}

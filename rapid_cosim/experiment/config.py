@@ -15,7 +15,8 @@ Schema (keys not shown here are rejected, with a suggestion when one is close)::
     [data]
     file = "test1.csv"                      # required; .csv, .mat, or .h5 (run.h5:/group)
     time = "time"                           # time column, default "time"
-    outputs = { pm = "pm" }                 # required: model output -> data column
+    outputs = { pm = "pm" }                 # required: model output -> data column;
+                                            # pe: electrical power (experiment.electrical)
 
     [fixed]                                 # FMU parameter values held fixed (numbers)
     documented = "unit.dyr"                 # optional: the gov.* constants of a PSS/E .dyr or
@@ -93,6 +94,7 @@ from ..errors import ConfigError, DataError
 from . import documented
 from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, EstimateSpec, Experiment,
                          SimulationSettings)
+from .electrical import check_machine, check_rocof_column, with_rocof_noise
 from .recorder import read_noise_models
 from .signals import read_inputs, read_outputs
 from .toml_writer import config_key
@@ -182,6 +184,7 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
     if both:
         raise ConfigError(f"{', '.join(both)} is both fixed and estimated; keep one",
                           file, config_key("estimate", both[0]))
+    check_machine(outputs, fixed, estimate, cfg)
 
     if data is None:
         data = _load_data(path, data_file, time_column, outputs, file, timestamp, event_time)
@@ -225,7 +228,7 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
                                           key=config_key("inputs", spec.name))
     check_inputs(inputs, data, files, simulation, cfg)
 
-    return Experiment(
+    experiment = Experiment(
         name=name, config_path=path, config_text=text, model=model, description=description,
         data=data, outputs=outputs, fixed=fixed, estimate=estimate, weights=weights,
         window=window, offset=offset, noise=noise, noise_sigma=noise_sigma,
@@ -233,6 +236,8 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         conversions={o: s.conversion for o, s in output_specs.items() if not s.conversion.identity},
         inputs=inputs, files=files, noise_models=noise_models,
     )
+    check_rocof_column(experiment, cfg)
+    return with_rocof_noise(experiment)
 
 
 def _read_model(exp: dict, path: Path, cfg: "_Reader") -> str:

@@ -18,6 +18,7 @@ import numpy as np
 from ..data import MeasuredData
 from ..noise import RecorderNoise
 from ..simulator import InputTable
+from ..simulator.rocof import with_rocof
 from .signals import Conversion, InputSpec
 
 CONFIG_NAME = "config.toml"
@@ -119,7 +120,9 @@ class Experiment:
             times.append(source.time)
             columns[spec.name] = (source.time, values)
         base = times[0] if all(np.array_equal(t, times[0]) for t in times) else np.unique(np.concatenate(times))
-        return InputTable.from_columns(base, {n: np.interp(base, t, v) for n, (t, v) in columns.items()})
+        table = InputTable.from_columns(base, {n: np.interp(base, t, v) for n, (t, v) in columns.items()})
+        # the ROCOF of a recording without one, split at the event (.electrical, simulator.rocof)
+        return with_rocof(table, breaks=() if self.pre_step_end is None else (self.pre_step_end,))
     def windowed_data(self) -> MeasuredData:
         """The measurements inside the fitness window (made once: every simulation asks)."""
         return self._windowed

@@ -10,7 +10,10 @@ A ``[inputs]`` entry maps one model input to a data column::
            sign = -1 }
 
 and an output may be converted the same way (``outputs = { pm = { column = "P_MW",
-scale = 0.0025 } }``: MW on a 400 MW base). The value given to the model is::
+scale = 0.0025 } }``: MW on a 400 MW base; or ``rating = 400.0``, MVA, the same; a power in
+MW without either is an error). ``pe`` is electrical power at the terminals
+(:mod:`.electrical`); a ``rocof`` input (``unit = "Hz/s"`` or ``"mHz/s"``) is checked
+against the frequency's derivative, and derived from it when not given. The value given to the model is::
 
     sign * scale * converted(column * unit factor) + offset     (minus a baseline)
 
@@ -25,20 +28,21 @@ file than the outputs (``file``, with its own ``time`` column, on the same time 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import ConfigError
+from .electrical import check_rating
 from .toml_writer import config_key
 
 UNITS = {"": 1.0, "1": 1.0, "pu": 1.0, "Hz": 1.0, "mHz": 1e-3, "kHz": 1e3, "MW": 1.0, "kW": 1e-3, "W": 1e-6,
-         "GW": 1e3, "Mvar": 1.0, "s": 1.0, "rad/s": 1.0}
+         "GW": 1e3, "Mvar": 1.0, "s": 1.0, "rad/s": 1.0, "Hz/s": 1.0, "mHz/s": 1e-3}
 CONVERSIONS = ("none", "deviation", "deviation_pu")
 BASELINES = ("none", "pre-event", "detrend")
 INPUT_KEYS = frozenset({"column", "file", "time", "unit", "convert", "nominal", "scale", "offset", "sign",
                         "baseline", "baseline_end"})
-OUTPUT_KEYS = frozenset({"column", "unit", "scale", "offset"})
+OUTPUT_KEYS = frozenset({"column", "unit", "scale", "offset", "rating"})
 
 
 @dataclass(frozen=True)
@@ -112,7 +116,10 @@ def read_outputs(table: dict, cfg) -> dict[str, OutputSpec]:
             continue
         spec = cfg.table(value, key)
         cfg.check_keys(spec, OUTPUT_KEYS, key)
-        out[name] = OutputSpec(name, cfg.string(spec, key, "column"), _conversion(spec, cfg, key, None))
+        scale = check_rating(spec, cfg, key)  # MW on the unit's rating; MW without one is an error
+        conversion = _conversion(spec, cfg, key, None)
+        out[name] = OutputSpec(name, cfg.string(spec, key, "column"),
+                               conversion if scale is None else replace(conversion, scale=scale))
     return out
 
 

@@ -82,8 +82,10 @@
  * is not exact for the linear part: 2e-7 to 2e-6 pu from the tight reference where this
  * scheme is within 1e-8, an error its remainder estimate cannot see, and it rings on stiff
  * modes (GGOV1's 5 ms lag at 20 ms steps). The kernels below are specialised for up to
- * EX_NMAX states and none or one input; this file's own work per step is about twice the
- * model's (the n x 5n product, the slope of c, the bookkeeping).
+ * EX_NMAX states and none, one or two inputs (two: a recorded-frequency bench's f_dev and
+ * rocof; on the generic kernel the second input cost 60 % more per simulation, TGOV1 on a
+ * 60 s event); this file's own work per step is about twice the model's (the n x 5n
+ * product, the slope of c, the bookkeeping).
  */
 #include "runner.c"
 
@@ -919,6 +921,8 @@ EX_KERNEL(1, 0) EX_KERNEL(2, 0) EX_KERNEL(3, 0) EX_KERNEL(4, 0) EX_KERNEL(5, 0) 
 EX_KERNEL(7, 0) EX_KERNEL(8, 0) EX_KERNEL(9, 0) EX_KERNEL(10, 0) EX_KERNEL(11, 0) EX_KERNEL(12, 0)
 EX_KERNEL(1, 1) EX_KERNEL(2, 1) EX_KERNEL(3, 1) EX_KERNEL(4, 1) EX_KERNEL(5, 1) EX_KERNEL(6, 1)
 EX_KERNEL(7, 1) EX_KERNEL(8, 1) EX_KERNEL(9, 1) EX_KERNEL(10, 1) EX_KERNEL(11, 1) EX_KERNEL(12, 1)
+EX_KERNEL(1, 2) EX_KERNEL(2, 2) EX_KERNEL(3, 2) EX_KERNEL(4, 2) EX_KERNEL(5, 2) EX_KERNEL(6, 2)
+EX_KERNEL(7, 2) EX_KERNEL(8, 2) EX_KERNEL(9, 2) EX_KERNEL(10, 2) EX_KERNEL(11, 2) EX_KERNEL(12, 2)
 #undef EX_KERNEL
 
 /* Any size: the step's vectors in the plan, apart from those ex_mend and ex_estimate use. */
@@ -937,9 +941,10 @@ typedef int (*ExMarch)(Runner *, Plan *, double, double *, int *, int *);
                          F##_8_##M_, F##_9_##M_, F##_10_##M_, F##_11_##M_, F##_12_##M_}
 
 static void ex_kernels(Plan *p) {
-    static const ExStep steps[2][EX_NMAX] = {EX_TABLE(ex_step, 0), EX_TABLE(ex_step, 1)};
-    static const ExMarch marches[2][EX_NMAX] = {EX_TABLE(ex_march, 0), EX_TABLE(ex_march, 1)};
-    if (p->n >= 1 && p->n <= EX_NMAX && p->m <= 1) {
+    static const ExStep steps[3][EX_NMAX] = {EX_TABLE(ex_step, 0), EX_TABLE(ex_step, 1), EX_TABLE(ex_step, 2)};
+    static const ExMarch marches[3][EX_NMAX] = {EX_TABLE(ex_march, 0), EX_TABLE(ex_march, 1),
+                                               EX_TABLE(ex_march, 2)};
+    if (p->n >= 1 && p->n <= EX_NMAX && p->m <= 2) {
         p->kernel = steps[p->m][p->n - 1];
         p->march = marches[p->m][p->n - 1];
     } else {

@@ -52,6 +52,7 @@ from ..errors import ParameterError, SimulationError, SimulationTimeout
 from . import compiled
 from .fmu import FmuRef, LoadedFmu, ParameterInfo, cache_key
 from .inputs import InputTable
+from .rocof import FREQUENCY, ROCOF, with_rocof, without_rocof
 
 RUNNERS = ("compiled", "python", "exponential")  # archives record these names
 DEFAULT_RUNNER = "exponential"
@@ -194,6 +195,10 @@ class Simulator:
             if self.inputs:
                 raise ParameterError(f"{self.name} has inputs {', '.join(self.inputs)}; give them values")
             return None
+        if ROCOF in self.inputs and FREQUENCY in table.names and ROCOF not in table.names:
+            table = with_rocof(table)  # a recorded-frequency bench always gets its ROCOF (.rocof)
+        elif ROCOF in table.names and ROCOF not in self.inputs and FREQUENCY in table.names:
+            table = without_rocof(table)  # an experiment's derived ROCOF, offered to a model without it
         self.fmu.check_inputs(table.names)
         return table
 

@@ -41,9 +41,10 @@ block GGOV1 "General gas-turbine governor GGOV1 (WECC; IEEE PES-TR1 2013, sec. 3
   final parameter Types.PerUnit ldw = Ldref / Kturb + Wfnl "fuel flow at the load limiter's reference (pu)";
   final parameter Types.PerUnit Pref = R * (if Rselect == 1 then p_ref elseif Rselect == -1 then v0 else 0) "speed-load reference that holds the dispatch (pu)";
   Interfaces.RealInput dw "speed deviation w_ref - w (pu): PSS/E's -SPEED";
+  Interfaces.RealInput pelec "electrical power at the terminals (pu): the bench's machine, or pm on a staged test's stiff grid";
   Interfaces.RealOutput pm "mechanical power (pu)";
   Types.PerUnit spd "speed deviation w - 1 as PSS/E reads it, after the deadband (pu)";
-  Types.PerUnit pe "electrical power: the mechanical power, on the stiff grid of a staged test (pu)";
+  Types.PerUnit pe "electrical power, as the droop on electrical power (Rselect = 1) and the power controller read it (pu)";
   Types.PerUnit pef "measured electrical power (pu)";
   Types.PerUnit xmw "power controller's correction of the reference (pu)";
   Types.PerUnit err "speed error before its limits (pu)";
@@ -81,7 +82,7 @@ initial equation
 equation
   // speed deviation as PSS/E reads it (w - 1), through the no-jump deadband (db = 0: none)
   spd = -dw.signal + 0.5 * (sqrt((-dw.signal - db) ^ 2 + eps_v ^ 2) - sqrt((-dw.signal + db) ^ 2 + eps_v ^ 2));
-  pe = pm.signal;
+  pe = pelec.signal;
   der(pef) = (pe - pef) / Tpelec;
   der(xmw) = Kimw * (Pmwset - pef);
   err = Pref + xmw - R * (if Rselect == 1 then pef elseif Rselect == -1 then v else 0) - spd;
@@ -146,9 +147,9 @@ rounded as min/max(z) = (z -+ sqrt(z^2 + eps^2)) / 2, the gate as
 smallest). Not modelled: the diesel transport lag Teng (0 for gas turbines), the ramp
 limits Rup/Rdown of the load limit reference (which a test holds constant), and Rselect
 = -2 (governor output as feedback, an algebraic loop through the PID).</p>
-<p>On the stiff grid of a staged test the electrical power is the mechanical one. Initial
+<p>The electrical power is an input (pelec): on the stiff grid of a staged test the bench feeds it the mechanical power; on a recorded-frequency bench, Machines.SwingPower's P_e (the mechanical power less the rotor's inertial and damping power). Initial
 state: steady at the dispatch p_ref (valve and fuel flow v0 = p_ref / Kturb + Wfnl, the
 speed-load reference Pref = R x the feedback's value), which must lie within
 Vmin..Vmax and below the load limit. Units: pu on the machine base, s.</p></html>",
-    revisions="<html><ul><li>2026-11-24: first version.</li></ul></html>"));
+    revisions="<html><ul><li>2026-11-24: first version.</li><li>2026-11-25: the electrical power is an input, pelec (issue 26).</li></ul></html>"));
 end GGOV1;

@@ -2,12 +2,20 @@ within iGrGen.TestBenches;
 model FrequencyInput "TG Type I driven by a recorded frequency deviation given as an input"
   parameter Types.Frequency f_nom(min=1) = 50 "frequency base";
   input Types.Frequency f_dev "measured frequency minus nominal";
+  input Types.FrequencyRate rocof "rate of change of the measured frequency (Hz/s)";
   Governors.TGTypeI gov;
+  Machines.SwingPower mach;
   output Types.PerUnit pm "mechanical power (pu)";
+  output Types.PerUnit pe "electrical power at the terminals (pu)";
 equation
   gov.dw.signal = -f_dev / f_nom;
   pm = gov.pm.signal;
+  connect(gov.pm, mach.pm);
+  mach.dw.signal = f_dev / f_nom;
+  mach.dwdt.signal = rocof / f_nom;
+  pe = mach.pe.signal;
   annotation(Documentation(info="<html>
-<p>TG Type I driven by a recorded frequency deviation (input f_dev, Hz): the bench of recorded disturbances. The governor sees -f_dev / f_nom.</p></html>",
-    revisions="<html><ul><li>2026-11-21: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li></ul></html>"));
+<p>TG Type I driven by a recorded frequency deviation (input f_dev, Hz): the bench of recorded disturbances. The governor sees -f_dev / f_nom.</p>
+<p>Electrical power at the terminals (output pe): the governor's output less the rotor's inertial and damping power, Machines.SwingPower, with the recorded frequency as the rotor's speed and its rate of change as input rocof (Hz/s; rapid-cosim derives it from f_dev when the recording has no ROCOF channel). pm is what a staged test records, pe what a plant records during a grid event.</p></html>",
+    revisions="<html><ul><li>2026-11-21: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li><li>2026-11-25: electrical power at the terminals, output pe, and input rocof (issue 26).</li></ul></html>"));
 end FrequencyInput;
