@@ -44,7 +44,7 @@ def _runs(fmu, params, **kw):
     fast = prepared.run(values)
     assert fast.ok.all(), fast.messages
     compiled = sim.prepare(list(params), runner="compiled", **kw).run(values)
-    tight = Simulator(fmu, relative_tolerance=TIGHT).prepare(list(params), **kw).run(values)
+    tight = Simulator(fmu, relative_tolerance=TIGHT).prepare(list(params), runner="compiled", **kw).run(values)
     return fast.values[0], compiled.values[0], tight.values[0], prepared._call.counters
 
 
@@ -193,7 +193,8 @@ def test_events_and_mixed_grids_as_the_cvode_runner_gives_them(fmus):
     kw = dict(output_times=out, input_time=time, inputs={"f_dev": values}, outputs=["pm"])
     fast = fi.simulate({"gov.Ts": 1.0}, runner="exponential", **kw)
     cvode = fi.simulate({"gov.Ts": 1.0}, runner="compiled", **kw)
-    tight = Simulator(fmus["FrequencyInput"], relative_tolerance=TIGHT).simulate({"gov.Ts": 1.0}, **kw)
+    tight = Simulator(fmus["FrequencyInput"], relative_tolerance=TIGHT).simulate({"gov.Ts": 1.0}, runner="compiled",
+                                                                                 **kw)
     assert np.max(np.abs(fast["pm"] - tight["pm"])) < ACCURACY
     assert np.max(np.abs(fast["pm"] - cvode["pm"])) < 1e-4
 
