@@ -89,5 +89,5 @@ class Unit:
         holdout = tests.get("holdout", [])
         if not isinstance(holdout, list) or not all(isinstance(h, str) for h in holdout):
             raise ConfigError("holdout must list experiment names", str(path), "tests.holdout")
-        return cls(str(head.get("name", folder.name)), None if mva is None else float(mva), bus, str(head.get("machine_id", "1")),
-                   tuple(found), tuple(holdout), tuple(files), path)
+        return cls(str(head.get("name", folder.name)), None if mva is None else float(mva), bus,
+                   str(head.get("machine_id", "1")), tuple(found), tuple(holdout), tuple(files), path)
