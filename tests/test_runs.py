@@ -199,3 +199,26 @@ def test_best_run_keeps_the_better_search_and_archives_each(config, tmp_path):
         assert first.result().fun > result.fun
     again, same = best_run(inputs, weak, tmp_path / "fit.h5", ("pso:3+nm+scan+nm",))  # both archived: reused
     assert same == archive and again.fun == result.fun
+
+
+def test_a_workflow_remakes_its_own_archive_of_another_run_and_a_user_archive_is_kept(fmus, tmp_path):
+    """ensure_run refuses to overwrite an archive of another run (a user's record), but a
+    workflow that owns its folder (replace_stale: a diagnosis re-run after the noise model
+    or the data changed) makes it again."""
+    from rapid_cosim.calibration import ensure_run
+    from rapid_cosim.errors import ArchiveError
+
+    config = synthetic_config(fmus["StagedTest"], tmp_path / "synth", seed=11)
+    options = RunOptions(method="nm", seed=1, estimator_options={"nm": {"max_iter": 20}})
+    archive = tmp_path / "run.h5"
+    first, action = ensure_run(inputs_from_configs([config]), options, archive, progress=False)
+    assert action == "new"
+    config.write_text(config.read_text().replace("max = 20.0", "max = 19.0"))  # another run now
+    changed = inputs_from_configs([config])
+    with pytest.raises(ArchiveError, match="holds a run with another experiment config"):
+        ensure_run(changed, options, archive, progress=False)
+    _, action = ensure_run(changed, options, archive, progress=False, replace_stale=True)
+    assert action == "remade"
+    with RunArchive(archive) as view:
+        assert view.configs == {e.name: e.config_text for e in changed.experiments}
+    assert ensure_run(changed, options, archive, progress=False, replace_stale=True)[1] == "archived"

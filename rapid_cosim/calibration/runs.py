@@ -271,13 +271,23 @@ def summary_json(archive: str | Path) -> dict:
 
 
 def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
-               progress: bool = True) -> tuple[EstimationResult, str]:
+               progress: bool = True, replace_stale: bool = False) -> tuple[EstimationResult, str]:
     """Make-like: reuse a finished archive of the same run, resume an interrupted one,
     start one otherwise. Returns the result and what was done ('archived', 'resumed',
-    'new'). An archive of a *different* run (method, seed, options, configs or data
-    changed) is never overwritten: that would lose a record; the error says what differs.
-    """
+    'new', 'remade'). An archive of a *different* run (method, seed, options, configs or
+    data changed) is not overwritten, since that would lose a record: the error says what
+    differs. Workflows that own their work folder (a diagnosis's candidates, a
+    structure selection) pass ``replace_stale``: their archive of another run is then
+    made again, as a re-run after the data or the noise model changed must."""
     archive = Path(archive)
+    if replace_stale and archive.exists():
+        try:
+            return ensure_run(inputs, options, archive, progress=progress)
+        except ArchiveError as e:
+            if "holds a run with another" not in str(e):
+                raise
+            archive.unlink()
+            return start_run(inputs, options, archive, progress=progress), "remade"
     if not archive.exists():
         return start_run(inputs, options, archive, progress=progress), "new"
     with RunArchive(archive) as view:
@@ -314,7 +324,7 @@ SEARCHES = ("pso:10+nm+scan+nm",)
 
 
 def best_run(inputs: RunInputs, options: RunOptions, archive: str | Path, searches=SEARCHES, *,
-             progress: bool = False) -> tuple[EstimationResult, Path]:
+             progress: bool = False, replace_stale: bool = False) -> tuple[EstimationResult, Path]:
     """The best of ``options.method`` (in ``archive``) and each of ``searches`` (in
     ``<archive stem>.<search>.h5``), every one an archived run; returns the best result
     and its archive."""
@@ -323,7 +333,8 @@ def best_run(inputs: RunInputs, options: RunOptions, archive: str | Path, search
     for method in dict.fromkeys([options.method, *searches]):
         path = archive if method == options.method else \
             archive.with_name(f"{archive.stem}.{method.replace(':', '').replace('+', '-')}.h5")
-        result, _ = ensure_run(inputs, replace(options, method=method), path, progress=progress)
+        result, _ = ensure_run(inputs, replace(options, method=method), path, progress=progress,
+                               replace_stale=replace_stale)
         runs.append((float(result.fun), result, path))
     _, result, path = min(runs, key=lambda r: r[0])
     return result, path

@@ -238,7 +238,7 @@ def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdi
             ms.setdefault("screen", 0)
         options = replace(options, estimator_options={**options.estimator_options, "ms": ms})
     archive = workdir / "candidates" / f"{spec.slug}.h5"
-    result, archive = best_run(inputs, options, archive, searches, progress=progress)
+    result, archive = best_run(inputs, options, archive, searches, progress=progress, replace_stale=True)
     waterfall = ends = None
     if result.history and "start_fun" in result.history[-1].extras:
         waterfall = np.asarray(result.history[-1].extras["start_fun"], dtype=float)

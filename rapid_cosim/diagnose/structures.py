@@ -206,7 +206,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         log(f"  calibrating {s.name} ({', '.join(s.estimate)}) ...")
         exps = [s.experiment(e, models[e.name]) for e in training]
         inputs = inputs_from_experiments(exps, package=package, fmu_dir=fmu_dir)
-        result, archive = best_run(inputs, options, workdir / f"{s.name}.h5", searches)
+        result, archive = best_run(inputs, options, workdir / f"{s.name}.h5", searches, replace_stale=True)
         tests = residuals_at(inputs, result.x)
         data_term, n = score(tests, noise)
         k = len(result.names) + len(tests)

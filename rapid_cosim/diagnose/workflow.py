@@ -266,7 +266,8 @@ def _write_and_recalibrate(ctx: Context, chosen: CandidateFit, options: Diagnose
     inputs = candidate_inputs(ctx.workdir / "recalibrated", ctx.training, spec, polish_from=values, model=names,
                               package=package_dir, fmu_dir=ctx.user_fmu_dir, noise=ctx.models)
     archive = ctx.workdir / "recalibrated.h5"
-    result, _ = ensure_run(inputs, replace(ctx.run_options, method="nm"), archive, progress=False)
+    result, _ = ensure_run(inputs, replace(ctx.run_options, method="nm"), archive, progress=False,
+                           replace_stale=True)
     fit = CandidateFit(spec, archive, name, result.best(), len(result.names), float(result.fun), result.nfev,
                        residuals_at(inputs, result.x), inputs=inputs)
     ctx.fits["recalibrated"] = fit

@@ -1,7 +1,7 @@
 within iGrGen.Diagnosed;
 model CalibratedRateLimit "StagedTest with rate_limit, calibrated on test1, test2, test3, test5, test6, test7, test9, test10 by rapid-cosim diagnose"
   Sources.FrequencyStep src;
-  Governors.TGTypeIRateLimit gov(R = 0.05502982913, Ts = 1.444482853, rate_open = 0.01006733952, rate_close = 0.02938189544);
+  Governors.TGTypeIRateLimit gov(R = 0.05503006781, Ts = 1.443242961, rate_open = 0.01008134821, rate_close = 0.02946754191);
   output Types.PerUnit pm "mechanical power as recorded (pu)";
 equation
   connect(src.y, gov.dw);
