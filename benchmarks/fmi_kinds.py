@@ -24,11 +24,12 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
-import time
 import warnings
 from pathlib import Path
 
 import numpy as np
+
+from timing import best
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
@@ -42,16 +43,6 @@ STEPS = dict(input_time=np.array([0.0, 1.0, 1.0, 30.0, 30.0, 60.0]),
 def _rss_mb() -> float:
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2 ** 20
-
-
-def _best(fn, repeats: int) -> float:
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def _droop_exact(t):
@@ -83,22 +74,22 @@ def measure_kind(kind: str, folder: Path, memory: bool = True) -> dict:
     ball = build_kind("BouncingBall", folder, kind)
     t = np.linspace(0.0, 60.0, 601)
     one = lambda: rc.simulate(droop, {"R": R}, output_times=t, **STEPS)  # noqa: E731
-    fig = {"single_ms": 1e3 * _best(one, 20)}
+    fig = {"single_ms": 1e3 * best(one, 20)}
     sim = Simulator(droop)
     prepared = sim.prepare(["R"], output_times=t, input_time=STEPS["input_time"], inputs=STEPS["inputs"])
     values = np.full((200, 1), R)
-    fig["batch_ms"] = 1e3 * _best(lambda: prepared.run(values), 3) / 200
+    fig["batch_ms"] = 1e3 * best(lambda: prepared.run(values), 3) / 200
     signal = np.array(list(zip(STEPS["input_time"], STEPS["inputs"]["dw"])), dtype=[("time", float), ("dw", float)])
     fresh_fmpy = lambda: fmpy.simulate_fmu(str(droop), stop_time=60.0, output_interval=0.1,  # noqa: E731
                                            input=signal, start_values={"R": R})
-    fig["fmpy_ms"] = 1e3 * _best(fresh_fmpy, 3)
+    fig["fmpy_ms"] = 1e3 * best(fresh_fmpy, 3)
     fig["droop_error"] = float(np.max(np.abs(one()["p"] - _droop_exact(t))))
     tb = np.linspace(0.0, 4.0, 4001)
     fig["ball_error"] = float(np.max(np.abs(Simulator(ball).simulate({}, output_times=tb)["h"] - _ball_exact(tb))))
     if sim.fmu.co_simulation:
         loop = sim.prepare(["R"], output_times=t, runner="python", input_time=STEPS["input_time"],
                            inputs=STEPS["inputs"])
-        fig["loop_ms"] = 1e3 * _best(lambda: loop.run(values[:10]), 3) / 10
+        fig["loop_ms"] = 1e3 * best(lambda: loop.run(values[:10]), 3) / 10
     if memory:
         fig.update(memory_growth(droop))
     return fig

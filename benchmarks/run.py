@@ -41,6 +41,8 @@ from pathlib import Path
 
 import numpy as np
 
+from timing import best
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -48,16 +50,6 @@ def _fmu(model: str) -> Path:
     from rapid_cosim.compiler import ensure_fmu
 
     return ensure_fmu(model, package=ROOT / "modelica" / "iGrGen", fmu_dir=ROOT / "fmus")
-
-
-def _best(fn, repeats: int = 5) -> float:
-    fn()  # warm up: library loads, first CVODE allocation
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def _test1():
@@ -81,10 +73,10 @@ def bench_simulation() -> None:
                 sim.simulate(dict(zip(names, row)), output_times=t, runner=runner, check=False)
         return run
 
-    python = _best(loop("python", 20), 3) / 20
-    single = _best(loop("compiled", 200), 3) / 200
+    python = best(loop("python", 20), 3) / 20
+    single = best(loop("compiled", 200), 3) / 200
     prepared = sim.prepare(names, output_times=t, outputs=["pm"])
-    batch = _best(lambda: prepared.run(values), 5) / len(values)
+    batch = best(lambda: prepared.run(values), 5) / len(values)
     print(f"simulation: base bench (TG Type I), staged test 1's {t.size} measured samples over 90 s, one core")
     print(f"  Python reference loop, one set per call   {1e3 * python:8.3f} ms per simulation")
     print(f"  compiled runner, one set per call         {1e3 * single:8.3f} ms   x{python / single:.0f}")
@@ -166,10 +158,10 @@ def bench_input() -> None:
                               model_description=sim.model_description, fmu_instance=instance)
 
         kw = dict(output_times=time_, input_time=time_, inputs={"f_dev": f_dev})
-        fresh = _best(old, 3)
-        python = _best(lambda: sim.simulate({"gov.Ts": 2.0}, runner="python", **kw), 3)
+        fresh = best(old, 3)
+        python = best(lambda: sim.simulate({"gov.Ts": 2.0}, runner="python", **kw), 3)
         prepared = sim.prepare(["gov.Ts"], outputs=["pm"], **kw)
-        batch = _best(lambda: prepared.run(values), 5) / len(values)
+        batch = best(lambda: prepared.run(values), 5) / len(values)
         print(f"  {label}:")
         print(f"    fmpy.simulate_fmu (the path before)     {1e3 * fresh:8.3f} ms per simulation")
         print(f"    Python reference loop                   {1e3 * python:8.3f} ms   x{fresh / python:.1f}")
@@ -207,10 +199,10 @@ def bench_api() -> None:
     exp = _test1()
     staged = str(_fmu(exp.model))
     grid = dict(stop_time=90.0, output_interval=0.1)
-    fresh_fmpy = _best(lambda: fmpy.simulate_fmu(staged, stop_time=90.0, output_interval=0.1, solver="CVode",
+    fresh_fmpy = best(lambda: fmpy.simulate_fmu(staged, stop_time=90.0, output_interval=0.1, solver="CVode",
                                                   start_values={"gov.Ts": 2.0}, output=["pm"]), 3)
-    per_call = _best(lambda: Simulator(staged).simulate({"gov.Ts": 2.0}, **grid), 3)
-    repeated = _best(lambda: [rc.simulate(staged, {"gov.Ts": 2.0}, **grid) for _ in range(200)], 3) / 200
+    per_call = best(lambda: Simulator(staged).simulate({"gov.Ts": 2.0}, **grid), 3)
+    repeated = best(lambda: [rc.simulate(staged, {"gov.Ts": 2.0}, **grid) for _ in range(200)], 3) / 200
     print("rc.simulate, one call per parameter set, one core:")
     print(f"  staged test 1's bench, 90 s at 10 Hz: fresh fmpy.simulate_fmu {1e3 * fresh_fmpy:8.3f} ms; a simulator"
           f" built per call {1e3 * per_call:6.3f} ms; rc.simulate repeated {1e3 * repeated:6.3f} ms"
@@ -221,10 +213,10 @@ def bench_api() -> None:
     event = str(_fmu("iGrGen.TestBenches.FrequencyInput"))
     table = np.zeros(t.size, dtype=[("time", float), ("f_dev", float)])
     table["time"], table["f_dev"] = t, f_dev
-    fresh_fmpy = _best(lambda: fmpy.simulate_fmu(event, stop_time=float(t[-1]), output_interval=0.02, solver="CVode",
+    fresh_fmpy = best(lambda: fmpy.simulate_fmu(event, stop_time=float(t[-1]), output_interval=0.02, solver="CVode",
                                                   start_values={"gov.Ts": 2.0}, input=table, output=["pm"]), 3)
     kw = dict(output_times=t, input_time=t, inputs={"f_dev": f_dev}, outputs=["pm"])
-    one = _best(lambda: [rc.simulate(event, {"gov.Ts": 2.0}, **kw) for _ in range(20)], 3) / 20
+    one = best(lambda: [rc.simulate(event, {"gov.Ts": 2.0}, **kw) for _ in range(20)], 3) / 20
     print(f"  PMU event, 120 s at 50 frames/s ({t.size} samples, jittered, noisy): fresh fmpy.simulate_fmu "
           f"{1e3 * fresh_fmpy:8.3f} ms; rc.simulate {1e3 * one:6.3f} ms   x{fresh_fmpy / one:.0f} (target <= 1 ms)")
 
@@ -244,7 +236,7 @@ def bench_pf() -> None:
         return lambda: particle_filter(objective, problem.space, options=PFOptions(n_particles=100, max_iter=1),
                                        rng=np.random.default_rng(0))
 
-    one = {runner: _best(iteration(ProblemObjective(problem, refs, engine=make_engine(1), runner=runner)), 3)
+    one = {runner: best(iteration(ProblemObjective(problem, refs, engine=make_engine(1), runner=runner)), 3)
            for runner in ("python", "compiled")}
     print(f"pf: one iteration of 100 particles on staged test 1 ({exp.data.time.size} samples), one core")
     print(f"  Python reference loop                     {1e3 * one['python']:8.1f} ms")
@@ -257,7 +249,7 @@ def bench_pf() -> None:
         objectives[n](problem.space.from_unit(rng.uniform(size=(4, 2))))
     for size in (100, 1000, 4000):
         X = problem.space.from_unit(rng.uniform(size=(size, 2)))
-        t = {n: _best(lambda: objectives[n](X), 2) for n in (1, 2)}
+        t = {n: best(lambda: objectives[n](X), 2) for n in (1, 2)}
         print(f"    {size:5d} sets: 1 worker {t[1]:6.3f} s, 2 workers {t[2]:6.3f} s   x{t[1] / t[2]:.2f}")
 
 

@@ -97,7 +97,7 @@ from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, E
 from .electrical import check_machine, check_rocof_column, with_rocof_noise
 from .recorder import read_noise_models
 from .signals import read_inputs, read_outputs
-from .toml_writer import config_key
+from .toml_writer import config_key, dotted_items
 
 _SECTIONS: dict[str, frozenset[str] | None] = {
     "experiment": frozenset({"name", "model", "fmu", "description"}),
@@ -305,7 +305,7 @@ def _load_data(config: Path, data_file: str, time_column: str, outputs: dict[str
 
 def _read_fixed(table: dict, cfg: "_Reader") -> dict[str, float]:
     fixed: dict[str, float] = {}
-    for name, value in _flatten(table, lambda v: not isinstance(v, dict)):
+    for name, value in dotted_items(table, lambda v: not isinstance(v, dict)):
         key = config_key("fixed", name)
         cfg.parameter_name(name, key)
         if name in fixed:
@@ -320,7 +320,7 @@ def _read_estimate(table: dict, cfg: "_Reader") -> tuple[EstimateSpec, ...]:
                 or any(not isinstance(x, dict) for x in v.values()))
 
     specs: dict[str, EstimateSpec] = {}
-    for name, value in _flatten(table, is_spec):
+    for name, value in dotted_items(table, is_spec):
         key = config_key("estimate", name)
         cfg.parameter_name(name, key)
         if name in specs:
@@ -511,16 +511,6 @@ def _positive(value: float, cfg: _Reader, key: str) -> float:
     if not value > 0:
         raise ConfigError(f"must be positive, got {value:g}", cfg.file, key)
     return value
-
-
-def _flatten(table: dict, is_leaf, prefix: str = ""):
-    """Yield (dotted name, value): unquoted dotted keys parse as nested tables."""
-    for k, v in table.items():
-        name = f"{prefix}.{k}" if prefix else k
-        if is_leaf(v):
-            yield name, v
-        else:
-            yield from _flatten(v, is_leaf, name)
 
 
 def _suggest(word: str, candidates: Sequence[str]) -> str:

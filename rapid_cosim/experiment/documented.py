@@ -30,7 +30,7 @@ from pathlib import Path
 
 from ..errors import ConfigError, RapidCosimError
 from ..exchange import Record, read_record
-from .toml_writer import render_config
+from .toml_writer import dotted_items, render_config
 
 KEY = "documented"
 PREFIX = "gov."
@@ -48,7 +48,7 @@ def record_constants(value, fixed: dict, estimate: dict, folder: Path, file: str
         record = read_record(path)
     except RapidCosimError as e:
         raise ConfigError(str(e), file, key) from None
-    stated, specs = set(_names(fixed, _is_value)) - {KEY}, dict(_leaves(estimate, _is_spec))
+    stated, specs = set(_names(fixed, _is_value)) - {KEY}, dict(dotted_items(estimate, _is_spec))
     added, starts, notes = {}, {}, []
     for param, v in record.values.items():
         name = PREFIX + param
@@ -91,7 +91,7 @@ def expand(text: str, raw: dict, path: Path) -> str:
     if starts:
         head, _, end = _section(text, "estimate")
         specs = {name: {**spec, "start": starts[name]} if name in starts else spec
-                 for name, spec in _leaves(estimate, _is_spec)}
+                 for name, spec in dotted_items(estimate, _is_spec)}
         block = f"# [estimate] written out with starts from {fixed[KEY]!r}\n" + render_config({"estimate": specs}) + "\n"
         text = text[:head] + block + text[end:]
     return text
@@ -114,15 +114,5 @@ def _is_spec(v) -> bool:
     return not isinstance(v, dict) or not v or "min" in v or "max" in v
 
 
-def _leaves(table: dict, is_leaf, prefix: str = ""):
-    """(dotted name, value) of each leaf: unquoted dotted keys parse as nested tables."""
-    for k, v in table.items():
-        name = f"{prefix}.{k}" if prefix else k
-        if is_leaf(v):
-            yield name, v
-        else:
-            yield from _leaves(v, is_leaf, name)
-
-
 def _names(table: dict, is_leaf):
-    return (name for name, _ in _leaves(table, is_leaf))
+    return (name for name, _ in dotted_items(table, is_leaf))

@@ -53,3 +53,14 @@ def _toml_value(value: Any) -> str:
     if isinstance(value, Mapping):
         return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
     raise ValueError(f"cannot write {type(value).__name__} to a config")
+
+
+def dotted_items(table: dict, is_leaf, prefix: str = ""):
+    """(dotted name, value) of each leaf of a parsed table: unquoted dotted keys
+    (``gov.R = 0.05``) parse as nested tables, and configs name parameters by the dots."""
+    for k, v in table.items():
+        name = f"{prefix}.{k}" if prefix else k
+        if is_leaf(v):
+            yield name, v
+        else:
+            yield from dotted_items(v, is_leaf, name)

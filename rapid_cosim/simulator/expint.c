@@ -1160,35 +1160,18 @@ static int ex_run_set(Runner *r, Plan *p, const double *params, double *out, dou
 
 /* rc_run with the exponential integrator: same arguments, and the batch's plan. FMUs it
  * does not apply to (event indicators, no states) run every set through rc_run. */
+static int exp_set(Runner *r, void *plan, const double *params, double *out, double *t_reached) {
+    return ex_run_set(r, (Plan *)plan, params, out, t_reached);
+}
+
 RC_EXPORT int rc_run_exp(Runner *r, const Batch *b, Plan *p, double *out, int *status, double *t_reached,
                          char *messages) {
-    int i, failed = 0;
-    size_t per_set = (size_t)b->n_times * b->n_out, j;
     if (r->n_indicators > 0 || r->n_states == 0) {
         p->counters[EX_SETS_CVODE] += b->n_sets;
         return rc_run(r, b, out, status, t_reached, messages);
     }
-    r->b = b;
     if (b->n_inputs > 64 || b->n_inputs != p->m || r->n_states != p->n) return -2;
-    for (i = 0; i < b->n_sets; i++) {
-        double *o = out + per_set * i;
-        r->message[0] = 0;
-        r->fmu_log[0] = 0;
-        r->timed_out = 0;
-        if (!r->c) {
-            status[i] = RC_FMI;
-            snprintf(messages + (size_t)MSG_LEN * i, MSG_LEN, "the FMU could not be instantiated again");
-            for (j = 0; j < per_set; j++) o[j] = NAN;
-            failed++;
-            continue;
-        }
-        r->deadline = b->timeout > 0 ? now() + b->timeout : 0.0;
-        status[i] = finish_set(r, ex_run_set(r, p, b->param_values + (size_t)b->n_params * i, o, &t_reached[i]), o);
-        memcpy(messages + (size_t)MSG_LEN * i, r->message, MSG_LEN);
-        if (status[i] != RC_OK) failed++;
-    }
-    r->b = NULL;
-    return r->c ? failed : -1;
+    return run_batch(r, b, exp_set, p, out, status, t_reached, messages);
 }
 
 /* The plan's counters (see EX_SETS ...), summed over its calls. */

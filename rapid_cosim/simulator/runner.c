@@ -892,15 +892,18 @@ static int finish_set(Runner *r, int status, double *o) {
     return status;
 }
 
-/* Run every set of the batch. out: n_sets x n_times x n_out (NaN after a failure, or after
- * the rows a terminated set gave);
- * status and t_reached: one per set; messages: n_sets x MSG_LEN. Returns the number of
- * failed sets, or -1 if the instance could not be re-created (the rest then fail). */
-RC_EXPORT int rc_run(Runner *r, const Batch *b, double *out, int *status, double *t_reached, char *messages) {
+/* One set's integration: run_set below, or the exponential runner's (expint.c). */
+typedef int (*SetRun)(Runner *r, void *ctx, const double *params, double *out, double *t_reached);
+
+/* Every set of the batch through `one`, each with its own deadline, status and message.
+ * out: n_sets x n_times x n_out (NaN after a failure, or after the rows a terminated set
+ * gave); status and t_reached: one per set; messages: n_sets x MSG_LEN. Returns the number
+ * of failed sets, or -1 if the instance could not be re-created (the rest then fail). */
+static int run_batch(Runner *r, const Batch *b, SetRun one, void *ctx, double *out, int *status,
+                     double *t_reached, char *messages) {
     int i, failed = 0;
     size_t per_set = (size_t)b->n_times * b->n_out, j;
     r->b = b;
-    if (b->n_inputs > 64) return -2;
     for (i = 0; i < b->n_sets; i++) {
         double *o = out + per_set * i;
         r->message[0] = 0;
@@ -914,12 +917,23 @@ RC_EXPORT int rc_run(Runner *r, const Batch *b, double *out, int *status, double
             continue;
         }
         r->deadline = b->timeout > 0 ? now() + b->timeout : 0.0;
-        status[i] = finish_set(r, run_set(r, b->param_values + (size_t)b->n_params * i, o, &t_reached[i]), o);
+        status[i] = finish_set(r, one(r, ctx, b->param_values + (size_t)b->n_params * i, o, &t_reached[i]), o);
         memcpy(messages + (size_t)MSG_LEN * i, r->message, MSG_LEN);
         if (status[i] != RC_OK) failed++;
     }
     r->b = NULL;
     return r->c ? failed : -1;
+}
+
+static int cvode_set(Runner *r, void *ctx, const double *params, double *out, double *t_reached) {
+    (void)ctx;
+    return run_set(r, params, out, t_reached);
+}
+
+/* Run every set of the batch with CVODE (see run_batch). */
+RC_EXPORT int rc_run(Runner *r, const Batch *b, double *out, int *status, double *t_reached, char *messages) {
+    if (b->n_inputs > 64) return -2;
+    return run_batch(r, b, cvode_set, NULL, out, status, t_reached, messages);
 }
 
 RC_EXPORT int rc_msg_len(void) { return MSG_LEN; }
