@@ -113,3 +113,7 @@ def _explanation(d) -> dict:
     return {"verdict": d.verdict, "effect": d.effect, "effects": list(d.effects), "adequate": d.adequate,
             "parameters": d.parameters_after, "intervals": d.parameter_intervals, "noise": d.noise,
             "p": d.adequacy["after"]["p"], "tests": d.adequacy["after"]["tests"]}
+
+
+# Public for the structure study (diagnose.structure_study), which keeps records by the same rules.
+keep_record, recommend_record = _record, _recommend
