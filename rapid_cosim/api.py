@@ -227,26 +227,24 @@ def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[s
 
 def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int = 1, n_jobs: int = 1,
              package: str | Path = PACKAGE, fmu_dir: str | Path = FMU_DIR, backend: str = "loky",
-             scheduler: str | None = None, log=print):
+             scheduler: str | None = None, mva: float | None = None, report: bool = True, pdf: bool = True,
+             log=print):
     """One identification of the unit described by ``unit`` (a ``unit.toml`` or its
     folder, see :mod:`rapid_cosim.identify.unit`): the explanation, every standard
-    record's calibration and fidelity, the recommended record, and that record written
-    as PSS/E ``unit.dyr`` and, where the unit's MVA base is given, PSLF ``unit.dyd`` into
-    ``workdir``. Returns the
-    :class:`~rapid_cosim.identify.Identification`."""
+    record's calibration and fidelity, the recommended record written into ``workdir``
+    as PSS/E ``unit.dyr`` and, where the MVA base is known (``mva``, else ``[unit] mva``),
+    PSLF ``unit.dyd``, and its validation report ``report.html`` and ``report.pdf``
+    (``report=False``: none; ``pdf=False``: HTML only; without Chromium the PDF is left
+    out with the reason). Returns the :class:`~rapid_cosim.identify.Identification`."""
     from .identify import Unit, identify as run_identification
+    from .identify.unit import check_mva
 
     spec = Unit.load(unit)
+    if mva is not None:  # checked before minutes of work
+        spec = replace(spec, mva=check_mva(mva, given=" (--mva, or mva= of rc.identify)"))
     folder = Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="rapid_cosim_identify_"))
-    result = run_identification(spec, workdir=folder, seed=seed, n_jobs=n_jobs, package=package, fmu_dir=fmu_dir,
-                                backend=backend, scheduler=scheduler, log=log)
-    if result.recommended is not None:
-        archive = result.record(result.recommended).archive
-        for kind in ("dyr", "dyd") if spec.mva is not None else ("dyr",):  # a .dyd states the MVA base
-            written = export(archive, folder / f"unit.{kind}", bus=spec.bus, machine_id=spec.machine_id,
-                             mva=spec.mva)
-            result.files[kind] = str(written.path)
-    return result
+    return run_identification(spec, workdir=folder, seed=seed, n_jobs=n_jobs, package=package, fmu_dir=fmu_dir,
+                              backend=backend, scheduler=scheduler, report=report, pdf=pdf, log=log)
 
 
 def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None, *,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from .compiler import build_models
 from .errors import RapidCosimError
@@ -21,6 +21,9 @@ from .report.fits import load_fits, plot_fit_grid, plot_test_fit
 from .report.search import plot_convergence, plot_particle_clouds
 from .simulator import Simulator, Trajectory
 from .staged import METHODS, archive_path, archived_tests, run_staged_test
+
+if TYPE_CHECKING:
+    from .experiment import Experiment
 
 # Figs. 3-8 of the paper show tests 1 to 6.
 PAPER_FIGURE_TESTS = tuple(f"test{k}" for k in range(1, 7))
@@ -180,18 +183,20 @@ def diagnosis_report(diagnosis, folder: str | Path, json_path: str | Path | None
 
 
 def validation_page(archive: str | Path, out: str | Path | None = None, *, n_jobs: int = 1,
-                    tolerances: str | Path | None = None, heldout: Sequence[str | Path] = (),
+                    tolerances: str | Path | None = None, heldout: Sequence[str | Path | Experiment] = (),
                     diagnosis: str | Path | None = None, pdf: str | Path | bool | None = None, bus: int = 1,
                     machine_id: str = "1", mva: float | None = None, package: str | Path = "modelica/iGrGen",
-                    fmu_dir: str | Path = "fmus"):
+                    fmu_dir: str | Path = "fmus", record_note: str = ""):
     """The unit's validation report (:mod:`rapid_cosim.report.html`) for a finished run, at
     ``out`` (default: the archive's name with .html): ``tolerances`` a TOML file with a
     ``[validation]`` table (default bands otherwise), ``heldout`` experiment configs
-    predicted at the run's calibration, ``diagnosis`` a ``diagnosis.json``, ``pdf`` True
-    (beside the page) or a path: the page printed by headless Chromium. A method without
+    predicted at the run's calibration (or experiments already loaded, e.g. on a
+    structure's bench), ``diagnosis`` a ``diagnosis.json``, ``pdf`` True (beside the
+    page) or a path: the page printed by headless Chromium; ``record_note`` says, above
+    the delivered record, whose record it is and why. A method without
     intervals of its own gets the Laplace approximation at the best point, when the noise
     levels are known."""
-    from .experiment import load_experiment
+    from .experiment import Experiment, load_experiment
     from .report.archives import load_run
     from .report.html import PageOptions, write_validation_page
     from .report.pdf import chromium, print_pdf
@@ -201,9 +206,9 @@ def validation_page(archive: str | Path, out: str | Path | None = None, *, n_job
 
     # everything the user named is checked before anything is computed
     options = PageOptions(tolerances=load_tolerances(tolerances) if tolerances else Tolerances(),
-                          heldout=tuple(load_experiment(p) for p in heldout),
+                          heldout=tuple(p if isinstance(p, Experiment) else load_experiment(p) for p in heldout),
                           diagnosis=read_diagnosis(diagnosis) if diagnosis else None, bus=bus,
-                          machine_id=machine_id, mva=mva, package=package, fmu_dir=fmu_dir)
+                          machine_id=machine_id, mva=mva, package=package, fmu_dir=fmu_dir, record_note=record_note)
     if pdf:
         chromium()
     run = load_run(archive)

@@ -249,11 +249,11 @@ def cmd_identify(args) -> int:
     from .campaign import identification_report
 
     result = identify(args.unit, workdir=args.results, seed=args.seed, n_jobs=args.n_jobs, package=args.package,
-                      fmu_dir=args.fmus, backend=args.joblib_backend, scheduler=args.scheduler)
-    text, files = identification_report(result, args.results)
+                      fmu_dir=args.fmus, backend=args.joblib_backend, scheduler=args.scheduler, mva=args.mva,
+                      report=not args.no_report, pdf=not args.no_pdf)
+    _, files = identification_report(result, args.results)
     print()
-    print(text)
-    print(f"written: {', '.join(map(str, [*files, *result.files.values()]))}")
+    print(result.story(also=files))
     return 0
 
 
@@ -447,8 +447,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("identify", cmd_identify, "one identification per unit: the explanation (TG Type I and the effect "
                 "catalogue), every standard record's calibration and fidelity, the recommended record written as "
-                "PSS/E .dyr and PSLF .dyd")
+                "PSS/E .dyr and PSLF .dyd, and its validation report (HTML, PDF)")
     p.add_argument("unit", help="the unit's unit.toml, or its folder")
+    p.add_argument("--mva", type=float, help="the machine's MVA base (1 to 5000), over [unit] mva: the PSLF .dyd "
+                   "record needs it")
+    p.add_argument("--no-report", action="store_true", help="no validation report of the recommended record")
+    p.add_argument("--no-pdf", action="store_true", help="the report as HTML only (no headless Chromium)")
     p.add_argument("--results", default="results/identify", help="work and report folder (default %(default)s)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--n-jobs", type=int, default=1, help="worker processes (default %(default)s; with "

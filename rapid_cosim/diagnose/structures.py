@@ -190,21 +190,29 @@ def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Se
             "variance_ratio_after": d.adequacy["after"]["pooled_variance_ratio"] if d.adequacy else None}
 
 
+def on_structure(structure: Structure, experiments: Sequence[Experiment], fitted_noise: dict) -> list[Experiment]:
+    """The experiments as :func:`select_structure` fits and predicts them: ``structure``
+    as their model, each whitened by its recorder's model of ``fitted_noise`` (a
+    :func:`~rapid_cosim.noise.campaign_noise` over them); a report of a fit predicts its
+    held-out tests from these."""
+    return [structure.experiment(e, fitted_noise[e.name].model) for e in experiments]
+
+
 def select_structure(structures: Sequence[Structure], training: Sequence[Experiment],
                      heldout: Sequence[Experiment] = (), *, workdir: str | Path, options: RunOptions,
                      package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus",
-                     threshold: float = THRESHOLD, searches: Sequence[str] = (),
+                     threshold: float = THRESHOLD, searches: Sequence[str] = (), fitted_noise: dict | None = None,
                      log: Callable[[str], None] = print) -> StructureVerdict:
     """Calibrate every structure on ``training`` by ``options.method`` and each of
-    ``searches`` (the best kept), rank them and give the verdict."""
+    ``searches`` (the best kept), rank them and give the verdict. ``fitted_noise``: the
+    campaign's :func:`~rapid_cosim.noise.campaign_noise` when the caller has it already."""
     workdir = Path(workdir)
-    fitted_noise = campaign_noise([*training, *heldout])
+    fitted_noise = fitted_noise or campaign_noise([*training, *heldout])
     noise = noise_floors([*training, *heldout], fitted_noise)
-    models = {name: f.model for name, f in fitted_noise.items()}
     fits, null = [], None
     for s in structures:
         log(f"  calibrating {s.name} ({', '.join(s.estimate)}) ...")
-        exps = [s.experiment(e, models[e.name]) for e in training]
+        exps = on_structure(s, training, fitted_noise)
         inputs = inputs_from_experiments(exps, package=package, fmu_dir=fmu_dir)
         result, archive = best_run(inputs, options, workdir / f"{s.name}.h5", searches, replace_stale=True)
         tests = residuals_at(inputs, result.x)
@@ -213,7 +221,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         held_score, jac = None, jacobian_at(inputs, result.x)
         held_inputs = None
         if heldout:
-            held_inputs = inputs_from_experiments([s.experiment(e, models[e.name]) for e in heldout],
+            held_inputs = inputs_from_experiments(on_structure(s, heldout, fitted_noise),
                                                  package=package, fmu_dir=fmu_dir)
             best = result.best()
             x = np.array([best[name] for name in held_inputs.problem.names])

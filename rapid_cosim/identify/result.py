@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Sequence
 
 # What each standard structure can represent of the effect catalogue, as its own
 # parameters (PES-TR1 2013 and the PSS/E Model Library block diagrams), and in words.
@@ -19,6 +21,8 @@ CARRIES: dict[str, tuple[tuple[str, ...], str]] = {
     "HYGOV": ((), "HYGOV has one gate velocity limit, the same both ways, and gate position limits"),
 }
 OPTIONAL_CARRIES = {"IEEEG1": ("rate_limit",)}  # carried only with the optional parts free
+DELIVERED = {"dyr": "PSS/E record (.dyr)", "dyd": "PSLF record (.dyd)", "report": "validation report",
+             "pdf": "validation report (PDF)"}
 
 
 def cannot_carry(structure: str, effects: list[str], *, freed: bool) -> list[str]:
@@ -60,7 +64,8 @@ class Identification:
     reason: str
     structure_verdict: str
     seconds: float
-    files: dict[str, str] = field(default_factory=dict)  # the records written: dyr, dyd
+    files: dict[str, str] = field(default_factory=dict)  # what was delivered: dyr, dyd, report, pdf
+    notes: dict[str, str] = field(default_factory=dict)  # why one of those was not written
 
     def record(self, model: str) -> StandardRecord:
         return next(r for r in self.records if r.model == model)
@@ -99,7 +104,40 @@ class Identification:
             r = self.record(self.recommended)
             lines += ["", "| parameter | value |", "|---|---:|"]
             lines += [f"| {k} | {v:.5g} |" for k, v in r.parameters.items()]
-        for kind, path in self.files.items():
-            lines.append(f"\n{kind}: `{path}`")
+        for kind, label in DELIVERED.items():
+            if kind in self.files or kind in self.notes:
+                lines.append(f"\n{label}: " + (f"`{self.files[kind]}`" if kind in self.files
+                                                else f"none ({self.notes[kind]})"))
         lines += ["", f"{self.seconds:.0f} s."]
         return "\n".join(lines) + "\n"
+
+    def story(self, also: Sequence[str | Path] = ()) -> str:
+        """The few lines the CLI ends with: the explanation's verdict, the recommended
+        record with its fidelity per test, what was delivered (and why not, where not),
+        then ``also`` (the identification's own files)."""
+        e = self.explanation
+        lines = [f"explanation (TG Type I and the effect catalogue): {e['verdict']}, "
+                 f"{'adequate' if e['adequate'] else 'not adequate'} (campaign p {e['p']:.2g})"]
+        if self.recommended:
+            r = self.record(self.recommended)
+            lines.append(f"recommended record: {r.model}" + (f" ({r.fit})" if r.fit != r.model else "")
+                         + f", {self.reason}")
+
+            def fidelity(names: list[str]) -> str:
+                return ", ".join(f"{t} {r.tests[t]['rmse_over_noise']:.2f}" + ("" if r.tests[t]["adequate"] else
+                                                                               " (fails)")
+                                 for t in names if t in r.tests)
+
+            lines.append(f"  RMSE over the noise, training: {fidelity(self.training)}")
+            if self.heldout:
+                lines.append(f"  held out: {fidelity(self.heldout)}")
+        else:
+            lines.append(f"recommended record: none ({self.reason})")
+        lines.append("written:")
+        for kind, label in DELIVERED.items():
+            if kind in self.files:
+                lines.append(f"  {label + ':':<26} {self.files[kind]}")
+            elif kind in self.notes:
+                lines.append(f"  {label + ':':<26} none: {self.notes[kind]}")
+        lines += [f"  {'identification:':<26} {path}" for path in also]
+        return "\n".join(lines)

@@ -29,7 +29,19 @@ from pathlib import Path
 from ..errors import ConfigError
 
 STANDARD = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV")
+MVA_RANGE = (1.0, 5000.0)
 KEYS = {"unit": {"name", "mva", "bus", "machine_id"}, "tests": {"configs", "holdout"}, "structures": {"files"}}
+
+
+def check_mva(mva, source: str | None = None, key: str | None = None, *, given: str = "") -> float:
+    """The machine's MVA base as a float, refused outside 1 to 5000 MVA (a PSLF .dyd record
+    states it; a typo of a factor 1000 would scale every MW-based constant). ``given``:
+    where the value came from, when not a file's key."""
+    lo, hi = MVA_RANGE
+    if isinstance(mva, bool) or not isinstance(mva, (int, float)) or not lo <= mva <= hi:
+        raise ConfigError(f"mva = {mva!r}{given}: the machine's MVA base, a number from {lo:g} to {hi:g}",
+                          source, key)
+    return float(mva)
 
 
 @dataclass(frozen=True)
@@ -64,8 +76,8 @@ class Unit:
             raise ConfigError(f"unknown section(s) {', '.join(extra)}; allowed: {', '.join(KEYS)}", str(path))
         head, tests = raw.get("unit", {}), raw.get("tests", {})
         mva = head.get("mva")
-        if mva is not None and (not isinstance(mva, (int, float)) or not 1.0 <= mva <= 5000.0):
-            raise ConfigError(f"mva = {mva!r}: the machine's MVA base, a number from 1 to 5000", str(path), "unit.mva")
+        if mva is not None:
+            mva = check_mva(mva, str(path), "unit.mva")
         bus = head.get("bus", 1)
         if not isinstance(bus, int) or not 1 <= bus <= 999999:
             raise ConfigError(f"bus = {bus!r}: a bus number from 1 to 999999", str(path), "unit.bus")
@@ -89,5 +101,5 @@ class Unit:
         holdout = tests.get("holdout", [])
         if not isinstance(holdout, list) or not all(isinstance(h, str) for h in holdout):
             raise ConfigError("holdout must list experiment names", str(path), "tests.holdout")
-        return cls(str(head.get("name", folder.name)), None if mva is None else float(mva), bus,
+        return cls(str(head.get("name", folder.name)), mva, bus,
                    str(head.get("machine_id", "1")), tuple(found), tuple(holdout), tuple(files), path)

@@ -49,6 +49,7 @@ class PageOptions:
     mva: float | None = None
     package: str | Path = "modelica/iGrGen"
     fmu_dir: str | Path = "fmus"
+    record_note: str = ""  # above the record: whose it is and why (rapid-cosim identify's recommendation)
 
 
 @dataclass(frozen=True)
@@ -107,6 +108,7 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
             "(only their offset profiled). A test passes when every metric judged is within its band.</p>",
             "<h3>Tolerance bands</h3>", tolerance_table(opts.tolerances),
             "<h2>Delivered record</h2>",
+            f"<p id=delivered>{e(opts.record_note)}</p>" if opts.record_note else "",
             record_section(record, note, unc.level if unc is not None else None),
             "<h2>Noise model and diagnosis</h2>", noise_section(noise_summary(experiments)),
             diagnosis_section(opts.diagnosis),
