@@ -9,6 +9,7 @@ SEED    ?= 1
 N_JOBS  ?= 2
 RESULTS ?= results
 ARCHIVE ?=
+MVA     ?=
 
 STAGED_TESTS := $(addprefix test,1 2 3 4 5 6 7 8 9 10)
 TABLE1_TESTS := $(addprefix experiments/test,1 2 3 4 5 6 7 8)
@@ -17,7 +18,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical clean table1 figures rerun event1 joint diagnose structures identify bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical clean table1 figures rerun event1 joint diagnose structures identify identify-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -75,9 +76,14 @@ diagnose: fmus  ## name what TG Type I misses on tests 1-10 (4 and 8 held out), 
 		--results $(RESULTS)/diagnose --json $(RESULTS)/diagnose/verdict.json --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make diagnose: $$(( $$(date +%s) - $(T0) )) s wall time"
 
-identify: fmus  ## one identification of the field unit (experiments/unit.toml): explanation, standard records, .dyr
-	$(RC) identify experiments/unit.toml --results $(RESULTS)/identify --seed $(SEED) --n-jobs $(N_JOBS)
+identify: fmus  ## one identification of the field unit (experiments/unit.toml): explanation, records, .dyr (.dyd with MVA=...), report HTML+PDF
+	$(RC) identify experiments/unit.toml --results $(RESULTS)/identify --seed $(SEED) --n-jobs $(N_JOBS) $(if $(MVA),--mva $(MVA))
 	@echo "make identify: $$(( $$(date +%s) - $(T0) )) s wall time"
+
+identify-png: fmus  ## the README's picture of make identify's report (docs/identify_report.png); runs make identify if needed
+	@test -f $(RESULTS)/identify/report.html || $(MAKE) --no-print-directory identify
+	$(PY) -c "from rapid_cosim.report.pdf import screenshot; \
+		print('wrote', screenshot('$(RESULTS)/identify/report.html', 'docs/identify_report.png', width=1100, height=1300))"
 
 STRUCTURES := $(addprefix experiments/structures/,TGTypeI.toml TGOV1.toml IEEEG1.toml GGOV1.toml HYGOV.toml)
 
