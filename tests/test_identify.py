@@ -5,10 +5,15 @@ and the standard records from one selection, the recommended record written as a
 The unit is a study plant (:mod:`rapid_cosim.diagnose.campaigns`: TG Type I with
 asymmetric valve rate limits, four staged tests shaped like the field's, realistic
 recorder noise, the last held out). TGOV1 has no rate limits; IEEEG1 has them as optional
-parts (``Uo``/``Uc``), freed only where the data call for them.
+parts (``Uo``/``Uc``), freed only where the data call for them. The identification ends
+with the recommended record's validation report (HTML, PDF) and a short story.
 """
 
+import contextlib
+import html
+import io
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -19,9 +24,12 @@ from rapid_cosim.diagnose.study import draw_case, write_campaign
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.exchange import read_record
 from rapid_cosim.identify import Unit
+from rapid_cosim.identify.deliver import Delivery, pdf_unavailable
 from rapid_cosim.identify.result import cannot_carry
 
 REPO = Path(__file__).resolve().parents[1]
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+MVA = 300.0  # given by --mva, over the unit file's 250
 
 
 def _unit(folder: Path, configs: list[Path], *, extra: str = "", mva: str = "mva = 250.0") -> Path:
@@ -44,8 +52,11 @@ def identified(study, tmp_path_factory):
     configs = write_campaign(case, folder / "data", package=package, fmu_dir=fmu_dir)
     unit = _unit(folder, configs)
     results = folder / "results"
-    assert main(["identify", str(unit), "--results", str(results), "--package", str(package),
-                 "--fmus", str(fmu_dir), "--n-jobs", "2"]) == 0
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["identify", str(unit), "--results", str(results), "--package", str(package),
+                     "--fmus", str(fmu_dir), "--n-jobs", "2", "--mva", str(MVA)]) == 0
+    (folder / "story.txt").write_text(out.getvalue().rsplit("\n\n", 1)[-1])  # what the CLI ends with
     return case, json.loads((results / "identification.json").read_text()), results
 
 
@@ -68,9 +79,64 @@ def test_the_recommended_record_reads_back_to_its_calibration(identified):
     for kind in ("dyr", "dyd"):
         record = read_record(results / f"unit.{kind}")
         assert record.model == "IEEEG1" and record.bus == 7 and record.machine_id == "2"
+        assert kind == "dyr" or record.mva == MVA  # --mva over the unit file's 250
         for name, value in fitted.items():
             assert record.values[name.removeprefix("gov.")] == pytest.approx(value, rel=1e-9), name
     assert "IEEEG1" in (results / "identification.md").read_text()
+
+
+def test_the_story_names_the_verdict_the_record_its_fidelity_and_the_files_in_order(identified):
+    _, result, results = identified
+    story = (results.parent / "story.txt").read_text()
+    lines = story.splitlines()
+    assert lines[0].startswith("explanation") and "rate_limit" in lines[0]
+    assert lines[1].startswith("recommended record: IEEEG1 (IEEEG1+rate_limit)")
+    assert re.search(rf"held out: {result['heldout'][0]} \d\.\d\d", story)
+    order = [story.index(str(results / f)) for f in ("unit.dyr", "unit.dyd", "report.html")]
+    assert order == sorted(order)
+    assert len(lines) < 14
+
+
+def test_the_report_validates_the_delivered_record_on_the_held_out_test(identified):
+    _, result, results = identified
+    page = (results / "report.html").read_text()
+    (held,) = result["heldout"]
+    # the held-out test is predicted and judged, with the training tests
+    assert re.search(rf'<tr data-test="{held}"><td>{held}</td><td class=text>held out</td>', page)
+    for name in result["training"]:
+        assert f'<tr data-test="{name}"><td>{name}</td><td class=text>training</td>' in page
+    # the record on the page is the one delivered, in both formats, with its reason
+    for kind in ("dyr", "dyd"):
+        assert html.escape((results / f"unit.{kind}").read_text()) in page
+    assert "rapid-cosim identify recommends for study unit: IEEEG1 (IEEEG1+rate_limit)" in page
+    fitted = next(r for r in result["records"] if r["model"] == "IEEEG1")["parameters"]
+    assert f"<td><code>gov.Uo</code></td><td class=text>Uo</td><td>{fitted['gov.Uo']:.5g}</td>" in page
+    assert "Verdict of" in page and "<b>rate_limit</b>" in page  # the explanation, as the page's diagnosis
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Chromium (Debian package 'chromium'; .ci/run installs it)")
+def test_the_report_is_printed_to_pdf(identified):
+    _, result, results = identified
+    assert (results / "report.pdf").read_bytes()[:5] == b"%PDF-"
+    assert result["files"]["pdf"] == str(results / "report.pdf")
+
+
+def test_without_chromium_the_pdf_is_left_out_with_the_reason(tmp_path, monkeypatch):
+    monkeypatch.setenv("RAPID_COSIM_CHROMIUM", str(tmp_path / "no-such-chromium"))
+    assert "apt-get install chromium" in pdf_unavailable(Delivery())
+    assert pdf_unavailable(Delivery(pdf=False)) == "not asked for (--no-pdf)"
+
+
+@pytest.mark.parametrize("mva", ["0", "5001", "nan", "-3"])
+def test_a_bad_mva_is_refused_before_any_work(tmp_path, capsys, mva):
+    config = tmp_path / "t1" / "config.toml"
+    config.parent.mkdir()
+    config.write_text("")
+    unit = _unit(tmp_path, [config], mva="")
+    assert main(["identify", str(unit), "--results", str(tmp_path / "out"), "--mva", mva]) == 2
+    err = capsys.readouterr().err
+    assert "the machine's MVA base, a number from 1 to 5000" in err and "--mva" in err
+    assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("change, message", [
