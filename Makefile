@@ -95,8 +95,8 @@ structures: fmus  ## which governor structure (TG Type I, TGOV1, IEEEG1, GGOV1, 
 report-example: fmus  ## the validation report (HTML, PDF) of a synthetic TGOV1 unit, two tests held out; its picture in docs/
 	$(PY) docs/report_example.py --results $(RESULTS)/report-example --picture docs/validation_report.png
 
-bench-structures: fmus  ## confusion matrix of structure selection on synthetic campaigns (SEEDS=5 per structure)
-	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),5) --n-jobs $(N_JOBS)
+bench-structures: fmus  ## identify's structure choice on synthetic campaigns (SEEDS=10 per standard structure): named, exported .dyr's RMSE/noise
+	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),10) --n-jobs $(N_JOBS) --json $(RESULTS)/bench-structures/study.json
 
 bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5)
 	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS)
