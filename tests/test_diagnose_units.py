@@ -9,7 +9,7 @@ import pytest
 from rapid_cosim.compiler import build_models
 from rapid_cosim.diagnose.candidates import CandidateFit, CandidateSpec, ExperimentResiduals
 from rapid_cosim.diagnose.catalogue import CATALOGUE, bench_name, bench_source
-from rapid_cosim.diagnose.selection import NoiseFloor, Ranked, bic, decide
+from rapid_cosim.diagnose.selection import NoiseFloor, Ranked, bic, decide, settle_on_heldout
 from rapid_cosim.noise import NoiseFit, RecorderNoise
 from rapid_cosim.estimators.base import SearchSpace
 from rapid_cosim.estimators.laplace import laplace
@@ -58,6 +58,24 @@ def test_verdict_names_a_decisive_effect():
 def test_verdict_is_ambiguous_between_close_candidates():
     v = decide(_ranked(none=0.0, delay=-120.0, measurement_lag=-115.0))
     assert v.effect == "ambiguous" and set(v.candidates) == {"delay", "measurement_lag"}
+
+
+def test_heldout_evidence_settles_a_training_tie_only_when_it_adds_up():
+    ranking = _ranked(none=0.0, delay=-120.0, measurement_lag=-115.0)
+    # delay ahead by 5 on training and by 7 on held-out data: 12 in all, named
+    v = settle_on_heldout(decide(ranking), ranking, {"delay": 300.0, "measurement_lag": 307.0})
+    assert v.effect == "delay" and v.effects == ["delay"] and "held-out" in v.reason
+    # the held-out tests favour the other by 16: measurement_lag leads by 11 in all
+    v = settle_on_heldout(decide(ranking), ranking, {"delay": 316.0, "measurement_lag": 300.0})
+    assert v.effect == "measurement_lag"
+    # 5 + 3 = 8 is under the threshold: still ambiguous, and it says why
+    v = settle_on_heldout(decide(ranking), ranking, {"delay": 300.0, "measurement_lag": 303.0})
+    assert v.effect == "ambiguous" and set(v.candidates) == {"delay", "measurement_lag"}
+    assert "do not separate" in v.reason
+    # a tie with none is the material-size question: left alone
+    tie = _ranked(none=0.0, backlash=-4.0, deadband=-2.0)
+    v = decide(tie, not_excluded=["deadband"])
+    assert settle_on_heldout(v, tie, {"none": 0.0, "deadband": 100.0}).candidates == ["none", "deadband"]
 
 
 def test_an_effect_that_barely_beats_none_is_not_named():

@@ -20,6 +20,10 @@ Verdict (``threshold`` in BIC units, 10 = "very strong" on Kass and Raftery's sc
   threshold, and, if held-out tests are given, predicts them better than ``none``;
 - ``none`` is returned when nothing beats it, and no effect held at a material size
   fits about as well (which would mean the data cannot exclude that effect);
+- when effects tie within the threshold on the training tests and held-out tests are
+  given, their predictions of those tests are added as further evidence: the held-out
+  data term is a log-likelihood ratio on data no fit has seen, in the criterion's units,
+  so training difference plus held-out difference is compared with the same threshold;
 - otherwise the answer is *ambiguous*, with the candidates that could not be told apart
   and the staged test that would separate them best.
 """
@@ -35,6 +39,7 @@ import numpy as np
 from ..experiment import Experiment
 from ..noise import NoiseFit, campaign_noise
 from .candidates import CandidateFit, ExperimentResiduals
+from .catalogue import NONE
 
 THRESHOLD = 10.0
 
@@ -185,3 +190,33 @@ def decide(ranking: Sequence[Ranked], *, threshold: float = THRESHOLD,
     return Verdict(best.label, effects=[best.label],
                    reason=f"{best.label} beats none by {margin_none:.1f} and the next candidate "
                           f"({second.label}) by {second.delta:.1f}")
+
+
+def settle_on_heldout(verdict: Verdict, ranking: Sequence[Ranked], heldout_terms: Mapping[str, float],
+                      threshold: float = THRESHOLD) -> Verdict:
+    """An ambiguous verdict between effects, settled if training plus held-out evidence
+    puts one ahead of every other by the threshold; otherwise the verdict unchanged.
+
+    ``heldout_terms``: each tied candidate's held-out data term at its training fit.
+    A tie that involves ``none`` is left alone: that is the material-size question,
+    which the held-out confirmation against ``none`` answers later.
+    """
+    tied = verdict.candidates
+    if verdict.effect != "ambiguous" or NONE in tied or not all(c in heldout_terms for c in tied):
+        return verdict
+    bics = {r.label: r.bic for r in ranking}
+    total = {c: bics[c] + heldout_terms[c] for c in tied}
+    order = sorted(tied, key=total.get)
+    best, runner = order[0], order[1]
+    lead = total[runner] - total[best]
+    if lead < threshold:
+        verdict.reason += (f"; the held-out tests do not separate them either ({best} ahead of {runner} by "
+                           f"{lead:.1f} over training and held-out tests)")
+        return verdict
+    parts = ", ".join(f"{c} by {total[c] - total[best]:.1f} (held-out {heldout_terms[c] - heldout_terms[best]:+.1f})"
+                      for c in order[1:])
+    margin_none = bics[NONE] - bics[best] if NONE in bics else float("nan")
+    return Verdict(best, effects=[best],
+                   reason=f"{best} beats none by {margin_none:.1f}; {', '.join(order[1:])} fit the training tests "
+                          f"within {threshold:g} of it, but over training and held-out tests together it beats "
+                          f"{parts}")

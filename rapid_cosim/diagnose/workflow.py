@@ -33,7 +33,7 @@ from .context import Context, DiagnoseOptions, split_holdout
 from .features import Features, residual_features
 from .limits import check_material, inadequate, verdict_text
 from .result import Diagnosis
-from .selection import Ranked, Verdict, bic, decide, decisive, gap, rank, score
+from .selection import Ranked, Verdict, bic, decide, decisive, gap, rank, score, settle_on_heldout
 from .separate import separating_test
 from .variants import check_variants
 
@@ -78,6 +78,10 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     if not decisive(ranking, options.threshold):
         not_excluded = _material_checks(ctx, base, options)
     verdict = decide(ranking, threshold=options.threshold, not_excluded=not_excluded)
+    if verdict.effect == "ambiguous" and ctx.heldout and NONE not in verdict.candidates:
+        verdict = settle_on_heldout(verdict, ranking, {c: _held_out_score(ctx, ctx.fits[c])
+                                                       for c in verdict.candidates if c in ctx.fits},
+                                    options.threshold)
     chosen = ctx.fits[verdict.effect] if verdict.effect in ctx.fits and verdict.effect != NONE else None
     if chosen is not None and ctx.heldout:
         verdict = _confirm(ctx, chosen, base, verdict)
