@@ -28,7 +28,7 @@ from .calibration import RunInputs, RunOptions, inputs_from_archive, inputs_from
 from .calibration import rerun as _rerun
 from .calibration import resume_run, start_run
 from .compiler import ensure_fmu
-from .errors import ArchiveError, ConfigError, ParameterError
+from .errors import ArchiveError, ConfigError, ParameterError, RapidCosimError
 from .estimators.base import EstimationResult
 from .estimators.uncertainty import Uncertainty
 from .experiment import Experiment, load_experiment
@@ -233,18 +233,51 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
     folder, see :mod:`rapid_cosim.identify.unit`): the explanation, every standard
     record's calibration and fidelity, the recommended record written into ``workdir``
     as PSS/E ``unit.dyr`` and, where the MVA base is known (``mva``, else ``[unit] mva``),
-    PSLF ``unit.dyd``, and its validation report ``report.html`` and ``report.pdf``
-    (``report=False``: none; ``pdf=False``: HTML only; without Chromium the PDF is left
-    out with the reason). Returns the :class:`~rapid_cosim.identify.Identification`."""
+    PSLF ``unit.dyd``, and its validation report ``report.html`` and ``report.pdf``, as
+    ``rapid-cosim report`` writes it (``report=False``: none; ``pdf=False``: HTML only;
+    without Chromium the PDF is left out with the reason). Returns the
+    :class:`~rapid_cosim.identify.Identification`, the files in ``files`` and why any
+    was not written in ``notes``."""
     from .identify import Unit, identify as run_identification
+    from .identify.deliver import NO_DYD, record_note
     from .identify.unit import check_mva
+    from .report.html import validation_page
+    from .report.pdf import print_pdf, unavailable
 
     spec = Unit.load(unit)
     if mva is not None:  # checked before minutes of work
         spec = replace(spec, mva=check_mva(mva, given=" (--mva, or mva= of rc.identify)"))
+    no_pdf = "not asked for (--no-pdf)" if not pdf else unavailable() if report else None
+    if report and no_pdf and pdf:
+        log(f"the report will be HTML only: {no_pdf}")
     folder = Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="rapid_cosim_identify_"))
-    return run_identification(spec, workdir=folder, seed=seed, n_jobs=n_jobs, package=package, fmu_dir=fmu_dir,
-                              backend=backend, scheduler=scheduler, report=report, pdf=pdf, log=log)
+    result = run_identification(spec, workdir=folder, seed=seed, n_jobs=n_jobs, package=package, fmu_dir=fmu_dir,
+                                backend=backend, scheduler=scheduler, log=log)
+    if result.recommended is None:
+        return result
+    record = result.record(result.recommended)
+    for kind in ("dyr", "dyd") if spec.mva is not None else ("dyr",):  # a .dyd states the MVA base
+        written = export(record.archive, folder / f"unit.{kind}", bus=spec.bus, machine_id=spec.machine_id,
+                         mva=spec.mva)
+        result.files[kind] = str(written.path)
+    if spec.mva is None:
+        result.notes["dyd"] = NO_DYD
+    if not report:
+        result.notes["report"] = "not asked for (--no-report)"
+        return result
+    log(f"the validation report of {record.fit} ...")
+    page = validation_page(record.archive, folder / "report.html", n_jobs=n_jobs, heldout=result.heldout_configs,
+                           diagnosis=result.diagnosis, bus=spec.bus, machine_id=spec.machine_id, mva=spec.mva,
+                           package=package, fmu_dir=fmu_dir, record_note=record_note(result))
+    result.files["report"] = str(page.path)
+    if no_pdf:
+        result.notes["pdf"] = no_pdf
+        return result
+    try:
+        result.files["pdf"] = str(print_pdf(page.path, folder / "report.pdf"))
+    except RapidCosimError as e:  # Chromium there but failing: the HTML page stands
+        result.notes["pdf"] = str(e)
+    return result
 
 
 def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None, *,

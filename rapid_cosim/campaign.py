@@ -8,9 +8,9 @@ returns what it made for the command line to print.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import Sequence
 
 from .compiler import build_models
 from .errors import RapidCosimError
@@ -20,10 +20,8 @@ from .report.figures import plot_step_responses
 from .report.fits import load_fits, plot_fit_grid, plot_test_fit
 from .report.search import plot_convergence, plot_particle_clouds
 from .simulator import Simulator, Trajectory
+from .report.html import validation_page  # noqa: F401  (the report command's page, made where identify reaches it)
 from .staged import METHODS, archive_path, archived_tests, run_staged_test
-
-if TYPE_CHECKING:
-    from .experiment import Experiment
 
 # Figs. 3-8 of the paper show tests 1 to 6.
 PAPER_FIGURE_TESTS = tuple(f"test{k}" for k in range(1, 7))
@@ -180,61 +178,6 @@ def diagnosis_report(diagnosis, folder: str | Path, json_path: str | Path | None
         Path(json_path).write_text(json.dumps(diagnosis.to_json(), indent=2) + "\n")
         files.append(Path(json_path))
     return report.read_text(), files
-
-
-def validation_page(archive: str | Path, out: str | Path | None = None, *, n_jobs: int = 1,
-                    tolerances: str | Path | None = None, heldout: Sequence[str | Path | Experiment] = (),
-                    diagnosis: str | Path | None = None, pdf: str | Path | bool | None = None, bus: int = 1,
-                    machine_id: str = "1", mva: float | None = None, package: str | Path = "modelica/iGrGen",
-                    fmu_dir: str | Path = "fmus", record_note: str = ""):
-    """The unit's validation report (:mod:`rapid_cosim.report.html`) for a finished run, at
-    ``out`` (default: the archive's name with .html): ``tolerances`` a TOML file with a
-    ``[validation]`` table (default bands otherwise), ``heldout`` experiment configs
-    predicted at the run's calibration (or experiments already loaded, e.g. on a
-    structure's bench), ``diagnosis`` a ``diagnosis.json``, ``pdf`` True (beside the
-    page) or a path: the page printed by headless Chromium; ``record_note`` says, above
-    the delivered record, whose record it is and why. A method without
-    intervals of its own gets the Laplace approximation at the best point, when the noise
-    levels are known."""
-    from .experiment import Experiment, load_experiment
-    from .report.archives import load_run
-    from .report.html import PageOptions, write_validation_page
-    from .report.pdf import chromium, print_pdf
-    from .report.tolerances import Tolerances, load_tolerances
-    from .report.unit import read_diagnosis
-    from .staged import hessian_uncertainty
-
-    # everything the user named is checked before anything is computed
-    options = PageOptions(tolerances=load_tolerances(tolerances) if tolerances else Tolerances(),
-                          heldout=tuple(p if isinstance(p, Experiment) else load_experiment(p) for p in heldout),
-                          diagnosis=read_diagnosis(diagnosis) if diagnosis else None, bus=bus,
-                          machine_id=machine_id, mva=mva, package=package, fmu_dir=fmu_dir, record_note=record_note)
-    if pdf:
-        chromium()
-    run = load_run(archive)
-    unc, note = None, ""
-    if run.result.uncertainty is None:
-        try:
-            unc = hessian_uncertainty(run.inputs, run.result.x, archive, n_jobs=n_jobs)
-            inflation = max(_ar1_inflation(e) for e in run.inputs.experiments)
-            unc = unc.scaled(inflation)
-            note = (f"Laplace approximation at the best point, its covariance inflated {inflation:.2g}-fold for "
-                    "the pre-event noise's correlation (AR(1))")
-        except RapidCosimError as e:
-            note = f"the run's method gives none, and no Laplace approximation: {e}"
-    page = write_validation_page(run, out or Path(archive).with_suffix(".html"), uncertainty=unc,
-                                 interval_note=note, options=options)
-    if pdf:
-        page = replace(page, pdf=print_pdf(page.path, page.path.with_suffix(".pdf") if pdf is True else pdf))
-    return page
-
-
-def _ar1_inflation(exp) -> float:
-    from .data import ar1_inflation, noise_level
-
-    if exp.pre_step_end is None:
-        return 1.0
-    return max(ar1_inflation(noise_level(exp.data, col, exp.pre_step_end).phi) for col in exp.outputs.values())
 
 
 def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Path], *, holdout: Sequence[str],

@@ -24,7 +24,7 @@ from rapid_cosim.diagnose.study import draw_case, write_campaign
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.exchange import read_record
 from rapid_cosim.identify import Unit
-from rapid_cosim.identify.deliver import Delivery, pdf_unavailable
+from rapid_cosim.report.pdf import unavailable
 from rapid_cosim.identify.result import cannot_carry
 
 REPO = Path(__file__).resolve().parents[1]
@@ -123,8 +123,7 @@ def test_the_report_is_printed_to_pdf(identified):
 
 def test_without_chromium_the_pdf_is_left_out_with_the_reason(tmp_path, monkeypatch):
     monkeypatch.setenv("RAPID_COSIM_CHROMIUM", str(tmp_path / "no-such-chromium"))
-    assert "apt-get install chromium" in pdf_unavailable(Delivery())
-    assert pdf_unavailable(Delivery(pdf=False)) == "not asked for (--no-pdf)"
+    assert "apt-get install chromium" in unavailable()
 
 
 @pytest.mark.parametrize("mva", ["0", "5001", "nan", "-3"])

@@ -1,107 +1,53 @@
-"""What an identification hands over: the recommended record in the grid operator's
-formats, and the validation report of that record.
+"""What an identification hands to its validation report: the held-out tests on the
+recommended record's bench, written as configs, the explanation as a diagnosis, and the
+words above the record.
 
-The records are what ``rapid-cosim export`` writes of the recommended fit's archive
-(:func:`rapid_cosim.api.export`); the report is what ``rapid-cosim report`` writes of it
-(:func:`rapid_cosim.campaign.validation_page`), with the unit's held-out tests predicted
-on the record's own bench exactly as the selection predicted them
-(:func:`rapid_cosim.diagnose.structures.on_structure`), and the explanation as its
-diagnosis. So the page judges the record that was delivered, not a re-fit of it.
-
-Why a missing Chromium costs only the PDF: the identification took minutes and the HTML
-page is the same document; the reason is said where the PDF would be listed.
+Why written as files: the report is the one ``rapid-cosim report`` writes (from the
+recommended fit's archive, :func:`rapid_cosim.report.html.validation_page`), and with
+these files a reader can remake it by that command alone. The held-out configs are the
+tests exactly as the selection predicted them
+(:func:`rapid_cosim.diagnose.structures.on_structure`: the structure's bench and
+constants, the recorder's noise model), so the page judges the record delivered, not a
+re-fit of it.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+import tomllib
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Sequence
 
-from ..errors import RapidCosimError
-from ..experiment import Experiment
+from ..experiment import Experiment, render_config
 from .result import Identification
-from .unit import Unit
 
 NO_DYD = ("no MVA base for the unit (a .dyd record states it): set [unit] mva in the unit file, or pass "
-          "--mva MVA (make identify MVA=...; rc.identify(..., mva=...))")
+          "--mva MVA (make identify MVA=...)")
 
 
-@dataclass(frozen=True)
-class Delivery:
-    """What to write besides the records, and with what."""
-
-    report: bool = True
-    pdf: bool = True
-    n_jobs: int = 1
-    package: str | Path = "modelica/iGrGen"
-    fmu_dir: str | Path = "fmus"
-
-
-def pdf_unavailable(delivery: Delivery) -> str | None:
-    """Why no PDF can be printed (None: it can), asked before the work starts so the
-    user hears it at once and again in the story."""
-    if not delivery.report:
-        return "no report (--no-report)"
-    if not delivery.pdf:
-        return "not asked for (--no-pdf)"
-    from ..report.pdf import ChromiumMissing, chromium
-
-    try:
-        chromium()
-    except ChromiumMissing as e:
-        return str(e)
-    return None
+def write_configs(experiments: Sequence[Experiment], folder: str | Path) -> list[Path]:
+    """Each experiment's config at ``folder/<name>/config.toml``, its data and input files
+    named by absolute path (so the config reads the same from anywhere)."""
+    paths = []
+    for exp in experiments:
+        sections = tomllib.loads(exp.config_text)
+        home = Path(exp.config_path).parent
+        for spec in [sections.get("data", {}), *sections.get("inputs", {}).values()]:
+            if isinstance(spec, dict) and isinstance(spec.get("file"), str):
+                spec["file"] = str((home / spec["file"]).resolve())
+        path = Path(folder) / exp.name / "config.toml"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(render_config(sections))
+        paths.append(path)
+    return paths
 
 
-def deliver(result: Identification, unit: Unit, heldout: Sequence[Experiment], explanation: dict | None,
-            folder: str | Path, delivery: Delivery, *, log: Callable[[str], None] = print) -> Identification:
-    """Write the recommended record (``unit.dyr``, and ``unit.dyd`` where the MVA base is
-    known) and its validation report (``report.html``, ``report.pdf``) into ``folder``;
-    ``heldout``: the held-out tests on the recommended record's bench; ``explanation``:
-    the explanation's diagnosis as JSON. Records in ``result.files``, the reason for
-    anything not written in ``result.notes``."""
-    from ..api import export
-
-    folder = Path(folder)
-    if result.recommended is None:
-        result.notes.update(dyr="no record recommended", dyd="no record recommended")
-        return result
-    record = result.record(result.recommended)
-    for kind in ("dyr", "dyd") if unit.mva is not None else ("dyr",):  # a .dyd states the MVA base
-        written = export(record.archive, folder / f"unit.{kind}", bus=unit.bus, machine_id=unit.machine_id,
-                         mva=unit.mva)
-        result.files[kind] = str(written.path)
-    if unit.mva is None:
-        result.notes["dyd"] = NO_DYD
-    why_no_pdf = pdf_unavailable(delivery)
-    if not delivery.report:
-        result.notes["report"] = "not asked for (--no-report)"
-        return result
-    diagnosis = None
-    if explanation is not None:
-        diagnosis = folder / "explanation" / "diagnosis.json"
-        diagnosis.parent.mkdir(parents=True, exist_ok=True)
-        diagnosis.write_text(json.dumps(explanation, indent=2) + "\n")
-    log(f"the validation report of {record.fit} ...")
-    from ..campaign import validation_page
-
-    page = validation_page(record.archive, folder / "report.html", n_jobs=delivery.n_jobs, heldout=tuple(heldout),
-                           diagnosis=diagnosis, bus=unit.bus, machine_id=unit.machine_id, mva=unit.mva,
-                           package=delivery.package, fmu_dir=delivery.fmu_dir, record_note=record_note(result))
-    result.files["report"] = str(page.path)
-    if why_no_pdf is not None:
-        result.notes["pdf"] = why_no_pdf
-        return result
-    from ..report.pdf import print_pdf
-
-    try:
-        result.files["pdf"] = str(print_pdf(page.path, folder / "report.pdf"))
-    except RapidCosimError as e:  # Chromium found but failed: the HTML stands
-        result.notes["pdf"] = str(e)
-        log(f"  no PDF: {e}")
-    return result
+def write_diagnosis(explanation: dict, folder: str | Path) -> Path:
+    """The explanation's diagnosis as ``rapid-cosim diagnose --json`` writes it."""
+    path = Path(folder) / "diagnosis.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(explanation, indent=2) + "\n")
+    return path
 
 
 def record_note(result: Identification) -> str:

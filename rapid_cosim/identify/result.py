@@ -66,6 +66,8 @@ class Identification:
     seconds: float
     files: dict[str, str] = field(default_factory=dict)  # what was delivered: dyr, dyd, report, pdf
     notes: dict[str, str] = field(default_factory=dict)  # why one of those was not written
+    diagnosis: str = ""  # the explanation as diagnosis.json, for the report
+    heldout_configs: list[str] = field(default_factory=list)  # the held-out tests on the recommended record's bench
 
     def record(self, model: str) -> StandardRecord:
         return next(r for r in self.records if r.model == model)

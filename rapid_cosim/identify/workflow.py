@@ -13,8 +13,9 @@ with one noise model.
 * **The recommendation** is the simplest standard record (fewest estimated parameters,
   then BIC) that is adequate: within the noise on every test. If none is, the best by
   BIC is named with what it leaves out.
-* **The delivery** (:mod:`.deliver`): the recommended record as PSS/E ``.dyr`` (and
-  PSLF ``.dyd`` where the MVA base is known) and its validation report, HTML and PDF.
+* **For its report** (:mod:`.deliver`): the held-out tests on the recommended record's
+  bench and the explanation's diagnosis, written into the work folder; the records and
+  the report are written from them by :func:`rapid_cosim.api.identify`.
 
 Both parts estimate the recorder's noise model from the same quiet stretches
 (:func:`rapid_cosim.noise.campaign_noise` is deterministic in its data), so they whiten
@@ -34,27 +35,22 @@ from ..diagnose.structures import Structure, StructureFit, on_structure, select_
 from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
 from ..experiment import load_experiment
 from ..noise import campaign_noise
-from .deliver import Delivery, deliver, pdf_unavailable
+from .deliver import write_configs, write_diagnosis
 from .result import CARRIES, Identification, StandardRecord, cannot_carry
 from .unit import Unit
 
 
 def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_jobs: int = 1,
              package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus", backend: str = "loky",
-             scheduler: str | None = None, report: bool = True, pdf: bool = True,
-             log: Callable[[str], None] = print) -> Identification:
-    """The unit's explanation, each standard record's calibration and fidelity, the
-    recommended record, and its delivery into ``workdir`` (see the module docstring);
-    ``report``/``pdf`` False: no validation report / no PDF of it."""
+             scheduler: str | None = None, log: Callable[[str], None] = print) -> Identification:
+    """The unit's explanation, each standard record's calibration and fidelity, and the
+    recommended record (see the module docstring)."""
     t0 = time.perf_counter()
     unit = unit if isinstance(unit, Unit) else Unit.load(unit)
     structures = [Structure.load(f) for f in unit.structures]  # every file checked before a run starts
     training, heldout = split_holdout([load_experiment(c) for c in unit.configs], unit.holdout)
     workdir = Path(workdir)
-    delivery = Delivery(report=report, pdf=pdf, n_jobs=n_jobs, package=package, fmu_dir=fmu_dir)
     log(f"identifying {unit.name}: {len(training)} training and {len(heldout)} held-out experiments")
-    if report and pdf and (why := pdf_unavailable(delivery)):
-        log(f"  the report will be HTML only: {why}")
     log("the explanation (TG Type I and the effect catalogue):")
     explanation = diagnose(training, heldout, workdir=workdir / "explanation",
                            options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False, backend=backend,
@@ -75,11 +71,11 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=records, recommended=recommended,
                             reason=reason, structure_verdict=verdict.structure, seconds=0.0)
-    held = []
+    result.diagnosis = str(write_diagnosis(explanation.to_json(), workdir / "explanation"))
     if recommended is not None:  # the held-out tests on the record's bench, as the selection predicted them
         fit = result.record(recommended).fit
         held = on_structure(next(s for s in candidates if s.name == fit), heldout, fitted_noise)
-    deliver(result, unit, held, explanation.to_json(), workdir, delivery, log=log)
+        result.heldout_configs = [str(p) for p in write_configs(held, workdir / "records" / f"{fit}-heldout")]
     result.seconds = time.perf_counter() - t0
     return result
 

@@ -12,14 +12,16 @@ offline, can be mailed, and is archived as one file.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import Sequence
+
 import numpy as np
 
 from .. import __version__
 from ..calibration import inputs_from_experiments
-from ..errors import ConfigError
+from ..errors import ConfigError, RapidCosimError
 from ..estimators.uncertainty import Uncertainty
 from ..experiment import Experiment
 from .archives import ArchivedRun, FitCurves, caption, curves_at
@@ -119,6 +121,60 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
                    f"<title>rapid-cosim validation: {e(run.path.name)}</title><style>{STYLE}</style></head>\n"
                    "<body>\n" + "\n".join(body) + "\n</body>\n</html>\n", encoding="utf-8")
     return ValidationPage(out, tuple(m for m, _ in rows), tuple(c for _, c in rows), len(figures), record)
+
+
+def validation_page(archive: str | Path, out: str | Path | None = None, *, n_jobs: int = 1,
+                    tolerances: str | Path | None = None, heldout: Sequence[str | Path | Experiment] = (),
+                    diagnosis: str | Path | None = None, pdf: str | Path | bool | None = None, bus: int = 1,
+                    machine_id: str = "1", mva: float | None = None, package: str | Path = "modelica/iGrGen",
+                    fmu_dir: str | Path = "fmus", record_note: str = ""):
+    """The unit's validation report (this module's page) for a finished run, at
+    ``out`` (default: the archive's name with .html): ``tolerances`` a TOML file with a
+    ``[validation]`` table (default bands otherwise), ``heldout`` experiment configs
+    predicted at the run's calibration (or experiments already loaded, e.g. on a
+    structure's bench), ``diagnosis`` a ``diagnosis.json``, ``pdf`` True (beside the
+    page) or a path: the page printed by headless Chromium; ``record_note`` says, above
+    the delivered record, whose record it is and why. A method without
+    intervals of its own gets the Laplace approximation at the best point, when the noise
+    levels are known."""
+    from ..experiment import load_experiment
+    from ..staged import hessian_uncertainty
+    from .archives import load_run
+    from .pdf import chromium, print_pdf
+    from .tolerances import load_tolerances
+    from .unit import read_diagnosis
+
+    # everything the user named is checked before anything is computed
+    options = PageOptions(tolerances=load_tolerances(tolerances) if tolerances else Tolerances(),
+                          heldout=tuple(p if isinstance(p, Experiment) else load_experiment(p) for p in heldout),
+                          diagnosis=read_diagnosis(diagnosis) if diagnosis else None, bus=bus,
+                          machine_id=machine_id, mva=mva, package=package, fmu_dir=fmu_dir, record_note=record_note)
+    if pdf:
+        chromium()
+    run = load_run(archive)
+    unc, note = None, ""
+    if run.result.uncertainty is None:
+        try:
+            unc = hessian_uncertainty(run.inputs, run.result.x, archive, n_jobs=n_jobs)
+            inflation = max(_ar1_inflation(e) for e in run.inputs.experiments)
+            unc = unc.scaled(inflation)
+            note = (f"Laplace approximation at the best point, its covariance inflated {inflation:.2g}-fold for "
+                    "the pre-event noise's correlation (AR(1))")
+        except RapidCosimError as e:
+            note = f"the run's method gives none, and no Laplace approximation: {e}"
+    page = write_validation_page(run, out or Path(archive).with_suffix(".html"), uncertainty=unc,
+                                 interval_note=note, options=options)
+    if pdf:
+        page = replace(page, pdf=print_pdf(page.path, page.path.with_suffix(".pdf") if pdf is True else pdf))
+    return page
+
+
+def _ar1_inflation(exp) -> float:
+    from ..data import ar1_inflation, noise_level
+
+    if exp.pre_step_end is None:
+        return 1.0
+    return max(ar1_inflation(noise_level(exp.data, col, exp.pre_step_end).phi) for col in exp.outputs.values())
 
 
 def _figure(c: FitCurves, m: ValidationMetrics, checks: tuple[Check, ...]) -> str:

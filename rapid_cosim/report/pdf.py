@@ -42,6 +42,16 @@ def chromium(executable: str | None = None) -> str:
     return found
 
 
+def unavailable(executable: str | None = None) -> str | None:
+    """Why no PDF can be printed here (None: it can), for a caller that goes on without
+    one rather than stop."""
+    try:
+        chromium(executable)
+    except ChromiumMissing as e:
+        return str(e)
+    return None
+
+
 def _run(args: list[str], page: Path, executable: str | None) -> None:
     exe = chromium(executable)
     with tempfile.TemporaryDirectory(prefix="rapid_cosim_chromium_") as profile:
