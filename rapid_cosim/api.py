@@ -256,6 +256,8 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
     if result.recommended is None:
         return result
     record = result.record(result.recommended)
+    for path in ("unit.dyd", "report.html", "report.pdf"):  # an earlier run's file must not pass for this run's
+        (folder / path).unlink(missing_ok=True)
     for kind in ("dyr", "dyd") if spec.mva is not None else ("dyr",):  # a .dyd states the MVA base
         written = export(record.archive, folder / f"unit.{kind}", bus=spec.bus, machine_id=spec.machine_id,
                          mva=spec.mva)

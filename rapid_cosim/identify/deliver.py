@@ -26,13 +26,16 @@ NO_DYD = ("no MVA base for the unit (a .dyd record states it): set [unit] mva in
 
 
 def write_configs(experiments: Sequence[Experiment], folder: str | Path) -> list[Path]:
-    """Each experiment's config at ``folder/<name>/config.toml``, its data and input files
-    named by absolute path (so the config reads the same from anywhere)."""
+    """Each experiment of :meth:`Structure.experiment` at ``folder/<name>/config.toml``,
+    its data and input files named by absolute path (so the config reads the same from
+    anywhere): its data file is named from the working folder already (the structure's
+    config moved it), its inputs' files still from the original config's folder."""
     paths = []
     for exp in experiments:
         sections = tomllib.loads(exp.config_text)
         home = Path(exp.config_path).parent
-        for spec in [sections.get("data", {}), *sections.get("inputs", {}).values()]:
+        sections["data"]["file"] = str(Path(sections["data"]["file"]).resolve())
+        for spec in sections.get("inputs", {}).values():
             if isinstance(spec, dict) and isinstance(spec.get("file"), str):
                 spec["file"] = str((home / spec["file"]).resolve())
         path = Path(folder) / exp.name / "config.toml"
