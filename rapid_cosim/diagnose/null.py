@@ -23,13 +23,13 @@ Step 2 is the same for every candidate of a diagnosis and is done once
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import stats
 
-from ..experiment.electrical import rocof_component
+from ..experiment.electrical import rocof_component, with_component
 from ..fitness import whitenings
 from ..noise import NoiseFit, sample_draws
 
@@ -50,7 +50,7 @@ class ScoredTest:
     whitening: object
     offset: bool
     noise: NoiseFit
-    extra: tuple[tuple[float, float], ...] = ()  # slow components the residual carries beyond the recorder's
+    extra: tuple = ()  # noise components the residual carries beyond the recorder's (the ROCOF's)
 
 
 def replicates_for(experiments, noise_fits: Mapping[str, NoiseFit], replicates: int = REPLICATES,
@@ -99,8 +99,8 @@ class NoiseReplicates:
         self._stats: dict[bytes, dict] = {}
         for t in self.tests:
             models = recorders[id(t.noise)]
-            if t.extra:
-                models = [replace(m, components=m.components + t.extra) for m in models]
+            for component in t.extra:
+                models = [with_component(m, component) for m in models]
             out = np.empty((self.replicates, t.times.size), dtype=np.float32)
             for a in range(0, self.replicates, BLOCK):
                 raw = sample_draws(models[a:a + BLOCK], t.times, rng)

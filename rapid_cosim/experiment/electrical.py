@@ -19,8 +19,10 @@ compared with per-unit power. The ranges are those of the Modelica parameters
 ROCOF: the bench's input ``rocof`` (Hz/s) comes from a ROCOF column, checked against the
 frequency's own derivative (a wrong sign or unit is an error), or is derived from the
 frequency (:mod:`rapid_cosim.simulator.rocof`). Its noise reaches P_e as
-2 H / f_nom x the ROCOF's noise, which the recorder's power noise does not contain; it is
-measured on the quiet pre-event samples and added to the fitness's noise of ``pe``.
+2 H / f_nom x the ROCOF's noise, which the recorder's power noise does not contain: the
+frequency recorder's noise model, fitted to the quiet pre-event samples (by moments), through the
+derivative filter (:class:`rapid_cosim.noise.filtered.FilteredNoise`, band-pass, whitened
+exactly from its autocovariance), joins the fitness's noise model of ``pe``.
 """
 
 from __future__ import annotations
@@ -31,7 +33,12 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import ConfigError
-from ..simulator.rocof import FREQUENCY, ROCOF, WINDOW, derive_rocof
+from scipy.signal import savgol_coeffs
+
+from ..noise import QuietStretch, RecorderNoise
+from ..noise.estimate import moment_noise
+from ..noise.filtered import FilteredNoise
+from ..simulator.rocof import FREQUENCY, ORDER, ROCOF, WINDOW, derive_rocof, points
 from .toml_writer import config_key
 
 ELECTRICAL = "pe"
@@ -41,6 +48,7 @@ H_RANGE = (0.5, 15.0)  # s, as Machines.SwingPower.H
 D_RANGE = (0.0, 5.0)  # pu, as Machines.SwingPower.D
 POWER_UNITS = ("MW", "kW", "W", "GW")
 ROCOF_RATIO = (0.5, 2.0)  # a ROCOF column against the frequency's derivative
+MIN_QUIET = 20  # pre-event samples a ROCOF noise is estimated from
 
 
 def check_rating(spec: dict, cfg, key: str) -> float | None:
@@ -115,39 +123,60 @@ def check_rocof_column(exp, cfg) -> None:
                           f"(f_dev): {why}? allowed {lo:g} to {hi:g}", cfg.file, config_key("inputs", ROCOF))
 
 
-def rocof_component(exp) -> tuple[float, float] | None:
-    """The derived ROCOF's noise in the bench's ``pe`` as a slow component (sigma in pu,
-    correlation time in s): 2 H / f_nom times the ROCOF's spread over the quiet pre-event
-    samples (H fixed, or the top of its bounds when estimated: the noise is not
-    underestimated), correlated over about half the filter's window; None without it."""
+def rocof_component(exp) -> FilteredNoise | tuple[float, float] | None:
+    """The ROCOF's noise in the bench's ``pe``, None without it. Derived from the
+    frequency: the frequency recorder's noise (white + AR(1) fitted to its quiet
+    pre-event samples by moments, :func:`rapid_cosim.noise.estimate.moment_noise`) through the Savitzky-Golay
+    derivative's taps; from a ROCOF column: that column's quiet noise. Scaled by
+    2 H / f_nom (H fixed, or the top of its bounds when estimated: the noise is not
+    underestimated). Where the frequency is sampled on another grid than the power, the
+    exact form cannot join the power's noise: the old approximation, a slow component
+    (sigma, half the filter's window)."""
     if ELECTRICAL not in exp.outputs or exp.pre_step_end is None:
         return None
-    rocof = model_rocof(exp)
-    if rocof is None:
+    table = exp.input_table
+    if table is None or ROCOF not in table.names:
         return None
-    quiet = exp.input_table.time < exp.pre_step_end
-    if quiet.sum() < 10:
+    quiet = table.time < exp.pre_step_end
+    if quiet.sum() < MIN_QUIET:
         return None
     bounds = {s.name: s.max for s in exp.estimate}
-    h = exp.fixed.get(INERTIA, bounds.get(INERTIA))
-    extra = 2.0 * h / exp.fixed.get("f_nom", 50.0) * float(np.std(rocof[quiet]))
-    return (extra, WINDOW / 2) if extra > 0 else None
+    scale = 2.0 * exp.fixed.get(INERTIA, bounds.get(INERTIA)) / exp.fixed.get("f_nom", 50.0)
+    given = any(s.name == ROCOF and s.column for s in exp.inputs)
+    channel = ROCOF if given or FREQUENCY not in table.names else FREQUENCY
+    t, v = table.time[quiet], table.values[quiet, table.names.index(channel)]
+    dt = float(np.median(np.diff(t)))
+    if np.ptp(v) == 0 or np.max(np.abs(np.diff(t) - dt)) > 0.01 * dt:
+        return None
+    source = moment_noise(QuietStretch(exp.name, "pre-event", t, v, trend_order=1))
+    taps = (scale,) if channel == ROCOF else tuple(scale * savgol_coeffs(points(dt), ORDER, deriv=1, delta=dt))
+    component = FilteredNoise(source, taps)
+    power = exp.noise_models.get(ELECTRICAL)
+    if power is not None and abs(power.dt - dt) > 0.01 * dt:
+        return (component.sigma, WINDOW / 2)
+    return component
 
 
 def with_rocof_noise(exp):
     """``exp`` with the ROCOF's noise (:func:`rocof_component`) added to the noise of
-    ``pe``: to its sigma, and to its noise model as a slow component. The recorder's
-    noise, estimated from the recorded power, does not contain it; a diagnosis's null
-    adds it too (:mod:`rapid_cosim.diagnose.null`)."""
+    ``pe``: to its sigma, and to its noise model. The recorder's noise, estimated from
+    the recorded power, does not contain it; a diagnosis's null adds it too
+    (:mod:`rapid_cosim.diagnose.null`)."""
     component = rocof_component(exp)
     if component is None:
         return exp
-    extra = component[0]
+    extra = component.sigma if isinstance(component, FilteredNoise) else component[0]
     sigma = exp.noise_sigma
     if sigma is not None and ELECTRICAL in sigma:
         sigma = {**sigma, ELECTRICAL: math.hypot(sigma[ELECTRICAL], extra)}
     models = dict(exp.noise_models)
     if ELECTRICAL in models:
-        m = models[ELECTRICAL]
-        models[ELECTRICAL] = replace(m, components=m.components + (component,))
+        models[ELECTRICAL] = with_component(models[ELECTRICAL], component)
     return replace(exp, noise_sigma=sigma, noise_models=models)
+
+
+def with_component(model: RecorderNoise, component: FilteredNoise | tuple[float, float]) -> RecorderNoise:
+    """``model`` plus a ROCOF noise component of either form."""
+    if isinstance(component, FilteredNoise):
+        return replace(model, filtered=model.filtered + (component,))
+    return replace(model, components=model.components + (component,))

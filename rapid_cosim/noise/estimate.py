@@ -320,3 +320,20 @@ def campaign_noise(experiments: Sequence["Experiment"], *, tails: bool = True,
 
 def noise_models(fits: Mapping[str, NoiseFit]) -> dict[str, RecorderNoise]:
     return {name: fit.model for name, fit in fits.items()}
+
+
+def moment_noise(stretch: QuietStretch) -> RecorderNoise:
+    """White + AR(1) by the method of moments (lags 0 to 2 of the detrended stretch),
+    AR(1) or white where those do not fit: instant, for a channel whose noise only feeds
+    another's (the frequency under a derived ROCOF), where a REML fit per config load
+    would cost seconds (its white part runs to the bound on a PMU's smoothed frequency)."""
+    x = stretch.detrended()
+    r = [float(np.mean(x[k:] * x[:x.size - k])) for k in range(3)]
+    dt = stretch.dt
+    if r[1] > 0 and 0 < r[2] / r[1] < 1 and r[1] * r[1] / r[2] < r[0]:
+        phi = r[2] / r[1]
+        slow = r[1] / phi
+        return RecorderNoise(math.sqrt(r[0] - slow), ((math.sqrt(slow), -dt / math.log(phi)),), dt)
+    if 0 < r[1] < r[0]:
+        return RecorderNoise(0.0, ((math.sqrt(r[0]), -dt / math.log(r[1] / r[0])),), dt)
+    return RecorderNoise(math.sqrt(r[0]), (), dt)

@@ -29,9 +29,13 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import linalg, signal
+
+if TYPE_CHECKING:
+    from .filtered import FilteredNoise, LevinsonWhitener
 
 FAMILIES = ("white", "ar1", "white+ar1", "white+2ar1")
 _GAIN_TOL = 1e-13  # the gains have converged when they change less than this (relative)
@@ -51,6 +55,7 @@ class RecorderNoise:
     sigma_white: float
     components: tuple[tuple[float, float], ...] = ()
     dt: float = 0.1
+    filtered: tuple["FilteredNoise", ...] = ()  # other noises through known filters (not estimated here)
 
     def __post_init__(self):
         comps = tuple((float(s), float(t)) for s, t in self.components)
@@ -64,6 +69,10 @@ class RecorderNoise:
                 raise ValueError(f"a slow component needs sigma > 0 and tau > 0 (s), got sigma={s!r}, tau={t!r}")
         if self.sigma_white == 0 and not comps:
             raise ValueError("a noise model needs a white part or a slow component")
+        for f in self.filtered:
+            if abs(f.dt - self.dt) > 0.01 * self.dt:
+                raise ValueError(f"a filtered component on a {f.dt:g} s grid cannot join noise sampled every "
+                                 f"{self.dt:g} s")
 
     @property
     def family(self) -> str:
@@ -77,16 +86,23 @@ class RecorderNoise:
     @property
     def sigma(self) -> float:
         """Standard deviation of the whole noise."""
-        return float(math.sqrt(self.sigma_white ** 2 + sum(s * s for s, _ in self.components)))
+        return float(math.sqrt(self.autocovariance(np.array([0]))[0]))
 
-    def autocorrelation(self, lags: np.ndarray, dt: float | None = None) -> np.ndarray:
-        """Autocorrelation at integer ``lags`` of samples ``dt`` apart (default the model's)."""
+    def autocovariance(self, lags: np.ndarray, dt: float | None = None) -> np.ndarray:
+        """Covariance at integer ``lags`` of samples ``dt`` apart (default the model's;
+        a filtered component exists on its own grid only)."""
         dt = self.dt if dt is None else dt
         lags = np.asarray(lags, dtype=float)
         cov = sum(s * s * np.exp(-np.abs(lags) * dt / t) for s, t in self.components) if self.components \
             else np.zeros_like(lags)
         cov = cov + np.where(lags == 0, self.sigma_white ** 2, 0.0)
-        return cov / self.sigma ** 2
+        if self.filtered and abs(dt - self.dt) > 0.01 * self.dt:
+            raise ValueError(f"the filtered components are defined every {self.dt:g} s, not every {dt:g} s")
+        return cov + sum(f.autocovariance(lags) for f in self.filtered)
+
+    def autocorrelation(self, lags: np.ndarray, dt: float | None = None) -> np.ndarray:
+        """Autocorrelation at integer ``lags`` of samples ``dt`` apart (default the model's)."""
+        return self.autocovariance(lags, dt) / self.sigma ** 2
 
     def innovation_sigma(self) -> float:
         """Standard deviation of the one-step prediction error once the filter has settled:
@@ -94,7 +110,7 @@ class RecorderNoise:
         return float(math.sqrt(self.whitener().s_inf))
 
     def with_dt(self, dt: float) -> "RecorderNoise":
-        return RecorderNoise(self.sigma_white, self.components, dt)
+        return RecorderNoise(self.sigma_white, self.components, dt, self.filtered)
 
     def whitener(self) -> "Whitener":
         return _whitener(self)
@@ -122,6 +138,8 @@ class RecorderNoise:
                 for k in range(1, t.size):  # vectorised over replicates; one pass over time
                     x[:, k] = a[k - 1] * x[:, k - 1] + b[k - 1] * z[:, k]
                 out += x
+        for f in self.filtered:
+            out += f.sample(t.size, rng, rows)
         return out[0] if size is None else out
 
     # -- parameters as a vector (log scale), for estimation and its uncertainty
@@ -158,6 +176,7 @@ class RecorderNoise:
         parts = [f"white {self.sigma_white:.3g}"] if self.sigma_white > 0 else []
         parts += [f"slow {s:.3g} (tau {t:.3g} s, phi {math.exp(-self.dt / t):.3f} per sample)"
                   for s, t in self.components]
+        parts += [f.describe() for f in self.filtered]
         return " + ".join(parts) + f" pu at {self.dt:g} s"
 
 
@@ -183,6 +202,10 @@ def sample_draws(models: "list[RecorderNoise]", times: np.ndarray, rng: np.rando
         for i in range(1, t.size):
             x[i] = a[i - 1] * x[i - 1] + b[i - 1] * z[i]
         out += x.T
+    if any(m.filtered != models[0].filtered for m in models):
+        raise ValueError("sample_draws needs models with the same filtered components")
+    for f in models[0].filtered:
+        out += f.sample(t.size, rng, rows)
     return out
 
 
@@ -193,12 +216,54 @@ def n_components(family: str) -> int:
 
 
 @functools.lru_cache(maxsize=64)
-def _whitener(model: RecorderNoise) -> "Whitener":
+def _whitener(model: RecorderNoise) -> "Whitener | LevinsonWhitener":
+    if model.filtered:  # no small state space: whitened from the autocovariance
+        from .filtered import LevinsonWhitener
+
+        return LevinsonWhitener(model)
     return Whitener(model)
 
 
+class RunWhitening:
+    """What every whitener shares once it has ``m``, ``s``, ``s_inf`` and
+    ``whiten_runs``: the variances, the unscaled innovations, gaps, the log-determinant."""
+
+    m: int
+    s: np.ndarray
+    s_inf: float
+
+    def variances(self, n: int) -> np.ndarray:
+        """Innovation variances of the first ``n`` samples of a run."""
+        if n <= self.m:
+            return self.s[:n] if self.m else np.full(n, self.s_inf)
+        return np.concatenate([self.s, np.full(n - self.m, self.s_inf)])
+
+    def innovations(self, y: np.ndarray) -> np.ndarray:
+        """Unscaled innovations of runs ``y`` (rows, n) with no gap, each from the
+        stationary prior."""
+        y = np.asarray(y, dtype=float)
+        return self.whiten_runs(y).reshape(y.shape) * np.sqrt(self.variances(y.shape[-1]))
+
+    def whiten_runs(self, y: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def whiten_masked(self, residual: np.ndarray) -> np.ndarray:
+        r = np.asarray(residual, dtype=float)
+        one = r.ndim == 1
+        r2 = r[None] if one else r
+        out = np.full(r2.shape, np.nan)
+        valid = np.all(np.isfinite(r2), axis=0)  # a batch shares its mask
+        for start, stop in runs(valid):
+            out[:, start:stop] = self.whiten_runs(r2[:, start:stop])
+        return out[0] if one else out
+
+    def log_det(self, n: int) -> float:
+        """log |Cov| of a gap-free run of ``n`` samples."""
+        return float(np.sum(np.log(self.variances(n))))
+
+
 @dataclass(eq=False)
-class Whitener:
+class Whitener(RunWhitening):
     """The exact innovations map of a :class:`RecorderNoise` on a regular grid (see the
     module docstring); ``s`` holds the innovation variances of the first ``m`` samples,
     ``s_inf`` the steady one."""
@@ -245,20 +310,6 @@ class Whitener:
         powers = lam[None, :] ** np.arange(n_free)[:, None]
         self._free = np.real(((-H @ V)[None, :] * powers) @ np.linalg.inv(V))  # (L, k)
 
-    def variances(self, n: int) -> np.ndarray:
-        """Innovation variances of the first ``n`` samples of a run."""
-        if n <= self.m:
-            return self.s[:n] if self.m else np.full(n, self.s_inf)
-        return np.concatenate([self.s, np.full(n - self.m, self.s_inf)])
-
-    def innovations(self, y: np.ndarray) -> np.ndarray:
-        """Unscaled innovations of runs ``y`` (rows, n) with no gap, each from the
-        stationary prior."""
-        y = np.asarray(y, dtype=float)
-        if not self.model.components:
-            return y.copy()
-        return self.whiten_runs(y) * np.sqrt(self.variances(y.shape[1]))
-
     def whiten_runs(self, y: np.ndarray) -> np.ndarray:
         """Standardised innovations of gap-free runs ``y`` (rows, n), each from the
         stationary prior."""
@@ -276,21 +327,6 @@ class Whitener:
         rest[:, :L] += state @ self._free[:L].T
         e[:, m:] = rest / math.sqrt(self.s_inf)
         return e
-
-    def whiten_masked(self, residual: np.ndarray) -> np.ndarray:
-        r = np.asarray(residual, dtype=float)
-        one = r.ndim == 1
-        r2 = r[None] if one else r
-        out = np.full(r2.shape, np.nan)
-        valid = np.all(np.isfinite(r2), axis=0)  # a batch shares its mask
-        for start, stop in runs(valid):
-            out[:, start:stop] = self.whiten_runs(r2[:, start:stop])
-        return out[0] if one else out
-
-    def log_det(self, n: int) -> float:
-        """log |Cov| of a gap-free run of ``n`` samples."""
-        return float(np.sum(np.log(self.variances(n))))
-
 
 def _steady_prediction_covariance(F, Q, R, sig) -> np.ndarray:
     """The Kalman filter's steady one-step prediction covariance: in closed form for one
