@@ -48,7 +48,7 @@ def main(argv: list[str]) -> int:
     package, fmu_dir = ROOT / "modelica" / "iGrGen", ROOT / "fmus"
     build_models([Structure.load(STRUCTURES_DIR / f"{s}.toml").bench for s in STANDARD], package=package,
                  fmu_dir=fmu_dir, log=lambda *_: None)
-    jobs = [(t, s) for t in truths for s in range(1, args.seeds + 1)]
+    jobs = [(t, s) for s in range(1, args.seeds + 1) for t in truths]  # every structure early in the log
     print(f"{len(jobs)} campaigns, {len(STANDARD)} structures and IEEEG1 with Uo/Uc fitted on each, "
           f"{args.n_jobs} in parallel; work folder {work}", flush=True)
     t0 = time.perf_counter()
