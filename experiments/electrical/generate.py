@@ -87,7 +87,8 @@ ESTIMATE = {
     "IEEEG1": {"gov.K": (5.0, 50.0, "K"), "gov.T4": (0.05, 2.0, "T4"), "gov.T5": (1.0, 20.0, "T5")},
     "TGTypeI": {"gov.R": (0.02, 0.12, "R"), "gov.Ts": (0.1, 5.0, "Ts"), "gov.T5": (1.0, 20.0, "T5")},
 }
-# TG Type I's documented constants (experiments/structures/TGTypeI.toml; T5 is estimated)
+# TG Type I's Tc, T3, T4 as documented (experiments/structures/TGTypeI.toml; T5 is estimated);
+# pmax 1.2 as the other events' limits: at the documented 1.0 a 200 MW event clips the command
 TGTYPEI_FIXED = {"Tc": 0.4, "T3": 0.2, "T4": 1.5, "pmax": 1.2, "pmin": 0.0}
 STEAM_CHEST = 0.001  # IEEEG1's T4 (s) where TG Type I has no lag: tgtypei_as_ieeeg1
 TOLERANCE = {"TGOV1": 2e-4, "IEEEG1": 2e-4, "TGTypeI": 1e-4}  # the governor check's (pu)
