@@ -266,10 +266,11 @@ def test_andes_events_calibrate_on_electrical_power(repo, fmus, event):
 def test_without_the_recorders_noise_the_fast_lag_is_within_4_percent(repo, fmus, event):
     """The same samples without noise (clean.csv), the ROCOF still derived: what is left
     of the fast lag's error is the model's, not the noise draw's. Measured: T1 -0.7 and
-    +0.7 %, T4 -2.6 %, TG Type I's Ts -1.0 % (R +0.06 %, T5 +0.2 %). With ANDES's exact ROCOF instead: -1.2, +0.5, -2.8 %; the rest is a
-    convention: ANDES's GENROU has P_e = T_e (P_e = pout - 2H dw/dt within 5e-6 pu), this
-    bench Kundur's P_e = w T_e, which differ by (w - 1) times the inertial power, 3 to
-    6e-4 pu in the spike. With that undone every parameter came out within 0.01 %."""
+    +0.7 %, T4 -2.6 %, TG Type I's Ts -1.0 % (R +0.06 %, T5 +0.2 %). With ANDES's exact
+    ROCOF instead (the first three): -1.2, +0.5, -2.8 %; the rest is a convention: ANDES's
+    GENROU has P_e = T_e (P_e = pout - 2H dw/dt within 5e-6 pu), this bench Kundur's
+    P_e = w T_e, which differ by (w - 1) times the inertial power, 3 to 6e-4 pu in the
+    spike. With that undone every parameter came out within 0.01 %."""
     clean = _errors(repo, fmus, event, "noise-free")
     droop = "gov.K" if "gov.K" in clean else "gov.R"
     fast = next(name for name in ("gov.T1", "gov.T4", "gov.Ts") if name in clean)

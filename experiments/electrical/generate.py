@@ -25,9 +25,10 @@ event is also checked against our IEEEG1 bench with the mapped parameters (2e-4 
 
 Each event is a folder: ``data.csv`` (time, FREQ, P), ``clean.csv`` (the same samples
 without the recorder's noise), ``mechanical.csv`` (P the governor's mechanical power, the
-same noise), ``config.toml`` (electrical power, H fixed at the documented
-6.5 s) and ``truth.json`` (the governor's parameters and the check). Run from the repository root; ``EVENTS`` are committed, ``STUDY`` adds ten more
-for ``make bench-electrical`` (written under results/ by default)::
+same noise), ``config.toml`` (electrical power, H fixed at the documented 6.5 s) and
+``truth.json`` (the governor's parameters and the checks). Run from the repository root;
+``EVENTS`` are committed, ``STUDY`` adds ten more for ``make bench-electrical`` (written
+under results/ by default)::
 
     .venv/bin/python experiments/electrical/generate.py            # the committed four
     .venv/bin/python experiments/electrical/generate.py --study results/electrical
