@@ -2,7 +2,7 @@
 exports reproduce the tests? (``make bench-structures``)
 
 For each standard structure (TGOV1, IEEEG1, GGOV1, HYGOV), ``--seeds`` invented plants
-(:mod:`rapid_cosim.diagnose.structure_study` describes them; half the IEEEG1 ones with
+(:mod:`rapid_cosim.identify.study` describes them; half the IEEEG1 ones with
 binding valve rate limits), each put through the field's ten staged tests with realistic
 recorder noise, tests 4 and 8 held out, and through identify's path: every structure and
 IEEEG1 with its optional Uo/Uc fitted by multistart least squares with one fitted noise
@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(argv: list[str]) -> int:
     from rapid_cosim.compiler import build_models
-    from rapid_cosim.diagnose.structure_study import STANDARD, Structure, STRUCTURES_DIR, case_line, miss_lines, \
+    from rapid_cosim.identify.study import STANDARD, Structure, STRUCTURES_DIR, case_line, miss_lines, \
         run_structure_case, summary_text
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -234,7 +234,7 @@ def test_the_study_names_ieeeg1_with_binding_rates_and_its_record_reproduces_the
     held out) with realistic recorder noise, TGOV1 and IEEEG1 (with its optional Uo/Uc)
     through identify's path. IEEEG1 must be named with Uo/Uc freed, and the .dyr it
     exports, read back, must reproduce every test within 1.1 noise units."""
-    from rapid_cosim.diagnose.structure_study import STEPS, run_structure_case
+    from rapid_cosim.identify.study import STEPS, run_structure_case
 
     case = run_structure_case("IEEEG1", 2, tmp_path, package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus",
                               steps=(STEPS[1], STEPS[9], STEPS[3]), held_out=(2,), standard=("TGOV1", "IEEEG1"))

@@ -77,3 +77,18 @@ def standard_record(inputs: RunInputs, parameters: Mapping[str, float], x, *, so
                                   "one value")
             values[name[4:]], origin[name[4:]] = float(v), ESTIMATED
     return RecordValues(model, values, origin)
+
+
+def archived_record(path) -> RecordValues:
+    """The record values of a finished run's archive, as ``rapid-cosim export`` writes
+    them (for studies below the API layer)."""
+    from ..archive import RunArchive
+    from .inputs import inputs_from_archive
+
+    with RunArchive(path) as view:
+        inputs = inputs_from_archive(view)
+        result = view.result()
+    if result is None:
+        raise ArchiveError(f"{path}: the run has not finished; a record is written from a finished run only")
+    x = np.asarray(result.x, dtype=float)
+    return standard_record(inputs, dict(zip(result.names, x.tolist())), x, source=str(path))

@@ -128,5 +128,5 @@ def _explanation(d) -> dict:
             "p": d.adequacy["after"]["p"], "tests": d.adequacy["after"]["tests"]}
 
 
-# Public for the structure study (diagnose.structure_study), which keeps records by the same rules.
+# Public for the structure study (identify.study), which keeps records by the same rules.
 keep_record, recommend_record = _record, _recommend

@@ -53,11 +53,11 @@ from ..compiler import ensure_fmu
 from ..experiment import Experiment, load_experiment
 from ..noise import campaign_noise
 from ..synthetic import synthesize, write_experiment
-from .campaigns import recorder
-from .candidates import residuals_at
-from .context import METHOD
-from .selection import noise_floors
-from .structures import Structure, StructureVerdict, select_structure
+from ..diagnose.campaigns import recorder
+from ..diagnose.candidates import residuals_at
+from ..diagnose.context import METHOD
+from ..diagnose.selection import noise_floors
+from ..diagnose.structures import Structure, StructureVerdict, select_structure
 
 # The field campaign's ten tests (../shared/staged_tests): (dispatch in pu, step in Hz,
 # return time in s or None for a step held to the end, length in s, recorder rate in Hz),
@@ -155,7 +155,7 @@ def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir, s
                        held_out=HELD_OUT, standard=STANDARD, structures_dir: Path = STRUCTURES_DIR,
                        method: str = METHOD) -> StructureCase:
     """One campaign of a ``truth`` plant through identify's path; see the module docstring."""
-    from ..identify.workflow import keep_record, recommend_record
+    from .workflow import keep_record, recommend_record
 
     rng = np.random.default_rng([seed, 104729, sorted(PLANTS).index(truth)])
     structures = {s: Structure.load(Path(structures_dir) / f"{s}.toml") for s in standard}
@@ -205,14 +205,15 @@ def write_campaign(structure: Structure, plant: dict[str, float], steps, folder:
 
 def exported_fidelity(structure: Structure, archive: str, out: Path, tests: list[Experiment], *, package,
                       fmu_dir) -> dict[str, float]:
-    """Per test, RMSE over the recorder's noise level of the record ``rc.export`` writes
+    """Per test, RMSE over the recorder's noise level of the ``.dyr`` record ``rc.export`` writes (the same function)
     from ``archive``, read back by the project's reader: every governor value the record
     carries replaces the structure's (the operating point and the smooth limits'
     sharpness stay the test's and the bench's, as in a grid simulator)."""
-    from ..api import export
-    from ..exchange import read_record
+    from ..calibration.record import archived_record
+    from ..exchange import FORMATS, read_record
 
-    export(archive, out, bus=1, machine_id="1")
+    record = archived_record(archive)
+    FORMATS["dyr"].write_record(out, record.model.name, record.values, bus=1, machine_id="1")
     return record_fidelity(structure, read_record(out).values, tests, package=package, fmu_dir=fmu_dir)
 
 
