@@ -183,13 +183,17 @@ def diagnosis_report(diagnosis, folder: str | Path, json_path: str | Path | None
 def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Path], *, holdout: Sequence[str],
                results: str | Path, seed: int, n_jobs: int, package: str | Path, fmu_dir: str | Path,
                backend: str = "loky", scheduler: str | None = None, log=print) -> tuple[str, list[Path]]:
-    """Calibrate each structure on the training tests, rank them, report identifiability,
-    and run the effect catalogue on the winning structure (``<results>/structures.md``,
-    ``.json``, ``identifiability.png``)."""
+    """The deliverable part of an identification alone (:func:`rapid_cosim.identify.workflow.deliver`:
+    each structure calibrated on the training tests, optional parts freed where they win,
+    ranked, each standard record kept and the simplest within the noise recommended), with
+    identifiability and the effect catalogue on the winning structure
+    (``<results>/structures.md``, ``.json``, ``identifiability.png``)."""
     import json
+    from dataclasses import asdict
 
-    from .diagnose.structures import Structure, effects_on, select_structure
+    from .diagnose.structures import Structure, effects_on
     from .diagnose.workflow import DiagnoseOptions, split_holdout
+    from .identify.workflow import deliver
     from .experiment import load_experiment
     from .calibration import RunOptions
     from .diagnose.context import METHOD
@@ -202,16 +206,18 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
     options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs, backend=backend, scheduler=scheduler).check()
     log(f"structures {', '.join(s.name for s in found)} on {', '.join(e.name for e in training)}"
         + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
-    verdict = select_structure(found, training, heldout, workdir=results, options=options, package=package,
-                               fmu_dir=fmu_dir, log=log)
+    delivery = deliver(found, training, heldout, workdir=results, options=options, package=package,
+                       fmu_dir=fmu_dir, log=log)
+    verdict = delivery.verdict
     if verdict.winner is not None:
-        winner = next(s for s in found if s.name == verdict.winner)
+        winner = next(s for s in delivery.candidates if s.name == verdict.winner)
         log(f"the effect catalogue on {winner.name}:")
         verdict.effects = effects_on(winner, training, heldout, workdir=results / f"effects-{winner.name}",
                                      options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False,
                                                              backend=backend, scheduler=scheduler),
                                      package=package, fmu_dir=fmu_dir, log=log)
-    record = verdict.to_json()
+    record = {**verdict.to_json(), "records": [asdict(r) for r in delivery.records],
+              "recommended": delivery.recommended, "recommendation": delivery.reason}
     js = results / "structures.json"
     js.write_text(json.dumps(record, indent=2, default=float) + "\n")
     md = results / "structures.md"

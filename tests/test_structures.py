@@ -139,6 +139,9 @@ def test_the_catalogue_runs_on_the_winning_structure(repo, tmp_path):
     assert effects["structure"] == "TGOV1" and effects["effects"] == ["deadband"], effects["reason"]
     assert "rate_limit" not in {r["label"] for r in effects["ranking"]}  # a TG Type I variant: not tried
     assert "the effect catalogue on it" in text
+    # the deliverable part of identify: TGOV1's record kept by its rules (TG Type I has none)
+    assert [r["model"] for r in record["records"]] == ["TGOV1"] and record["recommended"] == "TGOV1"
+    assert "## The standard records" in text and "**Recommended: TGOV1**" in text
 
 
 def test_two_ggov1_time_constants_the_tests_cannot_separate(repo, tmp_path):

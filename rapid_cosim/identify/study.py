@@ -28,13 +28,13 @@ study (:func:`rapid_cosim.diagnose.campaigns.recorder`: white plus a slow OU com
 an offset, jittered stamps, 16-bit quantisation), one recorder for the 10 Hz tests and
 another for the 25 Hz ones, as in the field.
 
-Every campaign goes through identify's own path: the four structure files and IEEEG1 with
+Every campaign goes through identify's own deliverable part
+(:func:`rapid_cosim.identify.workflow.deliver`): the four structure files and IEEEG1 with
 its optional Uo/Uc, fitted by identify's method (multistart least squares) with one noise
-model fitted from the quiet data (:func:`~rapid_cosim.diagnose.structures.select_structure`);
-each structure's kept record by identify's rule (optional parts only if they win by the
-threshold in BIC) and its recommendation (:func:`rapid_cosim.identify.workflow.
-keep_record`, ``recommend_record``). The winner (the named structure, else the first by
-BIC) is exported with :func:`rapid_cosim.export`, read back with the project's reader,
+model fitted from the quiet data; each structure's kept record by identify's rule
+(optional parts only if they win by the threshold in BIC) and its recommendation. The
+winner (the named structure, else the first by BIC) is written as ``rapid-cosim export``
+writes it, read back with the project's reader,
 and every test (held-out ones too) simulated with the values read: RMSE over the
 recorder's fitted noise level per test, offset profiled as in the fitness.
 """
@@ -57,7 +57,7 @@ from ..diagnose.campaigns import recorder
 from ..diagnose.candidates import residuals_at
 from ..diagnose.context import METHOD
 from ..diagnose.selection import noise_floors
-from ..diagnose.structures import Structure, StructureVerdict, select_structure
+from ..diagnose.structures import Structure, StructureVerdict
 
 # The field campaign's ten tests (../shared/staged_tests): (dispatch in pu, step in Hz,
 # return time in s or None for a step held to the end, length in s, recorder rate in Hz),
@@ -99,15 +99,6 @@ PLANTS: dict[str, Draw] = {
 def binding_rates(truth: str, seed: int) -> bool:
     """IEEEG1 campaigns of even seeds have binding valve rate limits."""
     return truth == "IEEEG1" and seed % 2 == 0
-
-
-@dataclass(frozen=True)
-class _NoExplanation:
-    """What identify's record rule reads of the explanation, for a study that runs none:
-    no effect, so nothing a record cannot carry."""
-
-    effects: tuple = ()
-    adequacy: dict = field(default_factory=lambda: {"after": {"tests": {}}})
 
 
 def base_name(fit_name: str) -> str:
@@ -155,7 +146,7 @@ def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir, s
                        held_out=HELD_OUT, standard=STANDARD, structures_dir: Path = STRUCTURES_DIR,
                        method: str = METHOD) -> StructureCase:
     """One campaign of a ``truth`` plant through identify's path; see the module docstring."""
-    from .workflow import keep_record, recommend_record
+    from .workflow import deliver
 
     rng = np.random.default_rng([seed, 104729, sorted(PLANTS).index(truth)])
     structures = {s: Structure.load(Path(structures_dir) / f"{s}.toml") for s in standard}
@@ -165,14 +156,12 @@ def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir, s
     tests = write_campaign(own, case.plant, steps, folder, rng, package=package, fmu_dir=fmu_dir)
     training = [t for k, t in enumerate(tests) if k not in held_out]
     heldout = [tests[k] for k in held_out if k < len(tests)]
-    candidates = [*structures.values(), *(s.with_optional() for s in structures.values() if s.optional)]
     start = time.perf_counter()
-    case.verdict = select_structure(candidates, training, heldout, workdir=folder / "records",
-                                    options=RunOptions(method=method, seed=seed).check(), package=package,
-                                    fmu_dir=fmu_dir, log=lambda *_: None)
-    fits = {f.name: f for f in case.verdict.ranking}
-    records = {s: keep_record(structures[s], fits, _NoExplanation()) for s in structures}
-    case.recommended = recommend_record(list(records.values()))[0]
+    delivery = deliver(list(structures.values()), training, heldout, workdir=folder / "records",
+                       options=RunOptions(method=method, seed=seed).check(), package=package, fmu_dir=fmu_dir,
+                       log=lambda *_: None)
+    case.verdict, case.recommended = delivery.verdict, delivery.recommended
+    records = {r.model: r for r in delivery.records}
     winner = case.named if case.named in records else case.first
     record = records[winner]
     case.exported, case.freed = record.fit, record.optional_freed

@@ -25,15 +25,17 @@ the same way.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 from ..calibration import RunOptions
 from ..diagnose.context import METHOD
 from ..diagnose.selection import THRESHOLD
-from ..diagnose.structures import Structure, StructureFit, on_structure, select_structure
+from ..diagnose.structures import Structure, StructureFit, StructureVerdict, on_structure, select_structure
 from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
-from ..experiment import load_experiment
+from ..exchange import MODELS
+from ..experiment import Experiment, load_experiment
 from ..noise import campaign_noise
 from .deliver import write_configs, write_diagnosis
 from .result import CARRIES, Identification, StandardRecord, cannot_carry
@@ -57,16 +59,12 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
                                                    scheduler=scheduler),
                            package=package, fmu_dir=fmu_dir, log=log)
     log(f"  {explanation.verdict}")
-    candidates = [*structures, *(s.with_optional() for s in structures if s.optional)]
     log("the standard records:")
     options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs, backend=backend, scheduler=scheduler).check()
-    fitted_noise = campaign_noise([*training, *heldout])  # the selection's, kept to predict the held-out tests
-    verdict = select_structure(candidates, training, heldout, workdir=workdir / "records", options=options,
-                               package=package, fmu_dir=fmu_dir, fitted_noise=fitted_noise, log=log)
-    fits = {f.name: f for f in verdict.ranking}
-    records = [_record(s, fits, explanation) for s in structures]
-    recommended, reason = _recommend(records)
-    log(f"  recommended: {recommended or 'none'} ({reason})")
+    delivery = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
+                       package=package, fmu_dir=fmu_dir, log=log)
+    verdict, records, recommended, reason = delivery.verdict, delivery.records, delivery.recommended, delivery.reason
+    candidates, fitted_noise = delivery.candidates, delivery.fitted_noise
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=records, recommended=recommended,
@@ -80,15 +78,48 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
     return result
 
 
+@dataclass
+class Delivery:
+    """The deliverable part of an identification: the selection over the standard
+    structures (each also with its optional parts free), the record kept of each, the
+    recommendation, and the noise fit the selection whitened with."""
+
+    verdict: StructureVerdict
+    records: list[StandardRecord]
+    recommended: str | None
+    reason: str
+    candidates: list[Structure]
+    fitted_noise: dict
+
+
+def deliver(structures: Sequence[Structure], training: Sequence[Experiment], heldout: Sequence[Experiment],
+            explanation=None, *, workdir: str | Path, options: RunOptions, package: str | Path = "modelica/iGrGen",
+            fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print) -> Delivery:
+    """Every standard record by identify's rules (optional parts kept only where they win
+    by the threshold; the simplest record within the noise recommended; a structure no
+    grid simulator's record holds, TG Type I, is ranked but gets no record). ``identify``
+    gives it the explanation, whose effects say what each record cannot carry;
+    ``rapid-cosim structures`` runs this part alone (no explanation)."""
+    candidates = [*structures, *(s.with_optional() for s in structures if s.optional)]
+    fitted_noise = campaign_noise([*training, *heldout])  # the selection's, kept to predict the held-out tests
+    verdict = select_structure(candidates, training, heldout, workdir=workdir, options=options,
+                               package=package, fmu_dir=fmu_dir, fitted_noise=fitted_noise, log=log)
+    fits = {f.name: f for f in verdict.ranking}
+    records = [_record(s, fits, explanation) for s in structures if s.name in MODELS]  # what a record can hold
+    recommended, reason = _recommend(records)
+    log(f"  recommended: {recommended or 'none'} ({reason})")
+    return Delivery(verdict, records, recommended, reason, candidates, fitted_noise)
+
+
 def _record(structure: Structure, fits: dict[str, StructureFit], explanation) -> StandardRecord:
     """The structure's kept fit: with its optional parts free only if that wins by the
     threshold."""
     plain = fits[structure.name]
     freed = fits.get(structure.with_optional().name) if structure.optional else None
     use = freed if freed is not None and freed.bic <= plain.bic - THRESHOLD else plain
-    effects = list(explanation.effects)
+    effects = list(explanation.effects) if explanation is not None else []
     missing = cannot_carry(structure.name, effects, freed=use is freed)
-    explained = explanation.adequacy["after"]["tests"]
+    explained = explanation.adequacy["after"]["tests"] if explanation is not None else {}
     per_test = {name: {"rmse_over_noise": t["rmse_over_noise"], "variance_ratio": t["variance_ratio"],
                        "p": t["p_holm"], "adequate": t["adequate"],
                        "explanation_rmse_over_noise": explained.get(name, {}).get("rmse_over_noise")}
@@ -126,7 +157,3 @@ def _explanation(d) -> dict:
     return {"verdict": d.verdict, "effect": d.effect, "effects": list(d.effects), "adequate": d.adequate,
             "parameters": d.parameters_after, "intervals": d.parameter_intervals, "noise": d.noise,
             "p": d.adequacy["after"]["p"], "tests": d.adequacy["after"]["tests"]}
-
-
-# Public for the structure study (identify.study), which keeps records by the same rules.
-keep_record, recommend_record = _record, _recommend

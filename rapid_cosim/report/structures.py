@@ -23,6 +23,13 @@ def markdown(record: dict) -> str:
         held = "-" if r["heldout_score"] is None else f"{r['heldout_score']:.1f}"
         lines.append(f"| {r['name']} | {r['delta']:.1f} | {r['fitness']:.3e} | "
                      f"{'yes' if r['adequate'] else 'no'} ({r['variance_ratio']:.2f}) | {held} | {params} |")
+    if record.get("records"):
+        lines += ["", "## The standard records (identify's rules: `rapid-cosim identify` gives the same)", "",
+                  f"**Recommended: {record['recommended'] or 'none'}**, {record['recommendation']}.", "",
+                  "| record | fit kept | estimated | within the noise (variance ratio) | in words |", "|---|---|---:|---|---|"]
+        for r in record["records"]:
+            lines.append(f"| {r['model']} | {r['fit']} | {r['n_estimated']} | {'yes' if r['adequate'] else 'no'} "
+                         f"({r['variance_ratio']:.2f}) | {r['words']} |")
     eff = record.get("effects")
     if eff:
         lines += ["", f"## What {eff['structure']} misses: the effect catalogue on it", "",
