@@ -71,7 +71,7 @@ joint: fmus  ## joint Bayesian fit of R and Ts over tests 1-8 and event1, and ho
 	$(RC) joint --tests 1-8,event1 $(RUN_OPTS)
 	@echo "make joint: $$(( $$(date +%s) - $(T0) )) s wall time"
 
-diagnose: fmus  ## name what TG Type I misses on tests 1-10 (4 and 8 held out), write it into iGrGen.Diagnosed
+diagnose: fmus  ## identify's explanation part alone: name what TG Type I misses on tests 1-10 (4 and 8 held out), write it into iGrGen.Diagnosed
 	$(RC) diagnose $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
 		--results $(RESULTS)/diagnose --json $(RESULTS)/diagnose/verdict.json --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make diagnose: $$(( $$(date +%s) - $(T0) )) s wall time"
@@ -87,7 +87,7 @@ identify-png: fmus  ## the README's picture of make identify's report (docs/iden
 
 STRUCTURES := $(addprefix experiments/structures/,TGTypeI.toml TGOV1.toml IEEEG1.toml GGOV1.toml HYGOV.toml)
 
-structures: fmus  ## which governor structure (TG Type I, TGOV1, IEEEG1, GGOV1, HYGOV) fits tests 1-10 (4, 8 held out); identifiability
+structures: fmus  ## identify's deliverable part alone: which structure (TG Type I and the four standard ones, IEEEG1's rates free where they win) fits tests 1-10 (4, 8 held out), the records, identifiability
 	$(RC) structures $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
 		--structures $(subst $(eval) ,$(comma),$(STRUCTURES)) --results $(RESULTS)/structures --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make structures: $$(( $$(date +%s) - $(T0) )) s wall time"
