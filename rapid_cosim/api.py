@@ -302,6 +302,11 @@ def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mappi
     the trajectory up to then, with a warning. ``communication_step`` (s) bounds a
     Co-Simulation FMU's communication step, or sets it where the FMU needs a fixed one.
     """
+    if not isinstance(model, (str, Path)):
+        hint = (": an experiment is simulated through its model, e.g. rc.simulate(exp.model, {**exp.fixed, ...}, "
+                "input_time=..., inputs=...)" if isinstance(model, Experiment) else "")
+        raise ParameterError(f"model must be a class name of the package or a path to an .fmu; got "
+                             f"{type(model).__name__}{hint}")
     fmu = ensure_fmu(str(model), package=package, fmu_dir=fmu_dir, compiler=compiler)
     sim = get_simulator(fmu, timeout=timeout)
     grid = dict(stop_time=stop_time, output_interval=output_interval, output_times=output_times, outputs=outputs,

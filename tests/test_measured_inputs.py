@@ -197,3 +197,16 @@ def test_bad_input_entries_name_their_key(droop_fmus, tmp_path, entry, message):
     config = _droop_config(tmp_path, droop_fmus["me"], inputs=entry)
     with pytest.raises(ConfigError, match=message):
         load_experiment(config)
+
+
+def test_simulate_given_an_experiment_says_what_it_takes(repo):
+    """rc.simulate takes a model name or an .fmu; an Experiment passed instead used to
+    fail deep in the build with the experiment's whole repr as the 'unknown model'."""
+    from rapid_cosim.errors import ParameterError
+    from rapid_cosim.experiment import load_experiment
+
+    exp = load_experiment(repo / "experiments" / "test1")
+    with pytest.raises(ParameterError, match=r"got Experiment: an experiment is simulated through its model"):
+        rc.simulate(exp, {})
+    with pytest.raises(ParameterError, match="got int"):
+        rc.simulate(3)
