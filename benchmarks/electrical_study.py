@@ -28,6 +28,7 @@ staged step).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import tempfile
@@ -45,14 +46,17 @@ ROLES = {"TGOV1": ("gov.R", "gov.T1", "gov.T3"), "IEEEG1": ("gov.K", "gov.T4", "
 
 
 def variant(folder: Path, kind: str):
-    """The event's experiment read three ways (see the module docstring), or as the
-    mechanical power a staged test would record (``"P_m recorded"``)."""
+    """The event's experiment read three ways (see the module docstring), as the
+    mechanical power a staged test would record (``"P_m recorded"``), or its P_e without
+    the recorder's noise (``"noise-free"``, clean.csv)."""
     from rapid_cosim.experiment import parse_experiment
 
     text = (folder / "config.toml").read_text()
     if kind == "P_e, H estimated":
         text = text.replace('"mach.H" = 6.5\n', "").replace(
             "[estimate]\n", '[estimate]\n"mach.H" = { min = 2.0, max = 12.0, label = "H" }\n')
+    elif kind == "noise-free":
+        text = text.replace('file = "data.csv"', 'file = "clean.csv"')
     elif kind in ("as if P_m", "P_m recorded"):
         text = text.replace("outputs = { pe =", "outputs = { pm =").replace('"mach.H" = 6.5\n', "")
         if kind == "P_m recorded":
@@ -60,23 +64,27 @@ def variant(folder: Path, kind: str):
     return parse_experiment(text, folder / "config.toml")
 
 
-def errors(folder: Path, kind: str) -> dict[str, float]:
-    """Each estimate's error against the truth, relative."""
+@functools.cache
+def fit(folder: Path, kind: str, fmu_dir: Path = ROOT / "fmus"):
+    """The event's calibration read as ``kind`` (made once: show and the table share it)."""
     import rapid_cosim as rc
 
+    return rc.calibrate([variant(folder, kind)], method="ms", seed=1, fmu_dir=fmu_dir)
+
+
+def errors(folder: Path, kind: str, fmu_dir: Path = ROOT / "fmus") -> dict[str, float]:
+    """Each estimate's error against the truth, relative."""
     truth = json.loads((folder / "truth.json").read_text())
-    fit = rc.calibrate([variant(folder, kind)], method="ms", seed=1, fmu_dir=ROOT / "fmus")
+    fitted = fit(folder, kind, fmu_dir)
     true = {**{f"gov.{k}": v for k, v in truth["params"].items()}, "mach.H": truth["H"]}
-    return {name: x / true[name] - 1 for name, x in zip(fit.names, fit.x)}
+    return {name: x / true[name] - 1 for name, x in zip(fitted.names, fitted.x)}
 
 
 def show(folder: Path) -> None:
     """One calibration in full: the event's P_e with H estimated, and the truth."""
-    import rapid_cosim as rc
-
     truth = json.loads((folder / "truth.json").read_text())
     print(f"{folder.name}: {truth['governor']} {truth['params']}, H {truth['H']} s; P_e with H estimated in 2-12 s:")
-    print(rc.calibrate([variant(folder, "P_e, H estimated")], method="ms", seed=1, fmu_dir=ROOT / "fmus"))
+    print(fit(folder, "P_e, H estimated"))
     print()
 
 

@@ -203,9 +203,13 @@ class ExperimentResult:
 def evaluate_in_detail(problem: Problem, fmus: Mapping[str, FmuRef], x: np.ndarray,
                        runner: str | None = None) -> list[ExperimentResult]:
     """Trajectories and residuals at ``x`` for every experiment (in this process)."""
-    results = []
-    for i, exp in enumerate(problem.experiments):
-        params = problem.parameters_for(x, i)
-        traj = simulate_experiment(exp, fmus[exp.model], params, runner=runner)
-        results.append(ExperimentResult(exp, params, traj, experiment_fitness(exp, traj.time, traj.outputs)))
-    return results
+    return [evaluate_one(problem, fmus, x, i, runner) for i in range(len(problem.experiments))]
+
+
+def evaluate_one(problem: Problem, fmus: Mapping[str, FmuRef], x: np.ndarray, i: int,
+                 runner: str | None = None) -> ExperimentResult:
+    """Experiment ``i``'s trajectory and residuals at ``x``, simulating it alone."""
+    exp = problem.experiments[i]
+    params = problem.parameters_for(x, i)
+    traj = simulate_experiment(exp, fmus[exp.model], params, runner=runner)
+    return ExperimentResult(exp, params, traj, experiment_fitness(exp, traj.time, traj.outputs))

@@ -16,7 +16,7 @@ from reference_standard import Standard
 
 import rapid_cosim as rc
 from rapid_cosim.errors import ConfigError
-from rapid_cosim.experiment import load_experiment, parse_experiment
+from rapid_cosim.experiment import load_experiment
 from rapid_cosim.experiment.electrical import D_RANGE, H_RANGE
 from rapid_cosim.simulator import Simulator
 from rapid_cosim.simulator.rocof import derive_rocof, noise_gain
@@ -224,24 +224,25 @@ def test_rocof_noise_joins_the_fitness_noise_of_electrical_power(tmp_path):
 EVENTS = ["tgov1_on", "tgov1_off", "ieeeg1_on", "tgtypei_on"]
 
 
+# the test's names for benchmarks/electrical_study.py's readings of an event
+KINDS = {"H fixed": "P_e, H fixed", "H estimated": "P_e, H estimated", "as if pm": "as if P_m", "noise-free": "noise-free"}
+
+
+def _study():
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import electrical_study
+
+    return electrical_study
+
+
 def _variant(folder: Path, kind: str):
-    text = (folder / "config.toml").read_text()
-    if kind == "noise-free":
-        text = text.replace('file = "data.csv"', 'file = "clean.csv"')
-    elif kind == "H estimated":
-        text = text.replace('"mach.H" = 6.5\n', "").replace(
-            "[estimate]\n", '[estimate]\n"mach.H" = { min = 2.0, max = 12.0, label = "H" }\n')
-    elif kind == "as if pm":
-        text = text.replace("outputs = { pe =", "outputs = { pm =").replace('"mach.H" = 6.5\n', "")
-    return parse_experiment(text, folder / "config.toml")
+    return _study().variant(folder, KINDS[kind])
 
 
 def _errors(repo, fmus, event: str, kind: str) -> dict[str, float]:
-    folder = repo / "experiments" / "electrical" / event
-    truth = json.loads((folder / "truth.json").read_text())
-    fit = rc.calibrate([_variant(folder, kind)], method="ms", seed=1, fmu_dir=fmus["FrequencyInput"].parent)
-    true = {**{f"gov.{k}": v for k, v in truth["params"].items()}, "mach.H": truth["H"]}
-    return {name: x / true[name] - 1 for name, x in zip(fit.names, fit.x)}
+    return _study().errors(repo / "experiments" / "electrical" / event, KINDS[kind], fmus["FrequencyInput"].parent)
 
 
 @pytest.mark.parametrize("event", EVENTS)

@@ -21,6 +21,7 @@ from rapid_cosim.campaign import validation_page
 from rapid_cosim.cli import main
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.report.tolerances import DEFAULT_BANDS, METRIC_TERMS, load_tolerances
+from rapid_cosim.report.pdf import QUIET
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 NEEDS_CHROMIUM = pytest.mark.skipif(CHROMIUM is None, reason="needs Chromium (Debian package 'chromium'; "
@@ -271,9 +272,8 @@ def _dom(page) -> tuple[int, ...]:
     checked.write_text(page.read_text().replace("</body>", CHECK + "\n</body>"))
     with tempfile.TemporaryDirectory() as profile:
         dom = subprocess.run(
-            [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-             "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={profile}",
-             "--virtual-time-budget=10000", "--dump-dom", checked.as_uri()],
+            [CHROMIUM, *QUIET, f"--user-data-dir={profile}", "--virtual-time-budget=10000", "--dump-dom",
+             checked.as_uri()],
             capture_output=True, text=True, timeout=120).stdout
     found = CHECKED.search(dom)
     assert found, dom[-2000:]

@@ -280,14 +280,6 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
     structure selection) pass ``replace_stale``: their archive of another run is then
     made again, as a re-run after the data or the noise model changed must."""
     archive = Path(archive)
-    if replace_stale and archive.exists():
-        try:
-            return ensure_run(inputs, options, archive, progress=progress)
-        except ArchiveError as e:
-            if "holds a run with another" not in str(e):
-                raise
-            archive.unlink()
-            return start_run(inputs, options, archive, progress=progress), "remade"
     if not archive.exists():
         return start_run(inputs, options, archive, progress=progress), "new"
     with RunArchive(archive) as view:
@@ -300,12 +292,16 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
             differences.append("experiment config")
         if view.hashes["data"] != {k: data_sha256(c) for k, c in _all_data(inputs.experiments).items()}:
             differences.append("measured data")
-        if differences:
+        if differences and not replace_stale:
             raise ArchiveError(f"{archive} holds a run with another {', '.join(differences)}; "
                                "remove it (or choose another archive) to run again")
-        stale_fmu = view.hashes["fmus"] != {m: ref.sha256 for m, ref in inputs.fmus.items()}
-        finished = view.status == "finished"
-        result = view.result() if finished else None
+        if not differences:
+            stale_fmu = view.hashes["fmus"] != {m: ref.sha256 for m, ref in inputs.fmus.items()}
+            finished = view.status == "finished"
+            result = view.result() if finished else None
+    if differences:  # replace_stale: the workflow's own archive of another run, closed now
+        archive.unlink()
+        return start_run(inputs, options, archive, progress=progress), "remade"
     if stale_fmu:
         warnings.warn(f"{archive} was made with another build of the FMU; 'rapid-cosim rerun {archive}' "
                       "checks that the archived result still holds", stacklevel=2)

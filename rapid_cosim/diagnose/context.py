@@ -91,14 +91,14 @@ class Context:
     adequacy null's shared replicates (``null``, made with the base fit)."""
 
     def __init__(self, training, heldout, workdir, options: DiagnoseOptions, package, fmu_dir,
-                 log: Callable[[str], None]):
+                 log: Callable[[str], None], noise_fits: dict | None = None):
         self.training, self.heldout = list(training), list(heldout)
         self.workdir, self.options = Path(workdir), options
         self.user_package, self.user_fmu_dir, self.log = Path(package), Path(fmu_dir), log
         self.package = self.workdir / "package" / self.user_package.name
         self.fmu_dir = self.workdir / "fmus"
         shutil.copytree(self.user_package, self.package, dirs_exist_ok=True)  # refreshed on every run
-        self.noise_fits = campaign_noise(self.training + self.heldout)
+        self.noise_fits = noise_fits or campaign_noise(self.training + self.heldout)
         self.noise = noise_floors(self.training + self.heldout, self.noise_fits)
         self.models = {name: fit.model for name, fit in self.noise_fits.items()}
         self.fits: dict[str, CandidateFit] = {}

@@ -43,9 +43,12 @@ REACHED_MARGIN_BIC = 2.0
 
 def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (), *, workdir: str | Path,
              options: DiagnoseOptions = DiagnoseOptions(), package: str | Path = "modelica/iGrGen",
-             fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print) -> Diagnosis:
+             fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print,
+             noise_fits: dict | None = None) -> Diagnosis:
     """Name what the base model misses on ``training`` (confirmed on ``heldout``), or say
-    that nothing in the catalogue does; see the package docstring for the steps."""
+    that nothing in the catalogue does; see the package docstring for the steps.
+    ``noise_fits``: the recorders' noise fits of these experiments, where the caller has
+    them already (an identification shares one fit between its two parts)."""
     if not training:
         raise ValueError("diagnose needs at least one training experiment")
     for exp in [*training, *heldout]:
@@ -62,7 +65,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
                     and not all(p.name in e.fixed for e in [*training, *heldout] for p in CATALOGUE[c].parameters)]
     if undocumented:  # a constant no config documents cannot be "documented wrong"
         options = replace(options, candidates=tuple(c for c in options.candidates if c not in undocumented))
-    ctx = Context(training, heldout, workdir, options, package, fmu_dir, log)
+    ctx = Context(training, heldout, workdir, options, package, fmu_dir, log, noise_fits)
     for fit in {id(f): f for f in ctx.noise_fits.values()}.values():
         log(f"noise of the recorder of {', '.join(fit.tests)} ({fit.n_stretches} quiet stretches, {fit.n_samples} "
             f"samples): {fit.model.describe()}")

@@ -13,7 +13,6 @@ re-fit of it.
 
 from __future__ import annotations
 
-import json
 import tomllib
 from pathlib import Path
 from typing import Sequence
@@ -43,14 +42,6 @@ def write_configs(experiments: Sequence[Experiment], folder: str | Path) -> list
         path.write_text(render_config(sections))
         paths.append(path)
     return paths
-
-
-def write_diagnosis(explanation: dict, folder: str | Path) -> Path:
-    """The explanation's diagnosis as ``rapid-cosim diagnose --json`` writes it."""
-    path = Path(folder) / "diagnosis.json"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(explanation, indent=2) + "\n")
-    return path
 
 
 def record_note(result: Identification) -> str:

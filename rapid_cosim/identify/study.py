@@ -51,13 +51,13 @@ import numpy as np
 from ..calibration import RunOptions, inputs_from_experiments
 from ..compiler import ensure_fmu
 from ..experiment import Experiment, load_experiment
-from ..noise import campaign_noise
 from ..synthetic import synthesize, write_experiment
 from ..diagnose.campaigns import recorder
+from ..diagnose.catalogue import STANDARD
 from ..diagnose.candidates import residuals_at
 from ..diagnose.context import METHOD
 from ..diagnose.selection import noise_floors
-from ..diagnose.structures import Structure, StructureVerdict
+from ..diagnose.structures import Structure, StructureVerdict, on_structure
 
 # The field campaign's ten tests (../shared/staged_tests): (dispatch in pu, step in Hz,
 # return time in s or None for a step held to the end, length in s, recorder rate in Hz),
@@ -68,7 +68,6 @@ STEPS = ((0.6, -0.2, None, 90.0, 10.0), (0.6, -0.2, 60.0, 110.0, 10.0), (0.6, 0.
          (0.6, 0.1, 60.0, 110.0, 10.0))
 HELD_OUT = (3, 7)  # tests 4 and 8
 T_STEP = 10.0
-STANDARD = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV")
 STRUCTURES_DIR = Path(__file__).resolve().parents[2] / "experiments" / "structures"
 TARGET_NAMED, TARGET_RMSE, TARGET_CAMPAIGNS = 0.9, 1.1, 10  # issue 23's done-when line
 
@@ -166,7 +165,7 @@ def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir, s
     record = records[winner]
     case.exported, case.freed = record.fit, record.optional_freed
     case.rmse = exported_fidelity(structures[winner], record.archive, folder / f"{winner}.dyr", [*training, *heldout],
-                                  package=package, fmu_dir=fmu_dir)
+                                  delivery.fitted_noise, package=package, fmu_dir=fmu_dir)
     case.seconds = time.perf_counter() - start
     return case
 
@@ -192,8 +191,8 @@ def write_campaign(structure: Structure, plant: dict[str, float], steps, folder:
     return tests
 
 
-def exported_fidelity(structure: Structure, archive: str, out: Path, tests: list[Experiment], *, package,
-                      fmu_dir) -> dict[str, float]:
+def exported_fidelity(structure: Structure, archive: str, out: Path, tests: list[Experiment], fitted_noise: dict,
+                      *, package, fmu_dir) -> dict[str, float]:
     """Per test, RMSE over the recorder's noise level of the ``.dyr`` record ``rc.export`` writes (the same function)
     from ``archive``, read back by the project's reader: every governor value the record
     carries replaces the structure's (the operating point and the smooth limits'
@@ -203,20 +202,19 @@ def exported_fidelity(structure: Structure, archive: str, out: Path, tests: list
 
     record = archived_record(archive)
     FORMATS["dyr"].write_record(out, record.model.name, record.values, bus=1, machine_id="1")
-    return record_fidelity(structure, read_record(out).values, tests, package=package, fmu_dir=fmu_dir)
+    return record_fidelity(structure, read_record(out).values, tests, fitted_noise, package=package, fmu_dir=fmu_dir)
 
 
-def record_fidelity(structure: Structure, record: dict[str, float], tests: list[Experiment], *, package,
-                    fmu_dir) -> dict[str, float]:
+def record_fidelity(structure: Structure, record: dict[str, float], tests: list[Experiment], fitted_noise: dict,
+                    *, package, fmu_dir) -> dict[str, float]:
     """Per test, RMSE over the recorder's noise level of ``structure`` with a record's
-    values (iGrGen names without ``gov.``), offset profiled as in the fitness."""
+    values (iGrGen names without ``gov.``), offset profiled as in the fitness;
+    ``fitted_noise``: the selection's noise fits of these tests."""
     values = {f"gov.{k}": v for k, v in record.items()}
     fixed = {k: v for k, v in values.items() if k not in structure.estimate}
     as_read = replace(structure, fixed={**structure.fixed, **fixed}, optional={})
-    fitted = campaign_noise(tests)
-    floors = noise_floors(tests, fitted)
-    inputs = inputs_from_experiments([as_read.experiment(e, fitted[e.name].model) for e in tests], package=package,
-                                     fmu_dir=fmu_dir)
+    floors = noise_floors(tests, fitted_noise)
+    inputs = inputs_from_experiments(on_structure(as_read, tests, fitted_noise), package=package, fmu_dir=fmu_dir)
     residuals = residuals_at(inputs, np.array([values[n] for n in inputs.problem.names]))
     return {name: float(np.sqrt(np.nanmean(r.residual ** 2)) / floors[name].sigma) for name, r in residuals.items()}
 

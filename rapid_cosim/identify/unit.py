@@ -26,9 +26,9 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..diagnose.catalogue import STANDARD
 from ..errors import ConfigError
 
-STANDARD = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV")
 MVA_RANGE = (1.0, 5000.0)
 KEYS = {"unit": {"name", "mva", "bus", "machine_id"}, "tests": {"configs", "holdout"}, "structures": {"files"}}
 

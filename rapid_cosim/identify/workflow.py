@@ -37,7 +37,7 @@ from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
 from ..exchange import MODELS
 from ..experiment import Experiment, load_experiment
 from ..noise import campaign_noise
-from .deliver import write_configs, write_diagnosis
+from .deliver import write_configs
 from .result import CARRIES, Identification, StandardRecord, cannot_carry
 from .unit import Unit
 
@@ -53,23 +53,24 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
     training, heldout = split_holdout([load_experiment(c) for c in unit.configs], unit.holdout)
     workdir = Path(workdir)
     log(f"identifying {unit.name}: {len(training)} training and {len(heldout)} held-out experiments")
+    fitted_noise = campaign_noise([*training, *heldout])  # one noise model for both parts
     log("the explanation (TG Type I and the effect catalogue):")
     explanation = diagnose(training, heldout, workdir=workdir / "explanation",
                            options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False, backend=backend,
                                                    scheduler=scheduler),
-                           package=package, fmu_dir=fmu_dir, log=log)
+                           package=package, fmu_dir=fmu_dir, log=log, noise_fits=fitted_noise)
     log(f"  {explanation.verdict}")
     log("the standard records:")
     options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs, backend=backend, scheduler=scheduler).check()
     delivery = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
-                       package=package, fmu_dir=fmu_dir, log=log)
+                       package=package, fmu_dir=fmu_dir, log=log, fitted_noise=fitted_noise)
     verdict, records, recommended, reason = delivery.verdict, delivery.records, delivery.recommended, delivery.reason
     candidates, fitted_noise = delivery.candidates, delivery.fitted_noise
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=records, recommended=recommended,
                             reason=reason, structure_verdict=verdict.structure, seconds=0.0)
-    result.diagnosis = str(write_diagnosis(explanation.to_json(), workdir / "explanation"))
+    result.diagnosis = str(explanation.save(workdir / "explanation")[0])
     if recommended is not None:  # the held-out tests on the record's bench, as the selection predicted them
         fit = result.record(recommended).fit
         held = on_structure(next(s for s in candidates if s.name == fit), heldout, fitted_noise)
@@ -94,14 +95,15 @@ class Delivery:
 
 def deliver(structures: Sequence[Structure], training: Sequence[Experiment], heldout: Sequence[Experiment],
             explanation=None, *, workdir: str | Path, options: RunOptions, package: str | Path = "modelica/iGrGen",
-            fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print) -> Delivery:
+            fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print,
+            fitted_noise: dict | None = None) -> Delivery:
     """Every standard record by identify's rules (optional parts kept only where they win
     by the threshold; the simplest record within the noise recommended; a structure no
     grid simulator's record holds, TG Type I, is ranked but gets no record). ``identify``
     gives it the explanation, whose effects say what each record cannot carry;
     ``rapid-cosim structures`` runs this part alone (no explanation)."""
     candidates = [*structures, *(s.with_optional() for s in structures if s.optional)]
-    fitted_noise = campaign_noise([*training, *heldout])  # the selection's, kept to predict the held-out tests
+    fitted_noise = fitted_noise or campaign_noise([*training, *heldout])  # kept to predict the held-out tests
     verdict = select_structure(candidates, training, heldout, workdir=workdir, options=options,
                                package=package, fmu_dir=fmu_dir, fitted_noise=fitted_noise, log=log)
     fits = {f.name: f for f in verdict.ranking}

@@ -12,7 +12,7 @@ from ..calibration import RunInputs, inputs_from_archive
 from ..archive import RunArchive
 from ..errors import ArchiveError
 from ..estimators.base import EstimationResult
-from ..objective import ExperimentResult, evaluate_in_detail, simulate_experiment
+from ..objective import ExperimentResult, evaluate_in_detail, evaluate_one, simulate_experiment
 from ..experiment import Experiment
 from ..simulator import Trajectory
 
@@ -84,7 +84,7 @@ def curves_at(inputs: RunInputs, x, i: int) -> FitCurves:
     """Experiment ``i`` of a run's inputs simulated at ``x``."""
     problem = inputs.problem
     exp = problem.experiments[i]
-    detail = evaluate_in_detail(problem, inputs.fmus, np.asarray(x, dtype=float))[i]
+    detail = evaluate_one(problem, inputs.fmus, np.asarray(x, dtype=float), i)
     fine = simulate_experiment(exp, inputs.fmus[exp.model], detail.parameters, fine=True)
     output = next(o for o in exp.outputs if exp.weights[o] > 0)
     return FitCurves(detail, fine, output)
