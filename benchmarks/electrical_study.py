@@ -23,6 +23,11 @@ true governor on P_e and on P_m, where no effect is hidden: it should name none.
 verdict "ambiguous" names none either: no effect improves the criterion decisively, but the
 data cannot exclude some at a material size (a recorded event is a weaker test than a
 staged step).
+
+With ``--study`` and ``--structures`` also generate.py's events with a hidden effect (a
+binding valve rate the config does not document; ANDES runs it as IEEEG1's Uo/Uc): the
+effect catalogue on TG Type I (:func:`hidden_effects`), on P_e and on P_m. It should name
+``rate_limit`` on both, with the plant's rate.
 """
 
 from __future__ import annotations
@@ -161,6 +166,42 @@ def structures(folders: list[Path], workdir: Path) -> dict:
     return out
 
 
+RATES = {"Uo": "gov.rate_open", "Uc": "gov.rate_close"}  # ANDES's IEEEG1 names, ours (a magnitude)
+
+
+def hidden_effects(folders: list[Path], workdir: Path, fmu_dir: Path = ROOT / "fmus",
+                   kinds: tuple[str, ...] = ("P_e, H fixed", "P_m recorded", "as if P_m")) -> dict:
+    """The effect catalogue on TG Type I, on P_e, P_m and P_e as if P_m, of events whose plant has a
+    rate the config does not give: the verdict, whether it fits to the noise, and the
+    named effect's errors against the plant (rate, R, Ts, T5), in %."""
+    from rapid_cosim.diagnose import DiagnoseOptions
+    from rapid_cosim.diagnose.structures import effects_on
+
+    tg = candidate_structures()[0]
+    out = {}
+    print("\nhidden effect: the effect catalogue on TG Type I (documented, no rate limit) on P_e (H fixed), on "
+          "P_m, and on P_e as if it were P_m; errors of the first-ranked fit against the plant, %")
+    for folder in folders:
+        truth = json.loads((folder / "truth.json").read_text())
+        true = {**{f"gov.{k}": v for k, v in truth["params"].items()},
+                **{RATES[k]: abs(v) for k, v in truth["hidden"].items()}}
+        row = out[folder.name] = {}
+        for kind in kinds:
+            d = effects_on(tg, [variant(folder, kind)], [], workdir=workdir / folder.name / kind[:3],
+                           options=DiagnoseOptions(method="ms", seed=1, write_model=False),
+                           package=ROOT / "modelica" / "iGrGen", fmu_dir=fmu_dir, log=lambda *_: None)
+            first = d["ranking"][0]
+            errors = {k: first["parameters"][k] / v - 1 for k, v in true.items() if k in first["parameters"]}
+            row[kind] = {"effect": d["effect"], "adequate": d["adequate"], "first": first["label"],
+                             "variance_ratio": d["variance_ratio_after"], "errors": errors}
+            print(f"  {folder.name:18s} hidden {truth['hidden']}  {kind:12s}: {_effect(d):12s} adequate "
+                  f"{d['adequate']!s:5s} (variance ratio {d['variance_ratio_after']:.2f}); {first['label']}: "
+                  + ", ".join(f"{k.split('.')[1]} {100 * e:+.1f}" for k, e in errors.items()))
+    named = {k: sum(v[k]["effect"] == "rate_limit" for v in out.values()) for k in next(iter(out.values()))}
+    print("  rate_limit named: " + ", ".join(f"{k} {n}/{len(out)}" for k, n in named.items()))
+    return out
+
+
 def _named(effect: str) -> bool:
     return effect not in ("none", "ambiguous", "unexplained")
 
@@ -210,9 +251,11 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     import generate
 
+    hidden = []
     if args.study:
-        generate.main(["--study", str(args.study), "--fmus", str(ROOT / "fmus")])
+        generate.main(["--study", str(args.study), "--fmus", str(ROOT / "fmus"), *(["--hidden"] * args.structures)])
         folders = [args.study / e.name for e in generate.STUDY]
+        hidden = [(args.study / e.name).resolve() for e in generate.HIDDEN] if args.structures else []
     else:
         folders = args.events or [ROOT / "experiments" / "electrical" / e.name for e in generate.EVENTS]
     folders = [f.resolve() for f in folders]
@@ -222,6 +265,8 @@ def main(argv=None) -> int:
     if args.structures:
         with tempfile.TemporaryDirectory() as tmp:
             figures["structures"] = structures(folders, Path(tmp))
+            if hidden:
+                figures["hidden"] = hidden_effects(hidden, Path(tmp))
     if args.json:
         args.json.write_text(json.dumps(figures, indent=1) + "\n")
     return 0

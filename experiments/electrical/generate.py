@@ -27,11 +27,12 @@ Each event is a folder: ``data.csv`` (time, FREQ, P), ``clean.csv`` (the same sa
 without the recorder's noise), ``mechanical.csv`` (P the governor's mechanical power, the
 same noise), ``config.toml`` (electrical power, H fixed at the documented 6.5 s) and
 ``truth.json`` (the governor's parameters and the checks). Run from the repository root;
-``EVENTS`` are committed, ``STUDY`` adds ten more for ``make bench-electrical`` (written
-under results/ by default)::
+``EVENTS`` and the first of ``HIDDEN`` are committed, ``STUDY`` adds ten more for ``make
+bench-electrical`` and ``--hidden`` the other two with a hidden effect (written under
+results/ by default)::
 
-    .venv/bin/python experiments/electrical/generate.py            # the committed four
-    .venv/bin/python experiments/electrical/generate.py --study results/electrical
+    .venv/bin/python experiments/electrical/generate.py            # the committed five
+    .venv/bin/python experiments/electrical/generate.py --study results/electrical [--hidden]
 """
 
 from __future__ import annotations
@@ -52,13 +53,15 @@ H_DOC = 6.5
 @dataclass(frozen=True)
 class Event:
     """One event: the governor of generator 1 (machine-base parameters, our names) and
-    the load step (+1 on, -1 off)."""
+    the load step (+1 on, -1 off). ``hidden``: parameters the plant has that its config
+    does not say (a binding valve rate), which ANDES runs and a diagnosis must find."""
 
     name: str
     governor: str  # "TGOV1" | "IEEEG1" | "TGTypeI"
     params: dict = field(default_factory=dict)
     load: int = 1
     seed: int = 1
+    hidden: dict = field(default_factory=dict)
 
 
 EVENTS = (
@@ -79,6 +82,14 @@ STUDY = EVENTS + (
     Event("tgtypei_on_b", "TGTypeI", {"R": 0.06, "Ts": 1.5, "T5": 9.0}, +1, 29),
     Event("tgtypei_off_b", "TGTypeI", {"R": 0.055, "Ts": 1.2, "T5": 4.5}, -1, 30),
 )
+# a hidden effect: TG Type I's valve rate limited (the catalogue's rate_limit, which is
+# IEEEG1's Uo/Uc in ANDES's run), binding on the event's side (opening on, closing off)
+HIDDEN = (
+    Event("tgtypei_rate_on", "TGTypeI", {"R": 0.05, "Ts": 0.6, "T5": 7.0}, +1, 41, {"Uo": 0.02}),
+    Event("tgtypei_rate_off", "TGTypeI", {"R": 0.045, "Ts": 0.8, "T5": 6.0}, -1, 42, {"Uc": -0.03}),
+    Event("tgtypei_rate_on_b", "TGTypeI", {"R": 0.06, "Ts": 1.0, "T5": 8.0}, +1, 43, {"Uo": 0.012}),
+)
+COMMITTED = EVENTS + HIDDEN[:1]  # experiments/electrical: the suite's
 # documented constants held fixed in every config (machine base); the rest are estimated
 TGOV1_FIXED = {"VMAX": 1.2, "VMIN": 0.3, "Dt": 0.0}
 IEEEG1_FIXED = {"T1": 0.5, "T2": 0.0, "T3": 0.1, "Uo": 1.0, "Uc": -1.0, "PMAX": 1.2, "PMIN": 0.0, "T6": 0.5,
@@ -131,9 +142,9 @@ def andes_governor(event: Event) -> tuple[str, dict]:
     """The ANDES model that runs the event's governor and its parameters (machine base, our
     names). ANDES normalises IEEEG1's K1..K8 to sum 1: K2, K4, K6, K8 are zero here."""
     if event.governor == "TGOV1":
-        return "TGOV1", {**TGOV1_FIXED, **event.params}
+        return "TGOV1", {**TGOV1_FIXED, **event.params, **event.hidden}
     params = tgtypei_as_ieeeg1(event.params) if event.governor == "TGTypeI" else {**IEEEG1_FIXED, **event.params}
-    return "IEEEG1", {**params, "K2": 0.0, "K4": 0.0, "K6": 0.0, "K8": 0.0}
+    return "IEEEG1", {**params, **event.hidden, "K2": 0.0, "K4": 0.0, "K6": 0.0, "K8": 0.0}
 
 
 def tgtypei_as_ieeeg1(params: dict) -> dict:
@@ -166,10 +177,14 @@ def bench(governor: str) -> str:
 def governor_check(event: Event, run: dict, fmu_dir: str | Path = "fmus") -> dict[str, float]:
     """Largest |our pm - ANDES's governor output| (pu) with our bench driven by ANDES's speed
     (``governor_check_pu``); for TG Type I also our IEEEG1 bench with the mapped parameters
-    (``ieeeg1_check_pu``), which isolates the mapping's approximation from the rest."""
-    benches = {"governor_check_pu": (event.governor, {**fixed_params(event), **event.params})}
+    (``ieeeg1_check_pu``), which isolates the mapping's approximation from the rest. With a
+    hidden rate on TG Type I, the governor is the IEEEG1 with those rates alone (our TG
+    Type I bench has none: the diagnosis composes them)."""
+    benches = {"governor_check_pu": (event.governor, {**fixed_params(event), **event.params, **event.hidden})}
     if event.governor == "TGTypeI":
-        benches["ieeeg1_check_pu"] = ("IEEEG1", tgtypei_as_ieeeg1(event.params))
+        benches["ieeeg1_check_pu"] = ("IEEEG1", {**tgtypei_as_ieeeg1(event.params), **event.hidden})
+        if event.hidden:
+            del benches["governor_check_pu"]
     return {key: float(np.max(np.abs(_bench_pm(governor, params, run, fmu_dir) - run["pout"])))
             for key, (governor, params) in benches.items()}
 
@@ -259,15 +274,17 @@ def write_event(event: Event, folder: Path, fmu_dir: str | Path = "fmus") -> Pat
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--study", metavar="FOLDER", help="write the fourteen study events there instead")
+    parser.add_argument("--hidden", action="store_true", help="with --study: also the events with a hidden effect")
     parser.add_argument("--fmus", default="fmus")
     args = parser.parse_args(argv)
-    root, events = (Path(args.study), STUDY) if args.study else (HERE, EVENTS)
+    root, events = (Path(args.study), STUDY + (HIDDEN if args.hidden else ())) if args.study else (HERE, COMMITTED)
     for event in events:
         folder = root / event.name
         if args.study and (folder / "truth.json").exists():
             continue  # generated once (the study's cache)
         write_event(event, folder, args.fmus)
-        print(folder, json.loads((folder / "truth.json").read_text())["governor_check_pu"])
+        truth = json.loads((folder / "truth.json").read_text())
+        print(folder, {k: v for k, v in truth.items() if k.endswith("_check_pu")})
 
 
 if __name__ == "__main__":
