@@ -68,6 +68,7 @@ def cmd_simulate(args) -> int:
 def cmd_estimate(args) -> int:
     from .api import as_experiments, calibrate, default_archive
     from .calibration import RunOptions, parse_option_overrides
+    from .experiment.electrical import describe_recording
 
     options = parse_option_overrides(args.option)
     RunOptions(method=args.method, seed=args.seed, n_jobs=args.n_jobs, backend=args.joblib_backend,
@@ -76,6 +77,8 @@ def cmd_estimate(args) -> int:
     archive = Path(args.archive) if args.archive else default_archive(args.results)
     print(f"estimating on {', '.join(e.name for e in experiments)} with {args.method} (seed {args.seed}, "
           f"n_jobs {args.n_jobs}); archive: {archive}")
+    for words in filter(None, map(describe_recording, experiments)):
+        print(f"  {words}")
     fit = calibrate(experiments, args.method, seed=args.seed, n_jobs=args.n_jobs, archive=archive, options=options,
                     runner=args.runner, joblib_backend=args.joblib_backend, scheduler=args.scheduler,
                     progress=not args.quiet, **_models(args))

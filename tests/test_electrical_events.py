@@ -1,10 +1,30 @@
-"""Grid events recorded as electrical power, as a user meets them: a hidden effect found
-on one (the committed ANDES event tgtypei_rate_on, experiments/electrical/generate.py: TG Type I
+"""Grid events recorded as electrical power, as a user meets them: what the CLI and the
+validation report say the power column was taken to be, and a hidden effect found on one
+(the committed ANDES event tgtypei_rate_on, experiments/electrical/generate.py: TG Type I
 whose valve opens at most 0.02 pu/s, which its config does not say; ANDES runs it as
 IEEEG1's Uo), diagnosed by benchmarks/electrical_study.py's hidden_effects as ``make
 bench-electrical`` does on three such events."""
 
 import sys
+
+from rapid_cosim.cli import main
+from rapid_cosim.report.html import validation_page
+
+
+def test_the_cli_and_the_report_say_what_was_recorded_and_which_pmu_class_the_filter_is_like(
+        repo, fmus, tmp_path, capsys):
+    config = repo / "experiments" / "electrical" / "tgov1_on" / "config.toml"
+    archive = tmp_path / "run.h5"
+    assert main(["estimate", str(config), "--method", "ms", "--seed", "1", "--archive", str(archive),
+                 "--fmus", str(fmus["FrequencyInput"].parent), "--quiet"]) == 0
+    said = capsys.readouterr().out
+    assert "pe is electrical power at the terminals" in said and "H 6.5 s (fixed)" in said
+    assert "C37.118.1 M-class PMU, without its delay" in said and "9 samples at 30 per second" in said
+    page = validation_page(archive, tmp_path / "page.html", fmu_dir=fmus["FrequencyInput"].parent,
+                           package=repo / "modelica" / "iGrGen")
+    html = page.path.read_text()
+    assert "<ul id=recorded" in html and "M-class PMU" in html
+
 
 def test_a_hidden_valve_rate_is_named_on_electrical_power_and_not_as_if_mechanical(repo, fmus, tmp_path, capsys):
     """Measured: on P_e rate_limit, adequate (variance ratio 1.12), opening rate +0.4 %,

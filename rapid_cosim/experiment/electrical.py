@@ -180,3 +180,38 @@ def with_component(model: RecorderNoise, component: FilteredNoise | tuple[float,
     if isinstance(component, FilteredNoise):
         return replace(model, filtered=model.filtered + (component,))
     return replace(model, components=model.components + (component,))
+
+
+def describe_recording(exp) -> str | None:
+    """What the power column of ``exp`` was taken to be, in words for the calibration's
+    output and the report (None for mechanical power): the machine constants, where the
+    ROCOF comes from and, for a derived one, which PMU class its filter is like."""
+    if ELECTRICAL not in exp.outputs:
+        return None
+    bounds = {s.name: s for s in exp.estimate}
+
+    def constant(name: str, unit: str, default: str) -> str:
+        if name in exp.fixed:
+            return f"{exp.fixed[name]:g} {unit} (fixed)"
+        if name in bounds:
+            return f"estimated in {bounds[name].min:g} to {bounds[name].max:g} {unit}"
+        return default
+
+    words = (f"{exp.name}: {ELECTRICAL} is electrical power at the terminals, the governor's P_m less the "
+             f"rotor's inertial and damping power; H {constant(INERTIA, 's', '?')}, D {constant(DAMPING, 'pu', '0 pu (the bench default)')}; ")
+    column = next((s.column for s in exp.inputs if s.name == ROCOF and s.column), None)
+    if column is not None:
+        words += f"ROCOF from the recording's column '{column}' (checked against the frequency's derivative)"
+    else:
+        table = exp.input_table
+        if table is None or FREQUENCY not in table.names:
+            return words + "no recorded frequency: the bench's own ROCOF"
+        dt = float(np.median(np.diff(table.time)))
+        words += (f"ROCOF derived from the frequency: zero-phase Savitzky-Golay derivative over {WINDOW:g} s "
+                  f"({points(dt)} samples at {1.0 / dt:.3g} per second), split at the event; band-limited like "
+                  "an IEEE C37.118.1 M-class PMU, without its delay (not a P-class estimate)")
+    component = rocof_component(exp)
+    if component is not None:
+        sigma = component.sigma if isinstance(component, FilteredNoise) else component[0]
+        words += f"; its noise in {ELECTRICAL}, {sigma:.2g} pu, is part of the noise model"
+    return words

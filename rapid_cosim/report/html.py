@@ -24,12 +24,13 @@ from ..calibration import inputs_from_experiments
 from ..errors import ConfigError, RapidCosimError
 from ..estimators.uncertainty import Uncertainty
 from ..experiment import Experiment
+from ..experiment.electrical import describe_recording
 from .archives import ArchivedRun, FitCurves, caption, curves_at
 from .fits import plot_experiment
 from .htmlkit import STYLE, e, mark, png
 from .provenance import provenance
-from .sections import (diagnosis_section, metrics_table, noise_section, provenance_section, record_section, summary,
-                       tolerance_table)
+from .sections import (diagnosis_section, metrics_table, noise_section, provenance_section, record_section,
+                       recording_section, summary, tolerance_table)
 from .tolerances import Check, Tolerances, judge, verdict
 from .unit import DeliveredRecord, DiagnosisSummary, delivered_record, noise_summary
 from .validation import ValidationMetrics, metrics
@@ -90,6 +91,7 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
         figures.append(_figure(c, m, checks))
     record = delivered_record(run, x, unc, bus=opts.bus, machine_id=opts.machine_id, mva=opts.mva)
     experiments = [*problem.experiments, *opts.heldout]
+    recorded = [w for w in map(describe_recording, experiments) if w]
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     n_pass = sum(verdict(c) is True for _, c in rows)
     n_fail = sum(verdict(c) is False for _, c in rows)
@@ -112,7 +114,7 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
             "<h2>Delivered record</h2>",
             f"<p id=delivered>{e(opts.record_note)}</p>" if opts.record_note else "",
             record_section(record, note, unc.level if unc is not None else None),
-            "<h2>Noise model and diagnosis</h2>", noise_section(noise_summary(experiments)),
+            "<h2>Noise model and diagnosis</h2>", recording_section(recorded), noise_section(noise_summary(experiments)),
             diagnosis_section(opts.diagnosis),
             '<section class="figures"><h2>Measured and simulated</h2>', *figures, "</section>",
             "<h2>Provenance</h2>", provenance_section(provenance(run.path, experiments))]

@@ -76,6 +76,11 @@ def record_section(rec: DeliveredRecord, interval_note: str, level: float | None
     return "\n".join(parts)
 
 
+def recording_section(lines: Sequence[str]) -> str:
+    """What each power column was taken to be, where it is electrical power."""
+    return f"<ul id=recorded class=note>{''.join(f'<li>{e(w)}</li>' for w in lines)}</ul>" if lines else ""
+
+
 def noise_section(noise: NoiseSummary) -> str:
     rows = [f"<tr><td class=text>{e(', '.join(r.tests))}</td><td class=text>{e(r.family)}</td>"
             f"<td class=text>{e(r.description)}</td><td class=text>{e(r.detail)}</td></tr>" for r in noise.rows]
