@@ -94,3 +94,16 @@ def test_the_check_sees_relative_absolute_and_lazy_imports(tmp_path):
     module.write_text("from ...report.fits import x\nfrom ..inputs import y\nimport rapid_cosim.cli\n"
                       "def f():\n    from ...api import calibrate\n    from rapid_cosim import campaign\n")
     assert _imported(module, ("simulator", "sub", "m")) == {"report", "simulator", "cli", "api", "campaign"}
+
+
+def test_the_api_functions_stay_functions_once_their_subpackages_are_imported():
+    """rc.diagnose and rc.identify share their names with subpackages, which the functions
+    import when called: a first import of a subpackage binds its name on the package, and
+    a second rc.identify(...) failed with "'module' object is not callable"."""
+    import subprocess
+    import sys
+
+    code = ("import rapid_cosim as rc, rapid_cosim.diagnose, rapid_cosim.identify, inspect; "
+            "print(inspect.isfunction(rc.diagnose), inspect.isfunction(rc.identify))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["True", "True"]
