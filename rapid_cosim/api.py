@@ -36,6 +36,7 @@ from .simulator import DEFAULT_RUNNER, BatchResult, Trajectory, get_simulator
 
 PACKAGE = "modelica/iGrGen"
 FMU_DIR = "fmus"
+DELIVERABLES = ("unit.dyr", "unit.dyd", "report.html", "report.pdf")  # what identify writes into its workdir
 
 
 @dataclass(frozen=True, eq=False)
@@ -253,11 +254,12 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
     folder = Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="rapid_cosim_identify_"))
     result = run_identification(spec, workdir=folder, seed=seed, n_jobs=n_jobs, package=package, fmu_dir=fmu_dir,
                                 backend=backend, scheduler=scheduler, log=log)
+    for path in DELIVERABLES:  # an earlier run's file must not pass for this run's (kept if this one fails)
+        (folder / path).unlink(missing_ok=True)
     if result.recommended is None:
+        result.notes.update({kind: f"no record recommended: {result.reason}" for kind in ("dyr", "dyd", "report")})
         return result
     record = result.record(result.recommended)
-    for path in ("unit.dyd", "report.html", "report.pdf"):  # an earlier run's file must not pass for this run's
-        (folder / path).unlink(missing_ok=True)
     for kind in ("dyr", "dyd") if spec.mva is not None else ("dyr",):  # a .dyd states the MVA base
         written = export(record.archive, folder / f"unit.{kind}", bus=spec.bus, machine_id=spec.machine_id,
                          mva=spec.mva)

@@ -161,3 +161,29 @@ def test_what_a_structure_cannot_carry():
     assert cannot_carry("IEEEG1", ["rate_limit"], freed=False) == ["rate_limit"]
     assert cannot_carry("IEEEG1", ["rate_limit"], freed=True) == []
     assert cannot_carry("GGOV1", ["deadband", "delay"], freed=False) == ["delay"]
+
+
+def test_with_no_record_recommended_an_earlier_runs_files_are_gone_and_the_notes_say_why(tmp_path, monkeypatch):
+    """A folder identified before keeps unit.dyr and report.html; a new identification
+    that recommends none must not leave them to pass for its own."""
+    import importlib
+
+    import rapid_cosim as rc
+    from rapid_cosim.identify import Identification
+
+    identify_package = importlib.import_module("rapid_cosim.identify")  # rc.identify is the API function
+
+    config = tmp_path / "t1" / "config.toml"
+    config.parent.mkdir()
+    config.write_text("")
+    unit = _unit(tmp_path, [config])
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("unit.dyr", "unit.dyd", "report.html", "report.pdf"):
+        (out / name).write_text("an earlier run's")
+    why = "no standard record reproduces the tests within the noise"
+    monkeypatch.setattr(identify_package, "identify", lambda spec, **_: Identification(
+        spec.name, spec.mva, spec.bus, spec.machine_id, ["t1"], [], {}, [], None, why, "unexplained", 0.0))
+    result = rc.identify(unit, workdir=out, log=lambda *_: None)
+    assert not any(out.iterdir()) and not result.files
+    assert result.notes == {kind: f"no record recommended: {why}" for kind in ("dyr", "dyd", "report")}
