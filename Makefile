@@ -18,7 +18,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical clean table1 figures rerun event1 joint diagnose structures identify identify-png bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -79,6 +79,10 @@ diagnose: fmus  ## identify's explanation part alone: name what TG Type I misses
 identify: fmus  ## one identification of the field unit (experiments/unit.toml): explanation, records, .dyr (.dyd with MVA=...), report HTML+PDF
 	$(RC) identify experiments/unit.toml --results $(RESULTS)/identify --seed $(SEED) --n-jobs $(N_JOBS) $(if $(MVA),--mva $(MVA))
 	@echo "make identify: $$(( $$(date +%s) - $(T0) )) s wall time"
+
+identify-electrical: fmus  ## one identification from two ANDES grid events recorded as electrical power (experiments/electrical/unit.toml)
+	$(RC) identify experiments/electrical/unit.toml --results $(RESULTS)/identify-electrical --seed $(SEED) --n-jobs $(N_JOBS)
+	@echo "make identify-electrical: $$(( $$(date +%s) - $(T0) )) s wall time"
 
 identify-png: fmus  ## the README's picture of make identify's report (docs/identify_report.png); runs make identify if needed
 	@test -f $(RESULTS)/identify/report.html || $(MAKE) --no-print-directory identify

@@ -27,11 +27,11 @@ Each event is a folder: ``data.csv`` (time, FREQ, P), ``clean.csv`` (the same sa
 without the recorder's noise), ``mechanical.csv`` (P the governor's mechanical power, the
 same noise), ``config.toml`` (electrical power, H fixed at the documented 6.5 s) and
 ``truth.json`` (the governor's parameters and the checks). Run from the repository root;
-``EVENTS`` and the first of ``HIDDEN`` are committed, ``STUDY`` adds ten more for ``make
+``EVENTS``, the first of ``HIDDEN`` and ``SAME_UNIT`` are committed, ``STUDY`` adds ten more for ``make
 bench-electrical`` and ``--hidden`` the other two with a hidden effect (written under
 results/ by default)::
 
-    .venv/bin/python experiments/electrical/generate.py            # the committed five
+    .venv/bin/python experiments/electrical/generate.py            # the committed six
     .venv/bin/python experiments/electrical/generate.py --study results/electrical [--hidden]
 """
 
@@ -89,7 +89,9 @@ HIDDEN = (
     Event("tgtypei_rate_off", "TGTypeI", {"R": 0.045, "Ts": 0.8, "T5": 6.0}, -1, 42, {"Uc": -0.03}),
     Event("tgtypei_rate_on_b", "TGTypeI", {"R": 0.06, "Ts": 1.0, "T5": 8.0}, +1, 43, {"Uo": 0.012}),
 )
-COMMITTED = EVENTS + HIDDEN[:1]  # experiments/electrical: the suite's
+# tgtypei_on's plant again, a load switched off: with it one unit of two events (unit.toml)
+SAME_UNIT = (Event("tgtypei_off_same", "TGTypeI", {"R": 0.05, "Ts": 0.8, "T5": 7.0}, -1, 15),)
+COMMITTED = EVENTS + HIDDEN[:1] + SAME_UNIT  # experiments/electrical: the suite's
 # documented constants held fixed in every config (machine base); the rest are estimated
 TGOV1_FIXED = {"VMAX": 1.2, "VMIN": 0.3, "Dt": 0.0}
 IEEEG1_FIXED = {"T1": 0.5, "T2": 0.0, "T3": 0.1, "Uo": 1.0, "Uc": -1.0, "PMAX": 1.2, "PMIN": 0.0, "T6": 0.5,
