@@ -27,7 +27,9 @@ __version__ = "0.2.0"
 
 # The subpackages named as API functions are imported first: importing a subpackage for
 # the first time binds its name here, and done later (inside rc.identify) it replaced the
-# function with the module, so a second rc.identify(...) failed.
+# function with the module, so a second rc.identify(...) failed. (So the subpackages'
+# modules are imported with ``from rapid_cosim.diagnose import selection``, not
+# ``import rapid_cosim.diagnose.selection as ...``, which reads the name as the function.)
 from . import diagnose as _diagnose, identify as _identify  # noqa: E402, F401
 from .api import Calibration, calibrate, diagnose, export, identify, load, rerun, resume, simulate  # noqa: E402
 from .experiment import Experiment  # noqa: E402

@@ -246,3 +246,45 @@ def test_the_study_names_ieeeg1_with_binding_rates_and_its_record_reproduces_the
     assert case.recommended == "IEEEG1" and case.freed
     assert (tmp_path / "IEEEG1-2" / "IEEEG1.dyr").read_text().split()[1] == "'IEEEG1'"
     assert set(case.rmse) == {"test1", "test2", "test3"} and case.worst_rmse <= 1.1, case.rmse
+
+
+def test_an_exchange_is_a_swap_that_leaves_the_fit_and_nothing_else(monkeypatch):
+    """The check itself, on residuals written down: x0 and x1 enter through their sum and
+    product (two lags in series) and are found; x2 does not exchange with them although the
+    swap is inside its bounds; equal values are not a test."""
+    from types import SimpleNamespace
+
+    from rapid_cosim.diagnose import identifiability as ident_module
+    from rapid_cosim.search import SearchSpace
+
+    def whitened(inputs, x, noise):
+        return np.array([x[0] * x[1] - 2.0, x[0] + x[1] - 3.0, 10 * (x[2] - 1.5), 1e-3 * x[0]])
+
+    monkeypatch.setattr(ident_module, "_whitened", whitened)
+    space = SearchSpace(("a", "b", "c"), np.array([0.1, 0.5, 0.1]), np.array([5.0, 5.0, 5.0]))
+    inputs = SimpleNamespace(problem=SimpleNamespace(space=space))
+    found = ident_module.exchanges(inputs, np.array([1.0, 2.0, 1.5]), None)
+    assert [(a, b) for a, b, _ in found] == [("a", "b")] and abs(found[0][2]) < 1e-4
+    assert ident_module.exchanges(inputs, np.array([0.2, 2.0, 1.5]), None) == ()  # 0.2 is outside b's bounds
+    assert ident_module.exchanges(inputs, np.array([1.5, 1.5, 1.5]), None) == ()
+
+
+def test_tg_type_i_with_its_reheater_free_fits_servo_and_reheater_either_way_round(repo, fmus, tmp_path):
+    """An ANDES event (tgtypei_on, P_e) with TG Type I's Ts and T5 estimated over ranges
+    that hold both values (the event's own, Ts to 5 s and T5 from 1 s, keep the servo's
+    0.8 s and the reheater's 7 s apart: no swap to test): between its limits the response
+    depends on Ts + T5 and Ts T5 only, and the check finds the pair."""
+    from rapid_cosim.experiment import parse_experiment
+
+    folder = repo / "experiments" / "electrical" / "tgtypei_on"
+    text = (folder / "config.toml").read_text()
+    text = text.replace('"gov.Ts" = { min = 0.1, max = 5.0', '"gov.Ts" = { min = 0.1, max = 10.0')
+    exp = parse_experiment(text.replace('"gov.T5" = { min = 1.0', '"gov.T5" = { min = 0.5'), folder / "config.toml")
+    import rapid_cosim as rc
+
+    fit = rc.calibrate([exp], method="ms", seed=1, fmu_dir=fmus["FrequencyInput"].parent)
+    inputs = inputs_from_experiments([exp], package=repo / "modelica" / "iGrGen", fmu_dir=fmus["FrequencyInput"].parent)
+    ident = identifiability(inputs, np.asarray(fit.x), noise_floors([exp]))
+    assert [(a, b) for a, b, _ in ident.exchanges] == [("gov.Ts", "gov.T5")]
+    assert "gov.Ts and gov.T5 exchange" in ident.summary()
+    assert ident.to_json()["exchanges"][0]["a"] == "gov.Ts"

@@ -16,6 +16,16 @@ not determined. Each parameter is
 Pairs whose estimates correlate beyond 0.9 in magnitude trade off: the tests move them
 together (e.g. a gain against a time constant); :func:`best_separating_step` proposes
 the staged step that most reduces the weakest parameter's error.
+
+Pairs that **exchange** are what the information cannot show: swapping their values
+leaves the fit as it is, so the optimum is sharp and still not unique. Two lags in series
+with no limit acting between them are such a pair, as the response depends only on their
+sum and product: TG Type I's servo Ts and reheater T5 with its T5 estimated, IEEEG1's
+servo T3 and steam chest T4, TGOV1's valve T1 and reheater T3. The tests then determine
+the two values, not which is which (on the ANDES event tgtypei_off_b with T5 free, 14
+of 100 noise draws put Ts at the reheater's 4.5 s and T5 at the servo's 1.2 s); a rate or
+position limit that acts on the first lag tells them apart, and the check then finds no
+exchange.
 """
 
 from __future__ import annotations
@@ -31,6 +41,8 @@ REL_DETERMINED = 0.10
 REL_WEAK = 0.50
 TRADE_OFF = 0.9
 STEP = 0.01
+SAME_FIT = 0.1  # a change of the whitened sum of squares smaller than this is no change of the fit
+DISTINCT = 0.01  # values closer than this (relative) are one value: swapping them is no test
 
 
 @dataclass(frozen=True)
@@ -40,6 +52,7 @@ class Identifiability:
     correlation: np.ndarray
     condition: float
     information: np.ndarray  # F, per relative change of each parameter
+    exchanges: tuple[tuple[str, str, float], ...] = ()  # pairs whose swap leaves the fit (change of the sum of squares)
 
     def status(self, k: int) -> str:
         r = self.relative_se[k]
@@ -54,12 +67,14 @@ class Identifiability:
 
     def summary(self) -> str:
         weak = [f"{n} {self.status(k)}" for k, n in enumerate(self.names) if self.status(k) != "determined"]
+        weak += [f"{a} and {b} exchange (the tests fit them either way round)" for a, b, _ in self.exchanges]
         return ("every parameter determined" if not weak else "; ".join(weak)) + f" (condition {self.condition:.2g})"
 
     def to_json(self) -> dict:
         return {"parameters": {n: {"relative_se": float(self.relative_se[k]), "status": self.status(k)}
                                for k, n in enumerate(self.names)},
                 "trade_offs": [{"a": a, "b": b, "correlation": c} for a, b, c in self.trade_offs],
+                "exchanges": [{"a": a, "b": b, "change": c} for a, b, c in self.exchanges],
                 "condition": self.condition, "correlation": self.correlation.tolist()}
 
 
@@ -109,7 +124,28 @@ def identifiability(inputs, x: np.ndarray, noise) -> Identifiability:
         corr = cov / np.outer(se, se)
     corr = np.nan_to_num(corr)
     np.fill_diagonal(corr, 1.0)
-    return Identifiability(tuple(inputs.problem.names), se, corr, condition, F)
+    return Identifiability(tuple(inputs.problem.names), se, corr, condition, F, exchanges(inputs, x, noise))
+
+
+def exchanges(inputs, x: np.ndarray, noise) -> tuple[tuple[str, str, float], ...]:
+    """The pairs of estimated parameters whose values, swapped (each inside the other's
+    bounds, the two distinct), change the whitened sum of squares by under SAME_FIT, with
+    that change: one simulation per test and candidate pair."""
+    x = np.asarray(x, dtype=float)
+    space = inputs.problem.space
+    base = float(np.sum(_whitened(inputs, x, noise) ** 2))
+    found = []
+    for i in range(x.size):
+        for j in range(i + 1, x.size):
+            inside = space.lower[j] <= x[i] <= space.upper[j] and space.lower[i] <= x[j] <= space.upper[i]
+            if not inside or abs(x[i] - x[j]) <= DISTINCT * max(abs(x[i]), abs(x[j])):
+                continue
+            swapped = x.copy()
+            swapped[[i, j]] = x[[j, i]]
+            change = float(np.sum(_whitened(inputs, swapped, noise) ** 2)) - base
+            if abs(change) < SAME_FIT:
+                found.append((space.names[i], space.names[j], change))
+    return tuple(found)
 
 
 # Information below this share of the largest is none: a limit never reached changes the

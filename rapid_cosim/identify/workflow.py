@@ -135,6 +135,9 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation) ->
         words += f"; it cannot carry {', '.join(missing)} ({CARRIES.get(structure.name, ((), 'no part for them'))[1]})"
     if freed is not None and use is plain:
         words += f"; freeing {', '.join(structure.optional)} did not win by {THRESHOLD:g} in BIC"
+    swaps = [f"{x['a']} and {x['b']}" for x in use.identifiability.get("exchanges", [])]
+    if swaps:
+        words += f"; the tests fit {', '.join(swaps)} either way round: which is which is not the data's to say"
     return StandardRecord(model=structure.name, fit=use.name, optional_freed=use is freed,
                           parameters=use.parameters, n_estimated=use.n_estimated, bic=use.bic,
                           adequate=use.adequate, variance_ratio=use.variance_ratio, tests=per_test,

@@ -47,6 +47,9 @@ def markdown(record: dict) -> str:
         lines.append(f"- **{r['name']}** (condition number {ident['condition']:.2g}): {parts}.")
         for t in ident["trade_offs"]:
             lines.append(f"  - {t['a']} and {t['b']} trade off (correlation {t['correlation']:+.2f}).")
+        for x in ident.get("exchanges", []):
+            lines.append(f"  - {x['a']} and {x['b']} exchange: swapped, the fit changes by {x['change']:+.2g} in the "
+                         "sum of squares (two lags in series, no limit between them): which is which is not determined.")
         if r.get("at_bounds"):
             lines.append(f"  - On a bound of its range: {'; '.join(r['at_bounds'])} (widen the range, or the "
                          "structure cannot follow the data there).")
