@@ -214,15 +214,20 @@ def record(event: Event, run: dict, noise: bool = True, seed: int | None = None,
     lag's error owes to the noise draw, tests/test_electrical.py). ``power="pout"``: the
     governor's mechanical power instead, with the same noise draw (``mechanical.csv``: the
     same event as a staged test would record it, for structure selection on both)."""
-    from rapid_cosim.synthetic import NoiseModel, pmu_noise
-
-    rng = np.random.default_rng(event.seed if seed is None else seed)
     t = np.arange(0.0, DURATION + 1e-9, 1.0 / RATE)
-    f_noise = pmu_noise(t.size, rate=RATE, sigma=1e-3, window=0.3, rng=rng)
-    p_noise = NoiseModel(white_sigma=0.9, ar1_sigma=1.2, phi=0.95, offset=1.5).sample(t.size, rng)
+    f_noise, p_noise = recorder_noise(t.size, np.random.default_rng(event.seed if seed is None else seed))
     f = F_NOM * np.interp(t, run["t"], run["w"]) + noise * f_noise
     p = SN * np.interp(t, run["t"], run[power]) + noise * p_noise
     return t, f, p
+
+
+def recorder_noise(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """The recorder's noise on ``n`` frames: frequency (Hz) and power (MW), in that order
+    from ``rng`` (the module docstring says what they are)."""
+    from rapid_cosim.synthetic import NoiseModel, pmu_noise
+
+    f_noise = pmu_noise(n, rate=RATE, sigma=1e-3, window=0.3, rng=rng)
+    return f_noise, NoiseModel(white_sigma=0.9, ar1_sigma=1.2, phi=0.95, offset=1.5).sample(n, rng)
 
 
 def write_data(path: Path, t: np.ndarray, f: np.ndarray, p: np.ndarray) -> None:
