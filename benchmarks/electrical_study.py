@@ -123,7 +123,7 @@ def redraws(folders: list[Path], draws: int, workdir: Path) -> dict:
         r = out[folder.name]
         print(f"  {folder.name:13s} {governor:7s} fast lag {100 * r['fast_mean']:+5.1f} +- {100 * r['fast_sd']:4.1f} %; "
               f"droop within 2 %: {r['droop_within_2']:.2f}; time constants within 15 %: {within:.2f}")
-    print(f"  a study of these {len(folders)} events meets the time constants on every event with probability "
+    print(f"  every one of the {len(folders)} recordings has both time constants within 15 % with probability "
           f"{p_all:.2f} (the product)")
     return {"events": out, "all_within": p_all}
 
