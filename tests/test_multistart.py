@@ -131,3 +131,26 @@ def test_an_ms_run_is_archived_reruns_identically_and_resumes(fmus, tmp_path):
     assert "start_fun" in result.history[-1].extras
     report = rerun(tmp_path / "ms.h5", progress=False)
     assert report.identical, report.first_difference
+
+
+def test_starts_that_reach_the_best_elsewhere_are_said_and_a_swap_is_named():
+    """The waterfall's end points: two lags in series reach the best at (1, 2) and (2, 1),
+    and the stop reason says the fit does not tell which is which; the best reached along
+    a valley is named as parameters it does not fix; a start above the margin, or one at
+    the best point itself, adds nothing."""
+    from rapid_cosim.estimators.multistart import elsewhere
+
+    space = SearchSpace(("T1", "T3", "R"), np.array([0.1, 0.1, 0.0]), np.array([5.0, 5.0, 1.0]))
+    best = np.array([1.0, 2.0, 0.5])
+    u = space.to_unit(np.array([best, [2.0, 1.0, 0.5], [1.5, 1.5, 0.9], [1.0, 2.0, 0.5]]))
+    said = elsewhere(space, u, np.array([1.0, 1.00005, 3.0, 1.0]), 1e-4, best)
+    assert said == "; 1 of them at T1 and T3 exchanged (1 and 2 either way round): the fit does not tell which is which"
+    valley = elsewhere(space, u[[0, 2]], np.array([1.0, 1.0]), 1e-4, best)
+    assert "1 of them elsewhere (T1 1 and 1.5, T3 2 and 1.5, R 0.5 and 0.9)" in valley
+    assert elsewhere(space, u[[0, 1, 3]], np.array([1.0, 1.1, 1.0]), 1e-4, best) == ""
+
+
+def test_a_run_with_one_optimum_adds_nothing_to_its_stop_reason():
+    space = SearchSpace(("T1", "T3", "R"), np.array([0.1, 0.1, 0.0]), np.array([5.0, 5.0, 1.0]))
+    unique = multistart(Residuals(lambda X: X - np.array([1.0, 2.0, 0.5])), space, rng=np.random.default_rng(1))
+    assert unique.stop_reason.endswith("reached the best")

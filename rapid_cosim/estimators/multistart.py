@@ -39,6 +39,8 @@ from scipy.stats import qmc
 from .base import EstimationResult, IterationCallback, Objective, SearchSpace, Tracker, check_option, unit_start
 from .lm import STATUS, LMOptions, levenberg_marquardt
 
+DISTINCT = 0.01  # points of the best fitness further apart than this (relative) in a parameter are two points
+
 
 @dataclass(frozen=True)
 class MSOptions:
@@ -171,4 +173,31 @@ def multistart(
     reached = reached_best(f, o.margin)
     status = np.concatenate(starts.status)
     counts = ", ".join(f"{np.sum(status == k)} {name}" for k, name in enumerate(STATUS) if np.sum(status == k))
-    return t.result(f"{len(f)} starts ({counts}); {reached} reached the best")
+    return t.result(f"{len(f)} starts ({counts}); {reached} reached the best"
+                    + elsewhere(space, np.vstack(starts.u), f, o.margin, t.best_x))
+
+
+def elsewhere(space: SearchSpace, u: np.ndarray, f: np.ndarray, margin: float, best: np.ndarray) -> str:
+    """What the stop reason adds when starts reach the best fitness at points other than
+    the best (more than DISTINCT apart, relative, in some parameter): the fit then does
+    not fix those parameters, however many starts reached it. Two points that differ by
+    two parameters' values swapped are named as such (two lags in series, no limit
+    between them: :mod:`rapid_cosim.diagnose.identifiability`)."""
+    ok = np.isfinite(f)
+    if not ok.any():
+        return ""
+    top = ok & (f <= np.min(f[ok]) + margin * abs(np.min(f[ok])))
+    points = space.from_unit(np.clip(u[top], 0.0, 1.0))
+    scale = np.maximum(np.abs(best), 1e-12)
+    other = [x for x in points if np.any(np.abs(x - best) > DISTINCT * scale)]
+    if not other:
+        return ""
+    far = max(other, key=lambda x: float(np.max(np.abs(x - best) / scale)))
+    moved = [k for k in range(best.size) if abs(far[k] - best[k]) > DISTINCT * scale[k]]
+    near = lambda a, b: abs(a - b) <= DISTINCT * max(abs(a), abs(b), 1e-12)  # noqa: E731
+    if len(moved) == 2 and near(far[moved[0]], best[moved[1]]) and near(far[moved[1]], best[moved[0]]):
+        a, b = (space.names[k] for k in moved)
+        return (f"; {len(other)} of them at {a} and {b} exchanged ({best[moved[0]]:.4g} and {best[moved[1]]:.4g} "
+                "either way round): the fit does not tell which is which")
+    spans = ", ".join(f"{space.names[k]} {best[k]:.4g} and {far[k]:.4g}" for k in moved)
+    return f"; {len(other)} of them elsewhere ({spans}): the best fitness does not fix those parameters"
