@@ -121,8 +121,9 @@ def redraws(folders: list[Path], draws: int, workdir: Path) -> dict:
                             "droop_within_2": float(np.mean(np.abs(e[droop]) < 0.02)), "time_within_15": within}
         p_all *= within
         r = out[folder.name]
-        print(f"  {folder.name:13s} {governor:7s} fast lag {100 * r['fast_mean']:+5.1f} +- {100 * r['fast_sd']:4.1f} %; "
-              f"droop within 2 %: {r['droop_within_2']:.2f}; time constants within 15 %: {within:.2f}")
+        print(f"  {folder.name:13s} {governor:7s} fast lag {100 * r['fast_mean']:+5.1f} +- "
+              f"{100 * r['fast_sd']:4.1f} %; droop within 2 %: {r['droop_within_2']:.2f}; "
+              f"time constants within 15 %: {within:.2f}")
     print(f"  every one of the {len(folders)} recordings has both time constants within 15 % with probability "
           f"{p_all:.2f} (the product)")
     return {"events": out, "all_within": p_all}

@@ -198,7 +198,8 @@ def describe_recording(exp) -> str | None:
         return default
 
     words = (f"{exp.name}: {ELECTRICAL} is electrical power at the terminals, the governor's P_m less the "
-             f"rotor's inertial and damping power; H {constant(INERTIA, 's', '?')}, D {constant(DAMPING, 'pu', '0 pu (the bench default)')}; ")
+             f"rotor's inertial and damping power; H {constant(INERTIA, 's', '?')}, "
+             f"D {constant(DAMPING, 'pu', '0 pu (the bench default)')}; ")
     column = next((s.column for s in exp.inputs if s.name == ROCOF and s.column), None)
     if column is not None:
         words += f"ROCOF from the recording's column '{column}' (checked against the frequency's derivative)"

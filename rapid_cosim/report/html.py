@@ -114,7 +114,8 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
             "<h2>Delivered record</h2>",
             f"<p id=delivered>{e(opts.record_note)}</p>" if opts.record_note else "",
             record_section(record, note, unc.level if unc is not None else None),
-            "<h2>Noise model and diagnosis</h2>", recording_section(recorded), noise_section(noise_summary(experiments)),
+            "<h2>Noise model and diagnosis</h2>", recording_section(recorded),
+            noise_section(noise_summary(experiments)),
             diagnosis_section(opts.diagnosis),
             '<section class="figures"><h2>Measured and simulated</h2>', *figures, "</section>",
             "<h2>Provenance</h2>", provenance_section(provenance(run.path, experiments))]
