@@ -105,7 +105,7 @@ bench-structures: fmus  ## identify's structure choice on synthetic campaigns (S
 bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5)
 	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS)
 
-bench-electrical: fmus  ## fourteen ANDES events, TGOV1, IEEEG1, TG Type I (generate.py --study, needs andes: the test extra): errors, structures and effects, P_e vs P_m; three more with a hidden valve rate; 100 noise draws per event
+bench-electrical: fmus  ## fourteen ANDES events, TGOV1, IEEEG1, TG Type I (generate.py --study, needs andes: the test extra): errors, structures and effects, P_e vs P_m; five more with a hidden valve rate; 100 noise draws per event
 	$(PY) benchmarks/electrical_study.py --study $(RESULTS)/electrical --structures --draws 100 --json $(RESULTS)/electrical/study.json
 
 bench-speed: fmus  ## where a diagnosis spends its time: field, four-test and event campaigns, before and after

@@ -28,9 +28,10 @@ staged step).
 how often R is within 2 % and the time constants within 15 %, per event and for the study.
 
 With ``--study`` and ``--structures`` also generate.py's events with a hidden effect (a
-binding valve rate the config does not document; ANDES runs it as IEEEG1's Uo/Uc): the
-effect catalogue on TG Type I (:func:`hidden_effects`), on P_e and on P_m. It should name
-``rate_limit`` on both, with the plant's rate.
+binding valve rate the config does not document; ANDES runs it as IEEEG1's Uo/Uc),
+diagnosed on P_e, on P_m and on P_e as if it were P_m (:func:`hidden_effects`): TG Type
+I's by the effect catalogue, IEEEG1's by its structure with Uo/Uc optional. It should name
+``rate_limit`` on P_e as on P_m, with the plant's rate.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ import functools
 import json
 import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -215,35 +217,61 @@ RATES = {"Uo": "gov.rate_open", "Uc": "gov.rate_close"}  # ANDES's IEEEG1 names,
 
 def hidden_effects(folders: list[Path], workdir: Path, fmu_dir: Path = ROOT / "fmus",
                    kinds: tuple[str, ...] = ("P_e, H fixed", "P_m recorded", "as if P_m")) -> dict:
-    """The effect catalogue on TG Type I, on P_e, P_m and P_e as if P_m, of events whose plant has a
-    rate the config does not give: the verdict, whether it fits to the noise, and the
-    named effect's errors against the plant (rate, R, Ts, T5), in %."""
+    """On P_e, P_m and P_e as if P_m, events whose plant has a rate the config does not
+    give: TG Type I's by the effect catalogue on it, IEEEG1's by its structure with the
+    rates as optional parts (:func:`_optional_rates`). The verdict, whether it fits to the
+    noise, and the first-ranked fit's errors against the plant (rate, droop, time
+    constants), in %."""
     from rapid_cosim.diagnose import DiagnoseOptions
     from rapid_cosim.diagnose.structures import effects_on
 
     tg = candidate_structures()[0]
     out = {}
-    print("\nhidden effect: the effect catalogue on TG Type I (documented, no rate limit) on P_e (H fixed), on "
-          "P_m, and on P_e as if it were P_m; errors of the first-ranked fit against the plant, %")
+    print("\nhidden effect: the effect catalogue on TG Type I (documented, no rate limit), IEEEG1 with its Uo/Uc "
+          "optional, on P_e (H fixed), on P_m, and on P_e as if it were P_m; errors of the first-ranked fit "
+          "against the plant, %")
     for folder in folders:
         truth = json.loads((folder / "truth.json").read_text())
+        ieeeg1 = truth["governor"] == "IEEEG1"
         true = {**{f"gov.{k}": v for k, v in truth["params"].items()},
-                **{RATES[k]: abs(v) for k, v in truth["hidden"].items()}}
+                **{f"gov.{k}" if ieeeg1 else RATES[k]: v if ieeeg1 else abs(v) for k, v in truth["hidden"].items()}}
         row = out[folder.name] = {}
         for kind in kinds:
-            d = effects_on(tg, [variant(folder, kind)], [], workdir=workdir / folder.name / kind[:3],
-                           options=DiagnoseOptions(method="ms", seed=1, write_model=False),
-                           package=ROOT / "modelica" / "iGrGen", fmu_dir=fmu_dir, log=lambda *_: None)
+            work = workdir / folder.name / kind[:3]
+            d = _optional_rates(folder, kind, work, fmu_dir) if ieeeg1 else effects_on(
+                tg, [variant(folder, kind)], [], workdir=work, options=DiagnoseOptions(method="ms", seed=1,
+                                                                                      write_model=False),
+                package=ROOT / "modelica" / "iGrGen", fmu_dir=fmu_dir, log=lambda *_: None)
             first = d["ranking"][0]
             errors = {k: first["parameters"][k] / v - 1 for k, v in true.items() if k in first["parameters"]}
             row[kind] = {"effect": d["effect"], "adequate": d["adequate"], "first": first["label"],
-                             "variance_ratio": d["variance_ratio_after"], "errors": errors}
+                         "variance_ratio": d["variance_ratio_after"], "errors": errors}
             print(f"  {folder.name:18s} hidden {truth['hidden']}  {kind:12s}: {_effect(d):12s} adequate "
                   f"{d['adequate']!s:5s} (variance ratio {d['variance_ratio_after']:.2f}); {first['label']}: "
                   + ", ".join(f"{k.split('.')[1]} {100 * e:+.1f}" for k, e in errors.items()))
     named = {k: sum(v[k]["effect"] == "rate_limit" for v in out.values()) for k in next(iter(out.values()))}
     print("  rate_limit named: " + ", ".join(f"{k} {n}/{len(out)}" for k, n in named.items()))
     return out
+
+
+def _optional_rates(folder: Path, kind: str, workdir: Path, fmu_dir: Path) -> dict:
+    """IEEEG1 with and without its valve rates free (as ``rapid-cosim identify`` fits a
+    structure's optional parts), in :func:`effects_on`'s terms: ``rate_limit`` when the
+    rates win by the threshold, else the verdict."""
+    from rapid_cosim.calibration import RunOptions
+    from rapid_cosim.diagnose.structures import select_structure
+
+    plain = candidate_structures()[2]
+    rates = {"gov.Uo": {"min": 0.001, "max": 1.0, "scale": "log"}, "gov.Uc": {"min": -1.0, "max": -0.001}}
+    plain = replace(plain, fixed={k: v for k, v in plain.fixed.items() if k not in rates}, optional=rates,
+                    carries="rate_limit")
+    v = select_structure([plain, plain.with_optional()], [variant(folder, kind)], workdir=workdir,
+                         options=RunOptions(method="ms", seed=1), fmu_dir=fmu_dir, log=lambda *_: None)
+    best = v.ranking[0]
+    label = {plain.name: "none", plain.with_optional().name: "rate_limit"}
+    return {"effect": label.get(v.structure, v.structure), "adequate": best.adequate,
+            "variance_ratio_after": best.variance_ratio, "candidates": [label[c] for c in v.candidates],
+            "ranking": [{"label": label[f.name], "parameters": f.parameters} for f in v.ranking]}
 
 
 def _named(effect: str) -> bool:

@@ -3,7 +3,7 @@ validation report say the power column was taken to be, and a hidden effect foun
 (the committed ANDES event tgtypei_rate_on, experiments/electrical/generate.py: TG Type I
 whose valve opens at most 0.02 pu/s, which its config does not say; ANDES runs it as
 IEEEG1's Uo), diagnosed by benchmarks/electrical_study.py's hidden_effects as ``make
-bench-electrical`` does on three such events."""
+bench-electrical`` does on five such events."""
 
 import sys
 

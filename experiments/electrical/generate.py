@@ -28,7 +28,7 @@ without the recorder's noise), ``mechanical.csv`` (P the governor's mechanical p
 same noise), ``config.toml`` (electrical power, H fixed at the documented 6.5 s) and
 ``truth.json`` (the governor's parameters and the checks). Run from the repository root;
 ``EVENTS``, the first of ``HIDDEN`` and ``SAME_UNIT`` are committed, ``STUDY`` adds ten more for ``make
-bench-electrical`` and ``--hidden`` the other two with a hidden effect (written under
+bench-electrical`` and ``--hidden`` the other four with a hidden effect (written under
 results/ by default)::
 
     .venv/bin/python experiments/electrical/generate.py            # the committed six
@@ -82,12 +82,15 @@ STUDY = EVENTS + (
     Event("tgtypei_on_b", "TGTypeI", {"R": 0.06, "Ts": 1.5, "T5": 9.0}, +1, 29),
     Event("tgtypei_off_b", "TGTypeI", {"R": 0.055, "Ts": 1.2, "T5": 4.5}, -1, 30),
 )
-# a hidden effect: TG Type I's valve rate limited (the catalogue's rate_limit, which is
-# IEEEG1's Uo/Uc in ANDES's run), binding on the event's side (opening on, closing off)
+# a hidden effect: the valve's rate limited, binding on the event's side (opening on,
+# closing off): TG Type I's (the catalogue's rate_limit; IEEEG1's Uo/Uc in ANDES's run),
+# and IEEEG1's own Uo/Uc (its structure's optional parts)
 HIDDEN = (
     Event("tgtypei_rate_on", "TGTypeI", {"R": 0.05, "Ts": 0.6, "T5": 7.0}, +1, 41, {"Uo": 0.02}),
     Event("tgtypei_rate_off", "TGTypeI", {"R": 0.045, "Ts": 0.8, "T5": 6.0}, -1, 42, {"Uc": -0.03}),
     Event("tgtypei_rate_on_b", "TGTypeI", {"R": 0.06, "Ts": 1.0, "T5": 8.0}, +1, 43, {"Uo": 0.012}),
+    Event("ieeeg1_rate_on", "IEEEG1", {"K": 20.0, "T4": 0.3, "T5": 8.0, "K1": 0.3, "K3": 0.7}, +1, 44, {"Uo": 0.02}),
+    Event("ieeeg1_rate_off", "IEEEG1", {"K": 25.0, "T4": 0.4, "T5": 6.0, "K1": 0.3, "K3": 0.7}, -1, 45, {"Uc": -0.03}),
 )
 # tgtypei_on's plant again, a load switched off: with it one unit of two events (unit.toml)
 SAME_UNIT = (Event("tgtypei_off_same", "TGTypeI", {"R": 0.05, "Ts": 0.8, "T5": 7.0}, -1, 15),)
