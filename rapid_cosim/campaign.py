@@ -20,7 +20,6 @@ from .report.figures import plot_step_responses
 from .report.fits import load_fits, plot_fit_grid, plot_test_fit
 from .report.search import plot_convergence, plot_particle_clouds
 from .simulator import Simulator, Trajectory
-from .report.html import validation_page  # noqa: F401  (the report command's page, made where identify reaches it)
 from .staged import METHODS, archive_path, archived_tests, run_staged_test
 
 # Figs. 3-8 of the paper show tests 1 to 6.

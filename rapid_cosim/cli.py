@@ -154,7 +154,7 @@ def cmd_staged_test(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from .campaign import validation_page
+    from .report.html import validation_page
     from .report.tolerances import LABELS, verdict
 
     page = validation_page(args.archive, args.out, n_jobs=args.n_jobs, tolerances=args.tolerances,

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 import rapid_cosim as rc
-from rapid_cosim.campaign import validation_page
 from rapid_cosim.cli import main
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.report.tolerances import DEFAULT_BANDS, METRIC_TERMS, load_tolerances
+from rapid_cosim.report.html import validation_page
 from rapid_cosim.report.pdf import QUIET
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

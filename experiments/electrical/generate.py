@@ -27,9 +27,9 @@ Each event is a folder: ``data.csv`` (time, FREQ, P), ``clean.csv`` (the same sa
 without the recorder's noise), ``mechanical.csv`` (P the governor's mechanical power, the
 same noise), ``config.toml`` (electrical power, H fixed at the documented 6.5 s) and
 ``truth.json`` (the governor's parameters and the checks). Run from the repository root;
-``EVENTS``, the first of ``HIDDEN`` and ``SAME_UNIT`` are committed, ``STUDY`` adds ten more for ``make
-bench-electrical`` and ``--hidden`` the other four with a hidden effect (written under
-results/ by default)::
+``COMMITTED`` (``EVENTS``, the first of ``HIDDEN`` and ``SAME_UNIT``) are committed,
+``STUDY`` adds ten more for ``make bench-electrical`` and ``--hidden`` the other four with a
+hidden effect (written under results/ by default)::
 
     .venv/bin/python experiments/electrical/generate.py            # the committed six
     .venv/bin/python experiments/electrical/generate.py --study results/electrical [--hidden]

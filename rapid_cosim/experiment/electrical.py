@@ -165,7 +165,7 @@ def with_rocof_noise(exp):
     component = rocof_component(exp)
     if component is None:
         return exp
-    extra = component.sigma if isinstance(component, FilteredNoise) else component[0]
+    extra = component_sigma(component)
     sigma = exp.noise_sigma
     if sigma is not None and ELECTRICAL in sigma:
         sigma = {**sigma, ELECTRICAL: math.hypot(sigma[ELECTRICAL], extra)}
@@ -173,6 +173,11 @@ def with_rocof_noise(exp):
     if ELECTRICAL in models:
         models[ELECTRICAL] = with_component(models[ELECTRICAL], component)
     return replace(exp, noise_sigma=sigma, noise_models=models)
+
+
+def component_sigma(component: FilteredNoise | tuple[float, float]) -> float:
+    """The standard deviation of a ROCOF noise component of either form."""
+    return component.sigma if isinstance(component, FilteredNoise) else component[0]
 
 
 def with_component(model: RecorderNoise, component: FilteredNoise | tuple[float, float]) -> RecorderNoise:
@@ -213,6 +218,5 @@ def describe_recording(exp) -> str | None:
                   "an IEEE C37.118.1 M-class PMU, without its delay (not a P-class estimate)")
     component = rocof_component(exp)
     if component is not None:
-        sigma = component.sigma if isinstance(component, FilteredNoise) else component[0]
-        words += f"; its noise in {ELECTRICAL}, {sigma:.2g} pu, is part of the noise model"
+        words += f"; its noise in {ELECTRICAL}, {component_sigma(component):.2g} pu, is part of the noise model"
     return words

@@ -48,8 +48,7 @@ def record_note(result: Identification) -> str:
     """Above the report's record: whose record it is, why it was chosen, how close it
     comes per test (RMSE over the recorder's noise level, as the identification judged)."""
     r = result.record(result.recommended)
-    fidelity = ", ".join(f"{t} {r.tests[t]['rmse_over_noise']:.2f}" for t in [*result.training, *result.heldout]
-                         if t in r.tests)
+    fidelity = r.fidelity([*result.training, *result.heldout])
     return (f"The record rapid-cosim identify recommends for {result.unit}: {r.model}"
             + (f" ({r.fit})" if r.fit != r.model else "") + f", {result.reason}; {r.words}. RMSE over the noise "
             f"per test: {fidelity}" + (f" (held out: {', '.join(result.heldout)})" if result.heldout else "") + ".")

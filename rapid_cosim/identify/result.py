@@ -49,6 +49,13 @@ class StandardRecord:
     archive: str
     at_bounds: list[str] = field(default_factory=list)
 
+    def fidelity(self, tests: Sequence[str], *, failing: bool = False) -> str:
+        """RMSE over the noise per test of ``tests`` it has (``failing``: marked where the
+        test finds it inadequate)."""
+        return ", ".join(f"{t} {self.tests[t]['rmse_over_noise']:.2f}"
+                         + (" (fails)" if failing and not self.tests[t]["adequate"] else "")
+                         for t in tests if t in self.tests)
+
 
 @dataclass
 class Identification:
@@ -124,15 +131,9 @@ class Identification:
             r = self.record(self.recommended)
             lines.append(f"recommended record: {r.model}" + (f" ({r.fit})" if r.fit != r.model else "")
                          + f", {self.reason}")
-
-            def fidelity(names: list[str]) -> str:
-                return ", ".join(f"{t} {r.tests[t]['rmse_over_noise']:.2f}" + ("" if r.tests[t]["adequate"] else
-                                                                               " (fails)")
-                                 for t in names if t in r.tests)
-
-            lines.append(f"  RMSE over the noise, training: {fidelity(self.training)}")
+            lines.append(f"  RMSE over the noise, training: {r.fidelity(self.training, failing=True)}")
             if self.heldout:
-                lines.append(f"  held out: {fidelity(self.heldout)}")
+                lines.append(f"  held out: {r.fidelity(self.heldout, failing=True)}")
         else:
             lines.append(f"recommended record: none ({self.reason})")
         lines.append("written:")

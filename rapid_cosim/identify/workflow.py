@@ -62,18 +62,16 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
     log(f"  {explanation.verdict}")
     log("the standard records:")
     options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs, backend=backend, scheduler=scheduler).check()
-    delivery = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
-                       package=package, fmu_dir=fmu_dir, log=log, fitted_noise=fitted_noise)
-    verdict, records, recommended, reason = delivery.verdict, delivery.records, delivery.recommended, delivery.reason
-    candidates, fitted_noise = delivery.candidates, delivery.fitted_noise
+    d = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
+                package=package, fmu_dir=fmu_dir, log=log, fitted_noise=fitted_noise)
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
-                            explanation=_explanation(explanation), records=records, recommended=recommended,
-                            reason=reason, structure_verdict=verdict.structure, seconds=0.0)
+                            explanation=_explanation(explanation), records=d.records, recommended=d.recommended,
+                            reason=d.reason, structure_verdict=d.verdict.structure, seconds=0.0)
     result.diagnosis = str(explanation.save(workdir / "explanation")[0])
-    if recommended is not None:  # the held-out tests on the record's bench, as the selection predicted them
-        fit = result.record(recommended).fit
-        held = on_structure(next(s for s in candidates if s.name == fit), heldout, fitted_noise)
+    if d.recommended is not None:  # the held-out tests on the record's bench, as the selection predicted them
+        fit = result.record(d.recommended).fit
+        held = on_structure(next(s for s in d.candidates if s.name == fit), heldout, fitted_noise)
         result.heldout_configs = [str(p) for p in write_configs(held, workdir / "records" / f"{fit}-heldout")]
     result.seconds = time.perf_counter() - t0
     return result
