@@ -18,8 +18,8 @@ profiled out in closed form, ``c = mean(y - yhat)``, and the RSSD is that of
 
 Whitened fitness: an experiment whose config gives the recorder's noise model
 (``[noise]``, :mod:`rapid_cosim.noise`) is scored by generalised least squares instead.
-Its residual is whitened by that model (standardised Kalman innovations, each run of
-consecutive valid samples from the stationary prior), the offset is the GLS one (the
+Its residual is whitened by that model (standardised Kalman innovations on the samples as
+stamped: :mod:`rapid_cosim.noise.whitening`), the offset is the GLS one (the
 whitened residual projected off the whitened constant), and the experiment's value is
 the mean squared whitened residual: 1 for a model that leaves only the noise described.
 A problem of such experiments weights them by their sample counts
@@ -42,6 +42,7 @@ import numpy as np
 from rapid_cosim.data import sample_onto
 from rapid_cosim.errors import ConfigError, SimulationError
 from rapid_cosim.experiment import Experiment, config_key
+from rapid_cosim.noise.whitening import Whitening, whitening
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,39 +121,6 @@ def _batch_fit(y, yhat, ok, w, offset: bool, residuals: bool = False):
     return total, per_output, c, residual
 
 
-class Whitening:
-    """One output's whitening on an experiment's valid samples (inside the window): runs
-    of consecutive samples (a masked sample, or a step over three sample intervals,
-    breaks one) and the whitened constant the GLS offset is projected off."""
-
-    def __init__(self, model, time: np.ndarray):
-        self.whitener = model.whitener()
-        dt = float(np.median(np.diff(time))) if time.size > 1 else 1.0
-        breaks = np.flatnonzero(np.diff(time) > 3.0 * dt) + 1
-        edges = np.concatenate([[0], breaks, [time.size]])
-        self.runs = [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
-        self.ones = self.whiten(np.ones((1, time.size)))[0]
-        self.ones_norm2 = float(self.ones @ self.ones)
-
-    def whiten(self, r: np.ndarray) -> np.ndarray:
-        """Standardised innovations of residual rows ``r`` (rows, valid samples)."""
-        out = np.empty_like(r)
-        for a, b in self.runs:
-            out[:, a:b] = self.whitener.whiten_runs(r[:, a:b])
-        return out
-
-    def residual(self, r: np.ndarray, offset: bool) -> np.ndarray:
-        """Whitened residual rows, the GLS offset projected out when ``offset``."""
-        e = self.whiten(r)
-        if offset:
-            e -= np.outer(e @ self.ones / self.ones_norm2, self.ones)
-        return e
-
-    def offset(self, r: np.ndarray) -> np.ndarray:
-        """The GLS offset of each row of ``r``."""
-        return self.whiten(r) @ self.ones / self.ones_norm2
-
-
 _WHITENINGS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
@@ -162,7 +130,8 @@ def whitenings(exp: Experiment) -> dict[int, Whitening]:
     cached = _WHITENINGS.get(exp)
     if cached is None:
         t = exp.windowed_data().time
-        cached = {j: Whitening(exp.noise_models[exp.scored.outputs[j]], t[index])
+        first = int(np.searchsorted(exp.data.time, t[0]))  # the window is a slice of the record
+        cached = {j: whitening(exp.noise_models[exp.scored.outputs[j]], t[index], first + index)
                   for j, index, _ in exp.scored.columns}
         _WHITENINGS[exp] = cached
     return cached

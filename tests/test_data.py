@@ -55,17 +55,52 @@ def test_csv_bad_time_column_missing_lists_columns(tmp_path):
 
 
 @pytest.mark.parametrize("rows, bad_row, word", [
-    ("0,1\n0.1,1\n0.2,1\n0.15,1\n", 5, "does not increase"),
-    ("0,1\n0.1,1\n0.1,1\n", 4, "does not increase"),  # repeated stamp
+    ("0,1\n0.1,1\n0.2,1\n0.3,1\n0.05,1\n", 6, "goes back from 0.3 s (row 5) to 0.05 s (row 6)"),  # 2.5 frames back
+    ("0,1\n0.1,1\n0.1,2\n", 4, "written twice (rows 3 and 4) with different values (1 and 2)"),
     ("0,1\n,1\n0.2,1\n", 3, "missing"),
     ("0,1\nnan,1\n", 3, "missing"),
 ])
-def test_csv_time_must_increase_error_names_row(tmp_path, rows, bad_row, word):
+def test_csv_time_that_cannot_be_settled_names_rows(tmp_path, rows, bad_row, word):
+    """A stamp more than a frame back (a clock reset), a repeated stamp whose values
+    differ and a missing stamp are errors naming the rows; nothing is guessed."""
     p = write(tmp_path / "x.csv", "time,pm\n" + rows)
     with pytest.raises(DataError) as e:
         load_measurements(p)
     assert e.value.row == bad_row and e.value.file == str(p)
     assert word in str(e.value) and f"row {bad_row}" in str(e.value)
+
+
+def test_repeated_and_late_stamps_are_settled_and_said(tmp_path):
+    """A PDC's repeated frame (same values) is dropped and a frame one step late is sorted
+    into place; both are said in a warning and kept in the time base's facts."""
+    from rapid_cosim.data.timebase import TimeBaseWarning
+
+    p = write(tmp_path / "x.csv", "time,pm\n0,1\n0.1,2\n0.1,2\n0.3,4\n0.2,3\n0.4,\n0.4,5\n")
+    with pytest.warns(TimeBaseWarning) as w:
+        data = load_measurements(p)
+    assert np.array_equal(data.time, [0, 0.1, 0.2, 0.3, 0.4])
+    assert np.array_equal(data.columns["pm"], [1, 2, 3, 4, 5])  # a blank copy takes the other's value
+    assert list(data.rows) == [2, 3, 6, 5, 7]
+    words = str(w[0].message)
+    assert "2 repeated stamp(s) dropped" in words and "1 stamp(s) out of order sorted" in words
+    base = data.timebase
+    assert (base.repeated if hasattr(base, "repeated") else base.repairs.repeated) == 2
+    assert base.repairs.reordered == 1 and "sorted" in base.describe()
+
+
+def test_the_time_base_is_measured(tmp_path):
+    """Jitter about the grid, frames missing and the holes they leave."""
+    from rapid_cosim.data.timebase import inspect
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 20, 0.02) + rng.uniform(-0.003, 0.003, 1000)
+    keep = np.ones(1000, dtype=bool)
+    keep[[100, 400, 401, 402, 403, 404]] = False
+    base = inspect(t[keep])
+    assert base.step == pytest.approx(0.02, rel=1e-3)
+    assert base.dropped == 6 and base.longest_drop == 5 and len(base.holes) == 1
+    assert 0.0015 < base.jitter_rms < 0.002 and base.jitter_max <= 0.0035
+    assert not base.regular and inspect(np.arange(0, 1, 0.02).round(4)).regular
 
 
 def test_csv_non_numeric_cell_names_row_column_and_value(tmp_path):
@@ -168,11 +203,11 @@ def test_hdf5_root_and_group(tmp_path):
         load_measurements(f"{tmp_path / 'run.h5'}:/nope")
 
 
-def test_hdf5_non_monotonic_time_rejected(tmp_path):
+def test_hdf5_time_going_back_more_than_a_frame_rejected(tmp_path):
     with h5py.File(tmp_path / "bad.h5", "w") as f:
-        f["time"] = [0.0, 1.0, 0.5]
-        f["pm"] = [1.0, 2.0, 3.0]
-    with pytest.raises(DataError, match="sample 3"):
+        f["time"] = [0.0, 1.0, 2.0, 0.5]
+        f["pm"] = [1.0, 2.0, 3.0, 4.0]
+    with pytest.raises(DataError, match="sample 4"):
         load_measurements(tmp_path / "bad.h5")
 
 

@@ -66,7 +66,7 @@ def test_joint_fit_of_a_staged_test_and_the_event_reruns_bit_identical(repo, fmu
 # --------------------------------------------------------------------------- [inputs]
 
 
-def _droop_recording(folder: Path, *, gap: bool = False, separate: bool = False, stop: float = 30.0):
+def _droop_recording(folder: Path, *, gap: int = 0, separate: bool = False, stop: float = 30.0):
     """f (Hz) falling by 0.1 Hz from 5 s with a 3 s time constant, and the DroopPlant's p
     (R 0.05, T 2 s, p_ref 0.6: a first-order lag of 0.6 - dw / R), in closed form."""
     t = np.arange(0.0, stop + 1e-9, 0.05)
@@ -74,8 +74,7 @@ def _droop_recording(folder: Path, *, gap: bool = False, separate: bool = False,
     f = 50.0 - 0.1 * (1 - np.exp(-tau / 3.0))
     p = 0.6 + 0.04 * (1 - (3.0 * np.exp(-tau / 3.0) - 2.0 * np.exp(-tau / 2.0)) / (3.0 - 2.0))
     f_cells = [f"{v:.6f}" for v in f]
-    if gap:
-        f_cells[200:203] = ["", "", ""]
+    f_cells[200:200 + gap] = [""] * gap
     if separate:
         (folder / "out.csv").write_text("time,p\n" + "".join(f"{a:.2f},{b:.9f}\n" for a, b in zip(t, p)))
         (folder / "freq.csv").write_text("t,f\n" + "".join(f"{a:.2f},{b}\n" for a, b in zip(t, f_cells)))
@@ -169,11 +168,43 @@ def test_outside_fmu_variables_named_in_the_config_must_exist(droop_fmus, tmp_pa
         rc.calibrate(config, "pso:2", archive=tmp_path / "run.h5", options=FAST)
 
 
-def test_a_gap_in_an_input_is_refused_at_its_time(droop_fmus, tmp_path):
-    _droop_recording(tmp_path, gap=True)
+def test_a_short_gap_in_an_input_is_bridged_and_said(droop_fmus, tmp_path):
+    """Three blank samples (0.15 s): bridged by interpolation, the outputs kept, the
+    bridge named in the recording's words."""
+    _droop_recording(tmp_path, gap=3)
     config = _droop_config(tmp_path, droop_fmus["me"])
-    with pytest.warns(Warning), pytest.raises(ConfigError, match=r"\[inputs.dw\].*no value at 10 s.*gap"):
+    with pytest.warns(Warning):
+        exp = load_experiment(config)
+    (bridge,) = exp.recording.bridges
+    assert (bridge.before, bridge.after, bridge.excluded) == (9.95, 10.15, None)
+    assert bridge.seconds == pytest.approx(0.15)
+    assert "input 'f': 1 hole(s) bridged by linear interpolation, the longest 0.15 s (9.95-10.15 s)" in \
+        exp.recording.lines()
+    table = exp.input_table
+    assert np.all(np.isfinite(table.values)) and exp.data.n_valid("p") == len(exp.data)
+
+
+def test_a_long_gap_in_an_input_is_refused_at_its_time_unless_asked(droop_fmus, tmp_path):
+    """2 s blank: refused with the column, the times and the option that bridges it; with
+    the option, bridged, and the outputs in and near the gap left out of the fit."""
+    _droop_recording(tmp_path, gap=40)
+    config = _droop_config(tmp_path, droop_fmus["me"])
+    with pytest.warns(Warning), pytest.raises(
+            ConfigError, match=r"\[inputs.dw\].*column 'f' has no valid sample between 9.95 s and 12 s \(2 s\).*"
+                               r"add gaps = \{ max = 2, fill = \"linear\" \}"):
         load_experiment(config)
+    inputs = 'dw = { column = "f", unit = "Hz", convert = "deviation_pu", nominal = 50.0, gaps = { max = 1.5 } }'
+    config = _droop_config(tmp_path, droop_fmus["me"], inputs=inputs)
+    with pytest.warns(Warning), pytest.raises(ConfigError, match=r"longer than 1.5 s.*its gaps.max is 1.5 s"):
+        load_experiment(config)
+    config.write_text(config.read_text().replace("max = 1.5", "max = 2.0"))
+    with pytest.warns(Warning):
+        exp = load_experiment(config)
+    (bridge,) = exp.recording.bridges
+    assert bridge.excluded == pytest.approx((9.8, 14.0))
+    left = ~exp.data.valid["p"]
+    assert np.array_equal(exp.data.time[left], exp.data.time[(exp.data.time >= 9.8) & (exp.data.time <= 14.0)])
+    assert "outputs left out of the fit over 9.8-14 s" in exp.recording.lines()[-1]
 
 
 def test_an_input_that_stops_before_the_simulation_is_refused(droop_fmus, tmp_path):
@@ -181,7 +212,7 @@ def test_an_input_that_stops_before_the_simulation_is_refused(droop_fmus, tmp_pa
     (tmp_path / "out.csv").write_text("time,p\n" + "".join(f"{0.05 * k:.2f},0.6\n" for k in range(601)))
     config = _droop_config(tmp_path, droop_fmus["me"], data="out.csv", inputs=(
         'dw = { column = "f", file = "freq.csv", time = "t", convert = "deviation_pu", nominal = 50.0 }'))
-    with pytest.raises(ConfigError, match=r"\[inputs.dw\].*spans 0 s to 20 s, the simulation 0 s to 30 s"):
+    with pytest.raises(ConfigError, match=r"\[inputs.dw\].*from 0 s to 20 s, the simulation runs 0 s to 30 s"):
         load_experiment(config)
 
 

@@ -27,7 +27,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import DataError
-from .measured import MeasuredData, MissingColumn, bad_time_reason, first_bad_time
+from .measured import MeasuredData, MissingColumn, from_recorded
 
 SUFFIXES = (".cfg", ".cff")
 
@@ -44,9 +44,6 @@ def read_comtrade(path: str | Path) -> MeasuredData:
     except (ValueError, IndexError, TypeError, KeyError, comtrade.ComtradeError, UnicodeDecodeError) as e:
         raise DataError(f"not a readable COMTRADE recording: {e}", source) from None
     time = np.asarray(rec.time, dtype=float)
-    bad = first_bad_time(time)
-    if bad is not None:
-        raise DataError(f"sample {bad + 1}: {bad_time_reason(time, bad)}", source)
     columns: dict[str, np.ndarray] = {}
     for k, (name, channel) in enumerate(zip(rec.analog_channel_ids, rec.cfg.analog_channels)):
         if name in columns:
@@ -55,7 +52,7 @@ def read_comtrade(path: str | Path) -> MeasuredData:
         if str(channel.pors).strip().upper() == "S" and channel.secondary:
             values = values * (float(channel.primary) / float(channel.secondary))
         columns[name] = values
-    return MeasuredData.from_arrays(time, columns, source=source)
+    return from_recorded(time, columns, source, "time")
 
 
 def _check_dat_length(path: Path) -> None:

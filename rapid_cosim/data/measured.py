@@ -3,19 +3,22 @@ where a sample is missing, and a validity mask beside each.
 
 Missing samples are *masked*, never interpolated over: a fit simply has fewer samples
 there. ``MeasuredData.gaps()`` / ``gap_report()`` give the facts for a caller to print.
-Time may be non-uniform (recorder jitter), but it must be finite and strictly
-increasing; a repeated or decreasing time stamp is rejected where it occurs.
+Time may be non-uniform (recorder jitter, dropped frames), but it must be finite and
+strictly increasing: the readers settle repeated and late stamps first and say so
+(:mod:`.timebase`), and :attr:`MeasuredData.timebase` says what the stamps are.
 """
 
 from __future__ import annotations
 
 import difflib
+import functools
 from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
 
 from ..errors import DataError
+from .timebase import Repairs, TimeBase, inspect, settle
 
 class MaskedSamplesWarning(UserWarning):
     """A loaded file has missing samples; they are masked, not interpolated."""
@@ -93,6 +96,7 @@ class MeasuredData:
     columns: dict[str, np.ndarray]
     valid: dict[str, np.ndarray]
     rows: np.ndarray | None = field(default=None, compare=False)
+    repairs: Repairs = field(default=Repairs(), compare=False)  # what loading did to the stamps
 
     def __post_init__(self):
         time = _readonly(np.asarray(self.time, dtype=np.float64))
@@ -135,6 +139,17 @@ class MeasuredData:
     def names(self) -> tuple[str, ...]:
         return tuple(self.columns)
 
+    @functools.cached_property
+    def timebase(self) -> TimeBase:
+        """What the stamps are (step, jitter, missing frames) and how loading repaired them."""
+        return inspect(self.time, self.source, self.repairs)
+
+    def with_valid(self, valid: Mapping[str, np.ndarray]) -> "MeasuredData":
+        """The same recording with some columns' masks replaced (samples flagged invalid)."""
+        masks = {k: np.asarray(valid.get(k, v), dtype=bool) for k, v in self.valid.items()}
+        columns = {k: np.where(masks[k], v, np.nan) for k, v in self.columns.items()}
+        return MeasuredData(self.source, self.time, columns, masks, self.rows, self.repairs)
+
     def __len__(self) -> int:
         return self.time.size
 
@@ -157,7 +172,7 @@ class MeasuredData:
             self.source, self.time[sl],
             {k: v[sl] for k, v in self.columns.items()},
             {k: v[sl] for k, v in self.valid.items()},
-            None if self.rows is None else self.rows[sl],
+            None if self.rows is None else self.rows[sl], self.repairs,
         )
 
     def resample(self, times) -> "MeasuredData":
@@ -213,6 +228,20 @@ class MeasuredData:
         if column not in self.valid:
             raise MissingColumn(column, list(self.names), self.source)
         return self.valid[column]
+
+
+def from_recorded(time: np.ndarray, columns: dict[str, np.ndarray], source: str, time_column: str,
+            rows: np.ndarray | None = None) -> MeasuredData:
+    """A reader's arrays -> :class:`MeasuredData`: stamps settled (:func:`.timebase.settle`),
+    non-finite values masked."""
+    time, columns, rows, repairs = settle(time, columns, rows, source, time_column)
+    cols, valid = {}, {}
+    for name, v in columns.items():
+        v = np.array(v, dtype=np.float64)
+        ok = np.isfinite(v)
+        v[~ok] = np.nan
+        cols[name], valid[name] = v, ok
+    return MeasuredData(source, time, cols, valid, rows, repairs)
 
 
 def first_bad_time(time: np.ndarray) -> int | None:

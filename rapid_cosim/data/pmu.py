@@ -4,9 +4,9 @@ per file, turned into seconds from a stated event time.
 A timestamp is ISO 8601 (``2024-03-01T12:00:00.020Z``, ``2024-03-01 12:00:00.02+01:00``;
 one without a zone is taken as UTC) or Unix epoch seconds (``1709294400.02``). Time is
 kept in whole microseconds until the subtraction, so 50 frames per second stay exactly
-20 ms apart. A repeated or decreasing timestamp is an error at its row (exports that
-repeat frames must be cleaned first); a leap second (``:60``) too, as its meaning
-depends on the recorder's clock. Missing rows are a gap in time, not an error: as
+20 ms apart. Repeated and late frames are settled as :mod:`.timebase` says (a repeat
+whose values disagree, or a frame more than one early, is an error at its row); a leap
+second (``:60``) is an error, as its meaning depends on the recorder's clock. Missing rows are a gap in time, not an error: as
 outputs they simply give fewer samples; as a model input, the experiment refuses a gap
 longer than its sample rate allows.
 """
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from .measured import MeasuredData, MissingColumn, bad_time_reason, first_bad_time
+from .measured import MeasuredData, MissingColumn, from_recorded
 
 _EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
 _NUMBER = re.compile(r"^[+-]?\d+(\.\d*)?$")
@@ -89,10 +89,6 @@ def read_pmu_csv(path: str | Path, timestamp: str, event_time: str | float | Non
         except ValueError as e:
             raise DataError(f"event time {event_time!r} is not a timestamp ({e})", source) from None
     time = (np.asarray(stamps, dtype=np.int64) - origin) / 1e6
-    bad = first_bad_time(time)
-    if bad is not None:
-        raise DataError(f"column '{timestamp}': {bad_time_reason(time, bad)}", source, rows[bad])
     table = np.asarray(values, dtype=float).reshape(len(values), -1)
     others = [n for k, n in enumerate(names) if k != t_index]
-    data = MeasuredData.from_arrays(time, {n: table[:, k] for k, n in enumerate(others)}, source=source)
-    return MeasuredData(data.source, data.time, data.columns, data.valid, np.asarray(rows))
+    return from_recorded(time, {n: table[:, k] for k, n in enumerate(others)}, source, timestamp, np.asarray(rows))

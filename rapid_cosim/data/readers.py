@@ -28,7 +28,10 @@ Formats, chosen by the file suffix:
 Rows in error messages are counted as a spreadsheet shows them: the header is row 1,
 the first sample row 2. For MAT and HDF5 files, errors name the 1-based sample number.
 
-Time must be finite and strictly increasing; a bad time stamp is rejected at its row.
+Time must be finite; repeated and late stamps are settled as :mod:`.timebase` says
+(repeats that agree dropped, late frames sorted, both said in a
+:class:`~.timebase.TimeBaseWarning`), and anything else is rejected at its row.
+``time_unit`` converts a time column in milliseconds or microseconds.
 """
 
 from __future__ import annotations
@@ -43,8 +46,11 @@ import numpy as np
 
 from ..errors import DataError
 from . import comtrade
-from .measured import MaskedSamplesWarning, MeasuredData, MissingColumn, bad_time_reason, first_bad_time
+from .measured import MaskedSamplesWarning, MeasuredData, MissingColumn, from_recorded
 from .pmu import read_pmu_csv
+from .timebase import TimeBaseWarning
+
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
 
 CSV_SUFFIXES = (".csv",)
 MAT_SUFFIXES = (".mat",)
@@ -63,7 +69,7 @@ def split_hdf5_path(path: str | Path) -> tuple[Path, str]:
 def load_measurements(path: str | Path, time_column: str = "time",
                       columns: Mapping[str, str] | None = None,
                       warn: bool = True, *, timestamp: str | None = None,
-                      event_time: str | float | None = None) -> MeasuredData:
+                      event_time: str | float | None = None, time_unit: str = "s") -> MeasuredData:
     """Read a recording (CSV, MAT, HDF5 or COMTRADE, by suffix) into a :class:`MeasuredData`.
 
     ``timestamp`` names a CSV column of absolute timestamps (a PMU export,
@@ -74,6 +80,8 @@ def load_measurements(path: str | Path, time_column: str = "time",
     :class:`MissingColumn` error listing what the file has. With ``warn`` a
     :class:`MaskedSamplesWarning` reports masked samples.
     """
+    if time_unit not in TIME_UNITS:
+        raise DataError(f"time unit {time_unit!r} is not known; allowed: {', '.join(TIME_UNITS)}", str(path))
     file, group = split_hdf5_path(path)
     suffix = file.suffix.lower()
     if group != "/" and suffix not in HDF5_SUFFIXES:
@@ -87,11 +95,11 @@ def load_measurements(path: str | Path, time_column: str = "time",
     elif suffix in comtrade.SUFFIXES:
         data = comtrade.read_comtrade(file)
     elif suffix in CSV_SUFFIXES:
-        data = _read_csv(file, source, time_column)
+        data = _read_csv(file, source, time_column, TIME_UNITS[time_unit])
     elif suffix in MAT_SUFFIXES:
-        data, skipped = _read_mat(file, source, time_column)
+        data, skipped = _read_mat(file, source, time_column, TIME_UNITS[time_unit])
     elif suffix in HDF5_SUFFIXES:
-        data, skipped = _read_hdf5(file, group, source, time_column)
+        data, skipped = _read_hdf5(file, group, source, time_column, TIME_UNITS[time_unit])
     else:
         supported = ", ".join(CSV_SUFFIXES + MAT_SUFFIXES + HDF5_SUFFIXES + comtrade.SUFFIXES)
         raise DataError(f"unknown file type '{file.suffix}'; supported: {supported}", source)
@@ -101,13 +109,15 @@ def load_measurements(path: str | Path, time_column: str = "time",
                 raise MissingColumn(stored, list(data.names), source, skipped)
         data = MeasuredData(source, data.time,
                             {new: data.columns[old] for new, old in columns.items()},
-                            {new: data.valid[old] for new, old in columns.items()}, data.rows)
+                            {new: data.valid[old] for new, old in columns.items()}, data.rows, data.repairs)
+    if warn and data.repairs:
+        warnings.warn(f"{source}: " + "; ".join(data.repairs.words), TimeBaseWarning, stacklevel=2)
     if warn and data.gaps():
         warnings.warn(data.gap_report(), MaskedSamplesWarning, stacklevel=2)
     return data
 
 
-def _read_csv(file: Path, source: str, time_column: str) -> MeasuredData:
+def _read_csv(file: Path, source: str, time_column: str, time_scale: float = 1.0) -> MeasuredData:
     with open(file, newline="", encoding="utf-8-sig") as fh:
         reader = csv.reader(fh)
         header = next(reader, None)
@@ -153,22 +163,12 @@ def _read_csv(file: Path, source: str, time_column: str) -> MeasuredData:
         raise DataError("the file has a header but no samples", source)
     table = np.array(values, dtype=np.float64)
     t_index = names.index(time_column)
-    time = table[:, t_index]
-    bad = first_bad_time(time)
-    if bad is not None:
-        raise DataError(f"column '{time_column}': {bad_time_reason(time, bad)}", source, rows[bad])
-    cols, valid = {}, {}
-    for k, name in enumerate(names):
-        if k == t_index:
-            continue
-        v = table[:, k].copy()
-        ok = np.isfinite(v)
-        v[~ok] = np.nan
-        cols[name], valid[name] = v, ok
-    return MeasuredData(source, time, cols, valid, np.asarray(rows))
+    return from_recorded(table[:, t_index] * time_scale, {n: table[:, k] for k, n in enumerate(names) if k != t_index},
+                   source, time_column, np.asarray(rows))
 
 
-def _read_mat(file: Path, source: str, time_column: str) -> tuple[MeasuredData, dict[str, str]]:
+def _read_mat(file: Path, source: str, time_column: str,
+              time_scale: float = 1.0) -> tuple[MeasuredData, dict[str, str]]:
     import h5py
 
     if h5py.is_hdf5(file):  # MAT v7.3
@@ -176,7 +176,7 @@ def _read_mat(file: Path, source: str, time_column: str) -> tuple[MeasuredData, 
             arrays = {k: np.asarray(f[k]) for k, obj in f.items()
                       if isinstance(obj, h5py.Dataset) and not k.startswith("#")
                       and _attr_str(obj.attrs.get("MATLAB_class")) not in ("char", "cell", "struct")}
-        return _from_arrays(arrays, source, time_column, transposed=True)
+        return _from_arrays(arrays, source, time_column, transposed=True, time_scale=time_scale)
     import scipy.io
 
     try:
@@ -184,11 +184,11 @@ def _read_mat(file: Path, source: str, time_column: str) -> tuple[MeasuredData, 
     except (ValueError, TypeError, NotImplementedError) as e:
         raise DataError(f"cannot read MAT file: {e}", source) from None
     arrays = {k: v for k, v in raw.items() if not k.startswith("__") and isinstance(v, np.ndarray)}
-    return _from_arrays(arrays, source, time_column, transposed=False)
+    return _from_arrays(arrays, source, time_column, transposed=False, time_scale=time_scale)
 
 
-def _read_hdf5(file: Path, group: str, source: str,
-               time_column: str) -> tuple[MeasuredData, dict[str, str]]:
+def _read_hdf5(file: Path, group: str, source: str, time_column: str,
+               time_scale: float = 1.0) -> tuple[MeasuredData, dict[str, str]]:
     import h5py
 
     with h5py.File(file, "r") as f:
@@ -199,11 +199,11 @@ def _read_hdf5(file: Path, group: str, source: str,
             raise DataError(f"no group '{group}'; groups present: {', '.join(['/'] + groups)}", source)
         g = f[group]
         arrays = {k: np.asarray(obj) for k, obj in g.items() if isinstance(obj, h5py.Dataset)}
-    return _from_arrays(arrays, source, time_column, transposed=False)
+    return _from_arrays(arrays, source, time_column, transposed=False, time_scale=time_scale)
 
 
 def _from_arrays(arrays: dict[str, np.ndarray], source: str, time_column: str,
-                 transposed: bool) -> tuple[MeasuredData, dict[str, str]]:
+                 transposed: bool, time_scale: float = 1.0) -> tuple[MeasuredData, dict[str, str]]:
     """Columns from named arrays that share the length of ``time``; the rest are skipped
     with a reason (so that asking for one of them says why it is not there)."""
     numeric = {k: v for k, v in arrays.items()
@@ -213,10 +213,7 @@ def _from_arrays(arrays: dict[str, np.ndarray], source: str, time_column: str,
     time = numeric[time_column]
     if time.ndim > 2 or (time.ndim == 2 and min(time.shape) != 1):
         raise DataError(f"'{time_column}' must be a vector, it has shape {time.shape}", source)
-    time = time.astype(np.float64).ravel()
-    bad = first_bad_time(time)
-    if bad is not None:
-        raise DataError(f"'{time_column}', sample {bad + 1}: {bad_time_reason(time, bad)}", source)
+    time = time.astype(np.float64).ravel() * time_scale
     n = time.size
     cols: dict[str, np.ndarray] = {}
     skipped = {k: f"not numeric ({v.dtype})" for k, v in arrays.items()
@@ -246,13 +243,7 @@ def _from_arrays(arrays: dict[str, np.ndarray], source: str, time_column: str,
             continue
         for k in range(a2.shape[1]):
             cols[f"{name}_{k}"] = a2[:, k]
-    values, valid = {}, {}
-    for name, v in cols.items():
-        v = v.astype(np.float64)
-        ok = np.isfinite(v)
-        v[~ok] = np.nan
-        values[name], valid[name] = v, ok
-    return MeasuredData(source, time, values, valid), skipped
+    return from_recorded(time, cols, source, time_column), skipped
 
 
 def _attr_str(value) -> str | None:

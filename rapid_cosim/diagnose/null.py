@@ -31,7 +31,8 @@ from scipy import stats
 
 from ..experiment.electrical import rocof_component, with_component
 from ..fitness import whitenings
-from ..noise import NoiseFit, sample_draws
+from ..noise import NoiseFit
+from ..noise.filtered import FilteredNoise
 
 LAGS = 10
 REPLICATES = 1000
@@ -42,7 +43,7 @@ BLOCK = 250  # replicates simulated at once (memory: BLOCK x samples of the camp
 @dataclass(frozen=True, eq=False)
 class ScoredTest:
     """One test as the fitness scores it: the valid sample times, its whitening (the
-    estimated model's, :class:`rapid_cosim.fitness.Whitening`), whether the offset is
+    estimated model's, :class:`rapid_cosim.noise.whitening.Whitening`), whether the offset is
     profiled, and its recorder's :class:`~rapid_cosim.noise.NoiseFit`."""
 
     name: str
@@ -99,11 +100,12 @@ class NoiseReplicates:
         self._stats: dict[bytes, dict] = {}
         for t in self.tests:
             models = recorders[id(t.noise)]
-            for component in t.extra:
-                models = [with_component(m, component) for m in models]
+            for component in t.extra:  # the slow-component form joins the recorder's; a filtered one
+                if not isinstance(component, FilteredNoise):  # is the whitening's own (Whitening.sample)
+                    models = [with_component(m, component) for m in models]
             out = np.empty((self.replicates, t.times.size), dtype=np.float32)
             for a in range(0, self.replicates, BLOCK):
-                raw = sample_draws(models[a:a + BLOCK], t.times, rng)
+                raw = t.whitening.sample(models[a:a + BLOCK], rng)
                 out[a:a + BLOCK] = t.whitening.residual(raw, t.offset)
             self.e[t.name] = out
 

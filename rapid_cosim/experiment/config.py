@@ -17,6 +17,10 @@ Schema (keys not shown here are rejected, with a suggestion when one is close)::
     time = "time"                           # time column, default "time"
     outputs = { pm = "pm" }                 # required: model output -> data column;
                                             # pe: electrical power (experiment.electrical)
+    time_unit = "s"                         # or "ms", "us": the time column's unit
+    flags = { column = "STAT", kind = "c37.118" }  # optional: frames marked invalid
+    limits = { frequency = 5.0, power = 2.0 }      # values no recorder can mean
+                                            # (experiment.recording: every key, the defaults)
 
     [fixed]                                 # FMU parameter values held fixed (numbers)
     documented = "unit.dyr"                 # optional: the gov.* constants of a PSS/E .dyr or
@@ -90,18 +94,22 @@ import numpy as np
 
 from ..data import MeasuredData, MissingColumn, close_matches, describe_missing, load_measurements, noise_level
 from ..data import split_hdf5_path
+from ..data.readers import TIME_UNITS
 from ..errors import ConfigError, DataError
+from ..simulator.rocof import WINDOW
 from . import documented
 from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, EstimateSpec, Experiment,
                          SimulationSettings)
-from .electrical import check_machine, check_rocof_column, with_rocof_noise
+from .electrical import check_machine, check_rocof_column, with_rocof_noise, without_unfit
 from .recorder import read_noise_models
+from .recording import Bridge, Recording, apply_flags, apply_limits, bridges, check_step, exclude, read_spec
 from .signals import read_inputs, read_outputs
 from .toml_writer import config_key, dotted_items
 
 _SECTIONS: dict[str, frozenset[str] | None] = {
     "experiment": frozenset({"name", "model", "fmu", "description"}),
-    "data": frozenset({"file", "time", "outputs", "timestamp", "event_time", "resample"}),
+    "data": frozenset({"file", "time", "outputs", "timestamp", "event_time", "resample", "time_unit", "flags",
+                       "limits"}),
     "inputs": None,  # model input names
     "fixed": None,  # parameter names
     "estimate": None,
@@ -186,47 +194,57 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
                           file, config_key("estimate", both[0]))
     check_machine(outputs, fixed, estimate, cfg)
 
+    f = sections["fitness"]
+    pre_step_end = cfg.number(f["pre_step_end"], "fitness.pre_step_end") if "pre_step_end" in f else None
+    inputs = read_inputs(sections["inputs"], cfg, pre_step_end)
+    recorded = read_spec(d, cfg)
     if data is None:
-        data = _load_data(path, data_file, time_column, outputs, file, timestamp, event_time)
-        if "resample" in d:
-            step = _positive(cfg.number(d["resample"], "data.resample"), cfg, "data.resample")
-            data = data.resample(data.time[0] + step * np.arange(int((data.time[-1] - data.time[0]) / step + 1e-9) + 1))
+        data = _load_data(path, data_file, time_column, outputs, file, timestamp, event_time,
+                          time_unit=_time_unit(d, cfg))
     else:
         for out, col in outputs.items():
             if col not in data.columns:
                 raise ConfigError(describe_missing(col, list(data.names)), file, config_key("data.outputs", out))
+    check_step(data, cfg, "data.time")
+    data, masked = apply_flags(data, recorded, cfg)
+    data, more = apply_limits(data, recorded, {s.column: s.frequency for s in inputs if s.file is None and s.frequency},
+                              {spec.column: spec.rating for spec in output_specs.values() if spec.rating})
+    masked += more
+    if "resample" in d:
+        if recorded.flags is not None:
+            raise ConfigError("flags and resample do not go together: a STAT word cannot be interpolated; "
+                              "resample the recording after masking its invalid frames", file, "data.resample")
+        step = _positive(cfg.number(d["resample"], "data.resample"), cfg, "data.resample")
+        data = data.resample(data.time[0] + step * np.arange(int((data.time[-1] - data.time[0]) / step + 1e-9) + 1))
 
-    f = sections["fitness"]
     window = _read_window(f, data, cfg)
     weights = _read_weights(f, outputs, cfg)
-    try:
-        inside = data.window(*window)
-    except DataError as e:
-        raise ConfigError(e.detail, file, "fitness.window") from None
-    for out, col in outputs.items():
-        if weights[out] > 0 and inside.n_valid(col) == 0:
-            raise ConfigError(f"no valid samples of column '{col}' (output {out}) in the "
-                              f"window {list(window)} s", file, "fitness.window")
+    inside = _inside(data, window, outputs, weights, cfg)
     offset = cfg.boolean(f, "fitness", "offset", default=False)
-    pre_step_end = None
-    if "pre_step_end" in f:
-        pre_step_end = cfg.number(f["pre_step_end"], "fitness.pre_step_end")
-        if not data.time[0] < pre_step_end <= data.time[-1]:
-            raise ConfigError(f"{pre_step_end:g} s is outside the record, which spans "
-                              f"{data.time[0]:g} s to {data.time[-1]:g} s",
-                              file, "fitness.pre_step_end")
+    if pre_step_end is not None and not data.time[0] < pre_step_end <= data.time[-1]:
+        raise ConfigError(f"{pre_step_end:g} s is outside the record, which spans "
+                          f"{data.time[0]:g} s to {data.time[-1]:g} s",
+                          file, "fitness.pre_step_end")
     noise, noise_sigma = _read_noise(f, outputs, data, pre_step_end, cfg)
     if noise_sigma is not None and noise == NOISE_PRE_STEP:  # the level of the compared, converted values
         noise_sigma = {out: sigma * output_specs[out].conversion.gain for out, sigma in noise_sigma.items()}
     noise_models = read_noise_models(sections["noise"], outputs, weights, inside, cfg)
     simulation = _read_simulation(sections["simulation"], inside, cfg)
-    inputs = read_inputs(sections["inputs"], cfg, pre_step_end)
     files = dict(files or {})
     for spec in inputs:
         if spec.file is not None and spec.file not in files:
-            files[spec.file] = _load_data(path, spec.file, spec.time, {spec.name: spec.column}, file, None, None,
-                                          key=config_key("inputs", spec.name))
-    check_inputs(inputs, data, files, simulation, cfg)
+            loaded = _load_data(path, spec.file, spec.time, {spec.name: spec.column}, file, None, None,
+                                key=config_key("inputs", spec.name))
+            check_step(loaded, cfg, config_key("inputs", spec.name))
+            files[spec.file], more = apply_limits(loaded, recorded, {spec.column: spec.frequency}
+                                                  if spec.frequency else {}, {})
+            masked += more
+    bridged = check_inputs(inputs, data, files, simulation, cfg)
+    left_out = [b.excluded for b in bridged if b.excluded]
+    if left_out:
+        data = exclude(data, list(outputs.values()), left_out)
+        inside = _inside(data, window, outputs, weights, cfg)
+    timebases = {data_file: data.timebase, **{name: d.timebase for name, d in files.items()}}
 
     experiment = Experiment(
         name=name, config_path=path, config_text=text, model=model, description=description,
@@ -235,9 +253,10 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         pre_step_end=pre_step_end, simulation=simulation, time_column=time_column,
         conversions={o: s.conversion for o, s in output_specs.items() if not s.conversion.identity},
         inputs=inputs, files=files, noise_models=noise_models,
+        recording=Recording(timebases, tuple(masked), tuple(bridged)),
     )
     check_rocof_column(experiment, cfg)
-    return with_rocof_noise(experiment)
+    return with_rocof_noise(without_unfit(experiment))
 
 
 def _read_model(exp: dict, path: Path, cfg: "_Reader") -> str:
@@ -256,35 +275,44 @@ def _read_model(exp: dict, path: Path, cfg: "_Reader") -> str:
     return str(fmu if fmu.is_absolute() else (path.parent / fmu).resolve())
 
 
-def check_inputs(inputs, data: MeasuredData, files: dict[str, MeasuredData], simulation, cfg: "_Reader") -> None:
-    """Each input's column exists, and covers the simulated span without a gap: a model
-    cannot run through a hole in its input."""
+def check_inputs(inputs, data: MeasuredData, files: dict[str, MeasuredData], simulation,
+                 cfg: "_Reader") -> list[Bridge]:
+    """Each input's column exists and covers the simulated span; its holes are bridged up
+    to what the input allows, and longer ones refused (:mod:`.recording`)."""
+    out = []
     for spec in inputs:
         key = config_key("inputs", spec.name)
         source = files[spec.file] if spec.file is not None else data
         if spec.column not in source.columns:
             raise ConfigError(describe_missing(spec.column, list(source.names)), cfg.file, f"{key}.column")
-        t = source.time
-        dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
-        if t[0] > simulation.start_time + dt or t[-1] < simulation.stop_time - dt:
-            raise ConfigError(f"column '{spec.column}' spans {t[0]:g} s to {t[-1]:g} s, the simulation "
-                              f"{simulation.start_time:g} s to {simulation.stop_time:g} s", cfg.file, key)
-        inside = (t >= simulation.start_time - dt) & (t <= simulation.stop_time + dt)
-        masked = inside & ~source.valid[spec.column]
-        if masked.any():
-            first = int(np.flatnonzero(masked)[0])
-            raise ConfigError(f"column '{spec.column}' has no value at {t[first]:g} s: a gap in an input "
-                              "the model cannot run through", cfg.file, key)
-        steps = np.diff(t[inside])
-        if steps.size and steps.max() > 3.0 * dt:
-            k = int(np.argmax(steps))
-            raise ConfigError(f"column '{spec.column}' has no sample between {t[inside][k]:g} s and "
-                              f"{t[inside][k + 1]:g} s: a gap in an input the model cannot run through",
-                              cfg.file, key)
+        out += bridges(spec.name, spec.column, source, simulation.start_time, simulation.stop_time, spec.gaps, cfg,
+                       WINDOW)
+    return out
+
+
+def _inside(data: MeasuredData, window, outputs: dict[str, str], weights, cfg: "_Reader") -> MeasuredData:
+    """The samples inside the fitness window; each output of weight has some valid."""
+    try:
+        inside = data.window(*window)
+    except DataError as e:
+        raise ConfigError(e.detail, cfg.file, "fitness.window") from None
+    for out, col in outputs.items():
+        if weights[out] > 0 and inside.n_valid(col) == 0:
+            raise ConfigError(f"no valid samples of column '{col}' (output {out}) in the "
+                              f"window {list(window)} s", cfg.file, "fitness.window")
+    return inside
+
+
+def _time_unit(d: dict, cfg: "_Reader") -> str:
+    unit = cfg.string(d, "data", "time_unit", default="s")
+    if unit not in TIME_UNITS:
+        raise ConfigError(f"time_unit {unit!r} is not one of {', '.join(TIME_UNITS)}", cfg.file, "data.time_unit")
+    return unit
 
 
 def _load_data(config: Path, data_file: str, time_column: str, outputs: dict[str, str],
-               file: str, timestamp: str | None, event_time, key: str | None = None) -> MeasuredData:
+               file: str, timestamp: str | None, event_time, key: str | None = None,
+               time_unit: str = "s") -> MeasuredData:
     fpath, group = split_hdf5_path(data_file)
     if not fpath.is_absolute():
         fpath = config.parent / fpath
@@ -292,7 +320,8 @@ def _load_data(config: Path, data_file: str, time_column: str, outputs: dict[str
         raise ConfigError(f"data file not found: {fpath.resolve()}", file, key or "data.file")
     target = str(fpath) + (f":{group}" if group != "/" else "")
     try:
-        data = load_measurements(target, time_column=time_column, timestamp=timestamp, event_time=event_time)
+        data = load_measurements(target, time_column=time_column, timestamp=timestamp, event_time=event_time,
+                                 time_unit=time_unit)
     except MissingColumn as e:  # only the time column can be missing here
         raise ConfigError(f"{target}: {e.detail}", file, key or ("data.timestamp" if timestamp else "data.time")) \
             from None

@@ -18,7 +18,8 @@ import numpy as np
 from ..data import MeasuredData
 from ..noise import RecorderNoise
 from ..simulator import InputTable
-from ..simulator.rocof import with_rocof
+from ..simulator.rocof import FREQUENCY, ROCOF, WINDOW, RocofOperator, rocof_operator
+from .recording import Recording
 from .signals import Conversion, InputSpec
 
 CONFIG_NAME = "config.toml"
@@ -97,6 +98,7 @@ class Experiment:
     inputs: tuple[InputSpec, ...] = ()  # model inputs driven by measured columns
     files: dict[str, MeasuredData] = field(default_factory=dict)  # inputs' other data files, by name
     noise_models: dict[str, RecorderNoise] = field(default_factory=dict)  # [noise]: whitened fitness
+    recording: Recording = field(default_factory=Recording)  # the time base, masks, bridges: said
 
     def measured(self, output: str, data: MeasuredData | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The values ``output`` is compared with (converted as configured) and their mask."""
@@ -106,23 +108,48 @@ class Experiment:
         conversion = self.conversions.get(output)
         return (values if conversion is None else conversion.apply(data.time, values, valid)), valid
 
+    def source(self, spec: InputSpec) -> MeasuredData:
+        """The recording an input is read from."""
+        return self.files[spec.file] if spec.file is not None else self.data
+
     @functools.cached_property
     def input_table(self) -> InputTable | None:
-        """The model's inputs over time, from their measured columns (None: no inputs)."""
+        """The model's inputs over time, from their measured columns (None: no inputs).
+        Masked and missing samples are bridged by linear interpolation between the valid
+        ones (the loader has refused holes longer than an input allows: .recording); a
+        derived ROCOF is :attr:`rocof_map` applied to the valid frequency samples."""
         if not self.inputs:
             return None
         columns = {}
         times = []
         for spec in self.inputs:
-            source = self.files[spec.file] if spec.file is not None else self.data
+            source = self.source(spec)
             valid = source.valid[spec.column]
             values = spec.conversion.apply(source.time, source.columns[spec.column], valid)
             times.append(source.time)
-            columns[spec.name] = (source.time, values)
+            columns[spec.name] = (source.time, np.interp(source.time, source.time[valid], values[valid]))
         base = times[0] if all(np.array_equal(t, times[0]) for t in times) else np.unique(np.concatenate(times))
         table = InputTable.from_columns(base, {n: np.interp(base, t, v) for n, (t, v) in columns.items()})
-        # the ROCOF of a recording without one, split at the event (.electrical, simulator.rocof)
-        return with_rocof(table, breaks=() if self.pre_step_end is None else (self.pre_step_end,))
+        rocof = self.rocof_map
+        if rocof is None:
+            return table
+        t, f = columns[FREQUENCY]
+        values = np.interp(base, rocof.time, rocof.apply(f))
+        return InputTable(table.time, table.names + (ROCOF,), np.column_stack([table.values, values]))
+
+    @functools.cached_property
+    def rocof_map(self) -> RocofOperator | None:
+        """The derived ROCOF as a map of the recorded frequency (its valid samples, as
+        stamped), split at the event (:func:`rapid_cosim.simulator.rocof.rocof_operator`);
+        None where a ROCOF column is given or no frequency is recorded."""
+        names = {s.name for s in self.inputs}
+        if FREQUENCY not in names or ROCOF in names:
+            return None
+        spec = next(s for s in self.inputs if s.name == FREQUENCY)
+        source = self.source(spec)
+        breaks = () if self.pre_step_end is None else (self.pre_step_end,)
+        return rocof_operator(source.time, WINDOW, breaks, source.valid[spec.column])
+
     def windowed_data(self) -> MeasuredData:
         """The measurements inside the fitness window (made once: every simulation asks)."""
         return self._windowed

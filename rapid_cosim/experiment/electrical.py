@@ -32,13 +32,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..errors import ConfigError
+from scipy import sparse
 from scipy.signal import savgol_coeffs
 
+from ..errors import ConfigError
 from ..noise import QuietStretch, RecorderNoise
 from ..noise.estimate import moment_noise
 from ..noise.filtered import FilteredNoise
-from ..simulator.rocof import FREQUENCY, ORDER, ROCOF, WINDOW, derive_rocof, points
+from ..noise.timed import DerivedNoise
+from ..simulator.rocof import FREQUENCY, ORDER, ROCOF, WINDOW, points, rocof_operator
 from .toml_writer import config_key
 
 ELECTRICAL = "pe"
@@ -110,7 +112,7 @@ def check_rocof_column(exp, cfg) -> None:
         return
     given = table.values[:, table.names.index(ROCOF)]
     breaks = () if exp.pre_step_end is None else (exp.pre_step_end,)
-    derived = derive_rocof(table.time, table.values[:, table.names.index(FREQUENCY)], WINDOW, breaks)
+    derived = rocof_operator(table.time, WINDOW, breaks).apply(table.values[:, table.names.index(FREQUENCY)])
     quiet = table.time < exp.pre_step_end if exp.pre_step_end is not None else np.zeros(table.time.size, bool)
     noise = float(np.std(derived[quiet])) if quiet.sum() > 10 else 0.0
     if np.sqrt(np.mean(derived ** 2)) <= 5.0 * noise or not np.any(derived):
@@ -126,35 +128,54 @@ def check_rocof_column(exp, cfg) -> None:
 def rocof_component(exp) -> FilteredNoise | tuple[float, float] | None:
     """The ROCOF's noise in the bench's ``pe``, None without it. Derived from the
     frequency: the frequency recorder's noise (white + AR(1) fitted to its quiet
-    pre-event samples by moments, :func:`rapid_cosim.noise.estimate.moment_noise`) through the Savitzky-Golay
-    derivative's taps; from a ROCOF column: that column's quiet noise. Scaled by
-    2 H / f_nom (H fixed, or the top of its bounds when estimated: the noise is not
-    underestimated). Where the frequency is sampled on another grid than the power, the
-    exact form cannot join the power's noise: the old approximation, a slow component
-    (sigma, half the filter's window)."""
+    pre-event samples by moments, :func:`rapid_cosim.noise.estimate.moment_noise`) through
+    the ROCOF's own map (:attr:`Experiment.rocof_map`: each sample's local fit on the
+    stamps as recorded), exactly (:class:`rapid_cosim.noise.timed.DerivedNoise`); from a
+    ROCOF column: that column's quiet noise. Scaled by 2 H / f_nom (H fixed, or the top
+    of its bounds when estimated: the noise is not underestimated). Where the frequency
+    is recorded on another time base than the power, no map joins the two: the old
+    approximation, a slow component (sigma, half the filter's window)."""
     if ELECTRICAL not in exp.outputs or exp.pre_step_end is None:
         return None
     table = exp.input_table
     if table is None or ROCOF not in table.names:
         return None
-    quiet = table.time < exp.pre_step_end
-    if quiet.sum() < MIN_QUIET:
+    given = next((s for s in exp.inputs if s.name == ROCOF and s.column), None)
+    spec = given or next((s for s in exp.inputs if s.name == FREQUENCY), None)
+    if spec is None:
+        return None
+    source = exp.source(spec)
+    valid = source.valid[spec.column]
+    values = spec.conversion.apply(source.time, source.columns[spec.column], valid)
+    quiet = valid & (source.time < exp.pre_step_end)
+    if quiet.sum() < MIN_QUIET or np.ptp(values[quiet]) == 0:
         return None
     bounds = {s.name: s.max for s in exp.estimate}
     scale = 2.0 * exp.fixed.get(INERTIA, bounds.get(INERTIA)) / exp.fixed.get("f_nom", 50.0)
-    given = any(s.name == ROCOF and s.column for s in exp.inputs)
-    channel = ROCOF if given or FREQUENCY not in table.names else FREQUENCY
-    t, v = table.time[quiet], table.values[quiet, table.names.index(channel)]
-    dt = float(np.median(np.diff(t)))
-    if np.ptp(v) == 0 or np.max(np.abs(np.diff(t) - dt)) > 0.01 * dt:
-        return None
-    source = moment_noise(QuietStretch(exp.name, "pre-event", t, v, trend_order=1))
-    taps = (scale,) if channel == ROCOF else tuple(scale * savgol_coeffs(points(dt), ORDER, deriv=1, delta=dt))
-    component = FilteredNoise(source, taps)
-    power = exp.noise_models.get(ELECTRICAL)
-    if power is not None and abs(power.dt - dt) > 0.01 * dt:
-        return (component.sigma, WINDOW / 2)
-    return component
+    t, v = source.time[quiet], values[quiet]
+    dt = source.timebase.step
+    noise = moment_noise(QuietStretch(exp.name, "pre-event", t, v, trend_order=1))
+    taps = (scale,) if given else tuple(scale * savgol_coeffs(points(dt), ORDER, deriv=1, delta=dt))
+    if source is not exp.data:
+        component = FilteredNoise(noise, taps)
+        power = exp.noise_models.get(ELECTRICAL)
+        return (component.sigma, WINDOW / 2) if power is not None and abs(power.dt - dt) > 0.01 * dt else component
+    matrix = sparse.identity(source.time.size, format="csr") if given else exp.rocof_map.matrix
+    return DerivedNoise(noise, taps, time=source.time, matrix=(scale * matrix).tocsr())
+
+
+def without_unfit(exp):
+    """``exp`` with the power samples whose ROCOF window held no fit left out of its fit,
+    and said in its recording: their bench input is an interpolation, not a measurement."""
+    rocof = exp.rocof_map
+    if ELECTRICAL not in exp.outputs or rocof is None or not rocof.unfit.any():
+        return exp
+    spec = next(s for s in exp.inputs if s.name == FREQUENCY)
+    if exp.source(spec) is not exp.data:
+        return exp
+    column = exp.outputs[ELECTRICAL]
+    data = exp.data.with_valid({column: exp.data.valid[column] & ~rocof.unfit})
+    return replace(exp, data=data, recording=replace(exp.recording, unfit=tuple(rocof.unfit_spans())))
 
 
 def with_rocof_noise(exp):
@@ -212,11 +233,26 @@ def describe_recording(exp) -> str | None:
         table = exp.input_table
         if table is None or FREQUENCY not in table.names:
             return words + "no recorded frequency: the bench's own ROCOF"
-        dt = float(np.median(np.diff(table.time)))
-        words += (f"ROCOF derived from the frequency: zero-phase Savitzky-Golay derivative over {WINDOW:g} s "
-                  f"({points(dt)} samples at {1.0 / dt:.3g} per second), split at the event; band-limited like "
-                  "an IEEE C37.118.1 M-class PMU, without its delay (not a P-class estimate)")
+        spec = next(s for s in exp.inputs if s.name == FREQUENCY)
+        base = exp.source(spec).timebase
+        stamps = ("on regular stamps it is the Savitzky-Golay derivative" if base.regular else
+                  f"fitted on the stamps as recorded ({_jitter_words(base)}), never a raw difference")
+        words += (f"ROCOF derived from the frequency: the slope of a local least-squares quadratic over {WINDOW:g} s "
+                  f"({points(base.step)} samples at {1.0 / base.step:.3g} per second), zero-phase, split at the "
+                  f"event; {stamps}; band-limited like an IEEE C37.118.1 M-class PMU, without its delay (not a "
+                  "P-class estimate)")
     component = rocof_component(exp)
-    if component is not None:
-        words += f"; its noise in {ELECTRICAL}, {component_sigma(component):.2g} pu, is part of the noise model"
+    if isinstance(component, DerivedNoise):
+        words += (f"; its noise in {ELECTRICAL}, {component_sigma(component):.2g} pu, is part of the noise model, "
+                  "exactly on these stamps")
+    elif component is not None:
+        words += (f"; its noise in {ELECTRICAL}, {component_sigma(component):.2g} pu, is part of the noise model "
+                  "(approximately: the frequency is recorded on another time base than the power)")
     return words
+
+
+def _jitter_words(base) -> str:
+    parts = [f"jitter {1e3 * base.jitter_rms:.2g} ms RMS"]
+    if base.dropped:
+        parts.append(f"{base.dropped} frame(s) missing")
+    return ", ".join(parts)

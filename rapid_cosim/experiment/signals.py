@@ -33,7 +33,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import ConfigError
-from .electrical import check_rating
+from .electrical import POWER_UNITS, check_rating
+from .recording import FREQUENCY_UNITS, SHORT_GAP, read_gaps
 from .toml_writer import config_key
 
 UNITS = {"": 1.0, "1": 1.0, "pu": 1.0, "Hz": 1.0, "mHz": 1e-3, "kHz": 1e3, "MW": 1.0, "kW": 1e-3, "W": 1e-6,
@@ -41,7 +42,7 @@ UNITS = {"": 1.0, "1": 1.0, "pu": 1.0, "Hz": 1.0, "mHz": 1e-3, "kHz": 1e3, "MW":
 CONVERSIONS = ("none", "deviation", "deviation_pu")
 BASELINES = ("none", "pre-event", "detrend")
 INPUT_KEYS = frozenset({"column", "file", "time", "unit", "convert", "nominal", "scale", "offset", "sign",
-                        "baseline", "baseline_end"})
+                        "baseline", "baseline_end", "gaps"})
 OUTPUT_KEYS = frozenset({"column", "unit", "scale", "offset", "rating"})
 
 
@@ -91,6 +92,17 @@ class InputSpec:
     file: str | None = None  # another data file than [data] file, on the same time base
     time: str = "time"  # that file's time column
     conversion: Conversion = Conversion()
+    gaps: float = SHORT_GAP  # the longest hole bridged by interpolation (s): .recording
+
+    @property
+    def frequency(self) -> tuple[float, float] | None:
+        """(the column's factor to Hz, the nominal in Hz) when it records a grid frequency
+        (converted about a nominal of 40 to 70 Hz), else None: what its limits check."""
+        c = self.conversion
+        if c.convert == "none" or c.nominal is None or c.unit not in FREQUENCY_UNITS:
+            return None
+        nominal = c.nominal * FREQUENCY_UNITS[c.unit]
+        return (FREQUENCY_UNITS[c.unit], nominal) if 40.0 <= nominal <= 70.0 else None
 
 
 @dataclass(frozen=True)
@@ -100,6 +112,14 @@ class OutputSpec:
     name: str
     column: str
     conversion: Conversion = Conversion()
+
+    @property
+    def rating(self) -> float | None:
+        """The unit's rating in the column's own unit, for a power on a rating (else None)."""
+        c = self.conversion
+        if c.unit not in POWER_UNITS or c.convert != "none" or not c.scale:
+            return None
+        return abs(1.0 / (c.scale * UNITS[c.unit]))
 
 
 # --------------------------------------------------------------------------- reading
@@ -132,7 +152,7 @@ def read_inputs(table: dict, cfg, pre_step_end: float | None) -> tuple[InputSpec
         file = cfg.string(spec, key, "file") if "file" in spec else None
         specs.append(InputSpec(name, cfg.string(spec, key, "column"), file,
                                cfg.string(spec, key, "time", default="time"),
-                               _conversion(spec, cfg, key, pre_step_end)))
+                               _conversion(spec, cfg, key, pre_step_end), read_gaps(spec, cfg, key)))
     return tuple(specs)
 
 

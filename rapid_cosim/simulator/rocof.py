@@ -22,14 +22,22 @@ Its noise: white frequency noise sigma_f gives ROCOF noise sigma_f x :func:`nois
 the experiment layer measures it on the quiet pre-event samples and adds it to the
 fitness's noise (:mod:`rapid_cosim.experiment.electrical`).
 
-Tables with steps (a time written twice) are derived piecewise: a step's impulse is not
-representable, and each side gets the derivative of its own samples.
+Stamps as recorders write them: the local fits are made on the actual time stamps
+(:func:`rocof_operator`), so jitter and missing frames change only which samples a window
+holds and where they lie, never the filter's meaning; there is no fallback to a raw
+difference. A window that cannot hold a fit is named, and the experiment leaves the
+power samples that depend on it out of its fit. Tables with steps (a time written twice)
+are derived piecewise: a step's impulse is not representable, and each side gets the
+derivative of its own samples.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
-from scipy.signal import savgol_coeffs, savgol_filter
+from scipy import sparse
+from scipy.signal import savgol_coeffs
 
 from .inputs import InputTable
 
@@ -47,39 +55,103 @@ def points(dt: float, window: float = WINDOW) -> int:
 
 
 def derive_rocof(time: np.ndarray, values: np.ndarray, window: float = WINDOW,
-                 breaks: tuple[float, ...] = ()) -> np.ndarray:
-    """d(values)/dt on ``time`` by the zero-phase Savitzky-Golay derivative, piecewise
-    between steps and at ``breaks`` (an event's known start: its ROCOF step is not spread
-    over the samples before it, where the bench's P_e would otherwise swing ahead of the
-    recording's); a piece too short or not evenly sampled gets second-order differences.
-    A sample at a break's time ends the piece before it: it was recorded as the event
-    began, before the power moved (given the post-event slope instead, the bench's P_e
-    stepped one sample early there, 0.05 pu against 0.002 of noise on an ANDES event, and
-    structure selection found every structure inadequate, variance ratio 1.7).
+                 breaks: tuple[float, ...] = (), valid: np.ndarray | None = None) -> np.ndarray:
+    """d(values)/dt on ``time``: :func:`rocof_operator`'s local quadratic slopes (the
+    zero-phase Savitzky-Golay derivative where the stamps are regular), over the valid
+    samples only; a sample whose window cannot hold a fit gets the slope interpolated from
+    its neighbours' (:class:`RocofOperator` says which)."""
+    return rocof_operator(time, window, breaks, valid).apply(values)
 
-    Measured on the ANDES events (experiments/electrical, noise-free samples): the split,
-    the window (0.15, 0.3 or 0.6 s) and ANDES's exact ROCOF instead of this one each move
-    the fitted fast lag by at most 1.5 % and R by 0.3 %; a fast lag's larger errors there
-    are the recorder noise's draw (tests/test_electrical.py)."""
+
+@dataclass(frozen=True, eq=False)
+class RocofOperator:
+    """The ROCOF as a linear map of the recorded frequency: ``rocof = matrix @ f`` on the
+    frequency's own samples (columns of masked samples are zero), and the rows whose
+    window could not hold a fit (``unfit``: fewer than ORDER + 2 valid samples, or spanning
+    under half the window) with their reason. The same map gives the derived ROCOF's
+    noise exactly (:mod:`rapid_cosim.experiment.electrical`)."""
+
+    time: np.ndarray
+    matrix: sparse.csr_matrix
+    unfit: np.ndarray  # bool per row
+
+    def apply(self, values: np.ndarray) -> np.ndarray:
+        v = np.where(np.isfinite(values), values, 0.0)
+        out = self.matrix @ v
+        if self.unfit.any():
+            ok = ~self.unfit
+            if not ok.any():
+                return np.zeros_like(out)
+            out[self.unfit] = np.interp(self.time[self.unfit], self.time[ok], out[ok])
+        return out
+
+    def unfit_spans(self) -> list[tuple[float, float, int]]:
+        """(first, last time, rows) of each run of rows with no fit."""
+        edges = np.diff(np.concatenate([[0], self.unfit.view(np.int8), [0]]))
+        return [(float(self.time[a]), float(self.time[b - 1]), int(b - a))
+                for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1))]
+
+
+def rocof_operator(time: np.ndarray, window: float = WINDOW, breaks: tuple[float, ...] = (),
+                   valid: np.ndarray | None = None) -> RocofOperator:
+    """The local least-squares quadratic's slope at each sample, fitted on the samples as
+    stamped (jittered, with frames missing), valid ones only, between steps and
+    ``breaks``.
+
+    A row's window is the nominal one: the samples within (points(dt) / 2) steps of the
+    nominal step ``dt`` (the median step) either side, shifted inside its piece at the
+    piece's ends. On regular stamps that is exactly the Savitzky-Golay derivative with
+    ``mode="interp"``; on jittered ones each window keeps its samples and their true
+    times; a missing frame is simply absent. A piece is cut at a time written twice (a
+    table's step) and after the last sample at or before a break (a sample at a break's
+    time was recorded as the event began, before the power moved: given the post-event
+    slope instead, the bench's P_e stepped one sample early there, 0.05 pu against 0.002
+    of noise on an ANDES event)."""
     t = np.asarray(time, dtype=float)
-    v = np.asarray(values, dtype=float)
-    out = np.zeros_like(v)
-    cuts = set((np.flatnonzero(np.diff(t) == 0) + 1).tolist())
-    cuts.update(int(i) for i in np.searchsorted(t, breaks, side="right") if 0 < i < t.size)
-    for seg in np.split(np.arange(t.size), sorted(cuts)):
-        out[seg] = _piece(t[seg], v[seg], window)
-    return out
-
-
-def _piece(t: np.ndarray, v: np.ndarray, window: float) -> np.ndarray:
-    if t.size < 2:
-        return np.zeros_like(v)
+    n = t.size
+    ok = np.ones(n, dtype=bool) if valid is None else np.asarray(valid, dtype=bool).copy()
+    if n < 2:
+        return RocofOperator(t, sparse.csr_matrix((n, n)), np.ones(n, dtype=bool))
     steps = np.diff(t)
-    dt = float(np.median(steps))
-    n = points(dt, window)
-    if t.size < n or np.max(np.abs(steps - dt)) > 0.01 * dt:  # time stamps rounded, not jittered
-        return np.gradient(v, t) if t.size > 2 else np.full_like(v, (v[-1] - v[0]) / (t[-1] - t[0]))
-    return savgol_filter(v, n, ORDER, deriv=1, delta=dt, mode="interp")
+    dt = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
+    half = (points(dt, window) - 1) // 2
+    reach = (half + 0.5) * dt
+    cuts = np.zeros(n, dtype=np.int64)  # piece number of each sample
+    cut_at = set((np.flatnonzero(steps == 0) + 1).tolist())
+    cut_at.update(int(i) for i in np.searchsorted(t, breaks, side="right") if 0 < i < n)
+    for i in sorted(cut_at):
+        cuts[i:] += 1
+    first = np.searchsorted(cuts, cuts, side="left")  # each sample's piece: [first, last]
+    last = np.searchsorted(cuts, cuts, side="right") - 1
+    a = t - reach
+    b = t + reach
+    low = a < t[first] - 0.5 * dt  # shifted inside the piece at its ends
+    a = np.where(low, t[first] - 0.5 * dt, a)
+    b = np.where(low, t[first] - 0.5 * dt + 2 * reach, b)
+    high = b > t[last] + 0.5 * dt
+    b = np.where(high, t[last] + 0.5 * dt, b)
+    a = np.where(high & ~low, t[last] + 0.5 * dt - 2 * reach, a)
+    lo = np.maximum(np.searchsorted(t, a, side="left"), first)
+    hi = np.minimum(np.searchsorted(t, b, side="right"), last + 1)
+    width = int(np.max(hi - lo))
+    idx = lo[:, None] + np.arange(width)[None, :]
+    inside = idx < hi[:, None]
+    idx = np.minimum(idx, n - 1)
+    member = inside & ok[idx]
+    u = np.where(member, (t[idx] - t[:, None]) / reach, 0.0)
+    basis = np.stack([np.ones_like(u), u, u * u], axis=-1) * member[..., None]  # (n, width, 3)
+    gram = np.einsum("nwi,nwj->nij", basis, basis)
+    count = member.sum(axis=1)
+    span = np.where(member, t[idx], np.inf).min(axis=1), np.where(member, t[idx], -np.inf).max(axis=1)
+    unfit = (count < ORDER + 2) | (span[1] - span[0] < reach)
+    gram[unfit] = np.eye(3)
+    slope = np.linalg.solve(gram, np.broadcast_to(np.array([0.0, 1.0, 0.0]), (n, 3))[..., None])[..., 0]
+    coef = np.einsum("nwi,ni->nw", basis, slope) / reach
+    coef[unfit] = 0.0
+    keep = member & ~unfit[:, None]
+    rows = np.broadcast_to(np.arange(n)[:, None], idx.shape)[keep]
+    matrix = sparse.csr_matrix((coef[keep], (rows, idx[keep])), shape=(n, n))
+    return RocofOperator(t, matrix, unfit)
 
 
 def noise_gain(dt: float, window: float = WINDOW) -> float:
