@@ -79,6 +79,9 @@ def cmd_estimate(args) -> int:
           f"n_jobs {args.n_jobs}); archive: {archive}")
     for words in filter(None, map(describe_recording, experiments)):
         print(f"  {words}")
+    for exp in experiments:
+        for line in exp.recording.lines():
+            print(f"  {exp.name}: {line}")
     fit = calibrate(experiments, args.method, seed=args.seed, n_jobs=args.n_jobs, archive=archive, options=options,
                     runner=args.runner, joblib_backend=args.joblib_backend, scheduler=args.scheduler,
                     progress=not args.quiet, **_models(args))
@@ -226,6 +229,10 @@ def cmd_diagnose(args) -> int:
         options["candidates"] = tuple(args.candidates.split(","))
     DiagnoseOptions(**options)  # refused before anything is read or written
     training, heldout = split_holdout(as_experiments(args.configs), args.holdout or [])
+    from .identify.result import recording_story
+
+    for line in recording_story({e.name: e.recording.summary() for e in (*training, *heldout)}):
+        print(line)
     diagnosis = diagnose(training, heldout=heldout, workdir=args.results, seed=args.seed, n_jobs=args.n_jobs,
                          write_model=not args.no_write_model, package=args.package, fmu_dir=args.fmus, **options)
     text, files = diagnosis_report(diagnosis, args.results, args.json)

@@ -94,7 +94,10 @@ def test_the_story_names_the_verdict_the_record_its_fidelity_and_the_files_in_or
     assert re.search(rf"held out: {result['heldout'][0]} \d\.\d\d", story)
     order = [story.index(str(results / f)) for f in ("unit.dyr", "unit.dyd", "report.html")]
     assert order == sorted(order)
-    assert len(lines) < 14
+    assert len(lines) < 16
+    said = [line for line in lines if line.startswith("recording")]  # the recordings' stamps, in a line or two
+    assert said and all(name in " ".join(said) for name in result["training"] + result["heldout"])
+    assert set(result["recordings"]) == set(result["training"] + result["heldout"])
 
 
 def test_the_report_validates_the_delivered_record_on_the_held_out_test(identified):

@@ -12,6 +12,7 @@ import numpy as np
 from ..archive import RunArchive
 from ..compiler import ensure_fmu
 from ..data import MeasuredData
+from ..data.timebase import Repairs
 from ..errors import ConfigError, FmuError
 from ..experiment import Experiment, load_experiment, parse_experiment
 from ..fitness import combination_weights, gaussian_log_likelihood
@@ -81,15 +82,21 @@ def inputs_from_archive(archive: RunArchive) -> RunInputs:
     configs, data, blobs, hashes = archive.configs, archive.data, archive.fmus, archive.hashes["fmus"]
     meta = archive.options.get("experiments", {})
     experiments = []
-    def measured(key: str, time_column: str) -> MeasuredData:
+    def measured(key: str, time_column: str, repairs: dict | None) -> MeasuredData:
         columns = dict(data[key])
-        return MeasuredData.from_arrays(columns.pop(time_column), columns, source=f"{archive.path}:/inputs/data/{key}")
+        made = MeasuredData.from_arrays(columns.pop(time_column), columns, source=f"{archive.path}:/inputs/data/{key}")
+        if not repairs:
+            return made
+        said = Repairs(repairs["repeated"], repairs["reordered"], tuple(repairs["words"]))
+        return MeasuredData(made.source, made.time, made.columns, made.valid, None, said)  # as loading did them
 
     for name, text in configs.items():
         info = meta.get(name, {})
-        files = {file: measured(f"{name}|{file}", time) for file, time in info.get("files", {}).items()}
+        repairs = info.get("repairs", {})
+        files = {file: measured(f"{name}|{file}", time, repairs.get(file)) for file, time in info.get("files", {}).items()}
         experiments.append(parse_experiment(text, info.get("config_path", f"{archive.path}:{name}"),
-                                            data=measured(name, info.get("time_column", "time")), files=files))
+                                            data=measured(name, info.get("time_column", "time"), repairs.get("data")),
+                                            files=files))
     fmus = {model: FmuRef(model, hashes[model], raw) for model, raw in blobs.items()}  # archive.fmus checked them
     return RunInputs(_checked_problem(experiments, fmus), fmus)
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import contextlib
 import json
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -67,7 +67,10 @@ def _archive_options(options: RunOptions, inputs: RunInputs) -> dict:
             "simulation_paths": _simulation_paths(inputs, options),
             "experiments": {e.name: {"config_path": str(e.config_path), "model": e.model,
                                      "time_column": e.time_column,
-                                     "files": {s.file: s.time for s in e.inputs if s.file is not None}}
+                                     "files": {s.file: s.time for s in e.inputs if s.file is not None},
+                                     "repairs": {key: asdict(data.repairs) for key, data in
+                                                 (("data", e.data), *e.files.items()) if data.repairs},
+                                     "recording": e.recording.summary()}
                             for e in inputs.experiments}}
 
 
@@ -264,6 +267,8 @@ def summary_json(archive: str | Path) -> dict:
         except ArchiveDamaged as e:
             out["experiments"], out["damaged"] = ["(damaged)"], out["damaged"] + [str(e)]
         try:
+            out["recordings"] = {name: info.get("recording") for name, info in
+                                 view.options.get("experiments", {}).items() if info.get("recording")}
             out["options"] = {k: v for k, v in view.options.items() if k != "experiments"}
         except ArchiveDamaged as e:
             out["options"], out["damaged"] = None, out["damaged"] + [str(e)]

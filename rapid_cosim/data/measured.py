@@ -145,10 +145,11 @@ class MeasuredData:
         return inspect(self.time, self.source, self.repairs)
 
     def with_valid(self, valid: Mapping[str, np.ndarray]) -> "MeasuredData":
-        """The same recording with some columns' masks replaced (samples flagged invalid)."""
-        masks = {k: np.asarray(valid.get(k, v), dtype=bool) for k, v in self.valid.items()}
-        columns = {k: np.where(masks[k], v, np.nan) for k, v in self.columns.items()}
-        return MeasuredData(self.source, self.time, columns, masks, self.rows, self.repairs)
+        """The same recording with some columns' masks replaced (samples flagged invalid).
+        The values stay as recorded: what masked them (a config's flags and limits) masks
+        them again when the recording is read back from an archive, which keeps values only."""
+        masks = {k: np.asarray(valid.get(k, v), dtype=bool) & v for k, v in self.valid.items()}
+        return MeasuredData(self.source, self.time, self.columns, masks, self.rows, self.repairs)
 
     def __len__(self) -> int:
         return self.time.size

@@ -102,7 +102,8 @@ from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, E
                          SimulationSettings)
 from .electrical import check_machine, check_rocof_column, with_rocof_noise, without_unfit
 from .recorder import read_noise_models
-from .recording import Bridge, Recording, apply_flags, apply_limits, bridges, check_step, exclude, read_spec
+from .recording import (Bridge, Recording, apply_flags, apply_limits, blanks, bridges, check_step, exclude,
+                        read_spec)
 from .signals import read_inputs, read_outputs
 from .toml_writer import config_key, dotted_items
 
@@ -206,6 +207,7 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
             if col not in data.columns:
                 raise ConfigError(describe_missing(col, list(data.names)), file, config_key("data.outputs", out))
     check_step(data, cfg, "data.time")
+    blank = blanks(data, [*outputs.values(), *(s.column for s in inputs if s.file is None)])
     data, masked = apply_flags(data, recorded, cfg)
     data, more = apply_limits(data, recorded, {s.column: s.frequency for s in inputs if s.file is None and s.frequency},
                               {spec.column: spec.rating for spec in output_specs.values() if spec.rating})
@@ -253,7 +255,7 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         pre_step_end=pre_step_end, simulation=simulation, time_column=time_column,
         conversions={o: s.conversion for o, s in output_specs.items() if not s.conversion.identity},
         inputs=inputs, files=files, noise_models=noise_models,
-        recording=Recording(timebases, tuple(masked), tuple(bridged)),
+        recording=Recording(timebases, tuple(blank), tuple(masked), tuple(bridged)),
     )
     check_rocof_column(experiment, cfg)
     return with_rocof_noise(without_unfit(experiment))

@@ -104,7 +104,7 @@ class Experiment:
         """The values ``output`` is compared with (converted as configured) and their mask."""
         data = self.data if data is None else data
         column = self.outputs[output]
-        values, valid = data.columns[column], data.valid[column]
+        values, valid = np.where(data.valid[column], data.columns[column], np.nan), data.valid[column]
         conversion = self.conversions.get(output)
         return (values if conversion is None else conversion.apply(data.time, values, valid)), valid
 

@@ -50,6 +50,7 @@ GAP_KEYS = frozenset({"max", "fill"})
 FILLS = ("linear",)
 FREQUENCY_UNITS = {"Hz": 1.0, "mHz": 1e-3, "kHz": 1e3, "": 1.0}
 _LISTED = 5
+ALL = "*"  # a mask of every column (a frame flagged invalid)
 
 
 class RecordingWarning(UserWarning):
@@ -66,7 +67,8 @@ class Masked:
     where: str  # the first rows or times, for the reader
 
     def describe(self) -> str:
-        return f"{self.count} sample(s) of '{self.column}' masked: {self.reason} ({self.where})"
+        what = "frame(s), every column," if self.column == ALL else f"sample(s) of '{self.column}'"
+        return f"{self.count} {what} masked: {self.reason} ({self.where})"
 
 
 @dataclass(frozen=True)
@@ -86,6 +88,7 @@ class Recording:
     """What a recording was found to be and what was done about it (module docstring)."""
 
     timebases: dict[str, TimeBase] = field(default_factory=dict)  # per file
+    blanks: tuple[Masked, ...] = ()  # blank or non-finite samples of the columns used, as read
     masked: tuple[Masked, ...] = ()
     bridges: tuple[Bridge, ...] = ()
     unfit: tuple[tuple[float, float, int], ...] = ()  # ROCOF windows with no fit: outputs left out
@@ -93,7 +96,7 @@ class Recording:
     def lines(self) -> list[str]:
         """One line per fact, as the CLI and the report print them."""
         out = [f"time base of {name}: {base.describe()}" for name, base in self.timebases.items()]
-        out += [m.describe() for m in self.masked]
+        out += [m.describe() for m in (*self.blanks, *self.masked)]
         by_column: dict[str, list[Bridge]] = {}
         for b in self.bridges:
             by_column.setdefault(b.column, []).append(b)
@@ -113,10 +116,20 @@ class Recording:
                        f"({spans}); their power samples are left out of the fit")
         return out
 
+    @property
+    def plain(self) -> bool:
+        """Regular stamps, nothing repaired, masked, bridged or left without a ROCOF fit."""
+        return (all(b.regular and not b.repairs for b in self.timebases.values())
+                and not (self.blanks or self.masked or self.bridges or self.unfit))
+
+    def summary(self) -> dict:
+        """:meth:`to_json` with the words and whether the recording is plain."""
+        return {**self.to_json(), "plain": self.plain, "lines": self.lines()}
+
     def to_json(self) -> dict:
         return {"timebase": {k: b.to_json() for k, b in self.timebases.items()},
                 "masked": [{"column": m.column, "reason": m.reason, "count": m.count, "where": m.where}
-                           for m in self.masked],
+                           for m in (*self.blanks, *self.masked)],
                 "bridged": [{"column": b.column, "before": b.before, "after": b.after, "seconds": b.seconds,
                              "excluded": list(b.excluded) if b.excluded else None} for b in self.bridges],
                 "rocof_unfit": [list(u) for u in self.unfit]}
@@ -189,6 +202,20 @@ def _where(data: MeasuredData, idx: np.ndarray) -> str:
     return words + (f" and {idx.size - head.size} more" if idx.size > head.size else "")
 
 
+def blanks(data: MeasuredData, columns) -> list[Masked]:
+    """The blank (or non-finite) samples of ``columns`` as read: masked by the reader."""
+    out = []
+    for column in dict.fromkeys(columns):
+        if column in data.columns and not data.valid[column].all():
+            idx = np.flatnonzero(~data.valid[column])
+            gaps = data.gaps(column)
+            longest = max(gaps, key=lambda g: g.n_samples)
+            out.append(Masked(column, f"blank or not a number as recorded; the longest run {longest.n_samples} "
+                                      f"from {longest.start:g} s to {longest.end:g} s", int(idx.size),
+                              _where(data, idx)))
+    return out
+
+
 def apply_flags(data: MeasuredData, spec: RecordingSpec, cfg) -> tuple[MeasuredData, list[Masked]]:
     """Every column masked where the quality column marks a frame invalid."""
     if spec.flags is None:
@@ -206,7 +233,7 @@ def apply_flags(data: MeasuredData, spec: RecordingSpec, cfg) -> tuple[MeasuredD
             raise ConfigError(f"{data.source}: column '{column}' is not a C37.118 STAT word (an integer 0 to 65535) "
                               f"at {_where(data, bad)}: {raw[bad[0]]:g}", cfg.file, key)
         invalid = ~finite | ((np.where(finite, raw, 0).astype(np.int64) & STAT_INVALID) != 0)
-        reason = "C37.118 STAT marks the frame invalid (data error or sync lost)"
+        reason = f"the C37.118 STAT word '{column}' marks the frame invalid (data error or sync lost)"
     else:
         bad = np.flatnonzero(finite & (raw != 0) & (raw != 1))
         if bad.size:
@@ -221,7 +248,7 @@ def apply_flags(data: MeasuredData, spec: RecordingSpec, cfg) -> tuple[MeasuredD
                           cfg.file, key)
     masks = {c: data.valid[c] & ~invalid for c in data.names if c != column}
     hit = int(invalid.sum())
-    note = Masked("every column", reason + f" ('{column}')", hit, _where(data, np.flatnonzero(invalid)))
+    note = Masked(ALL, reason, hit, _where(data, np.flatnonzero(invalid)))
     warnings.warn(f"{data.source}: {note.describe()}", RecordingWarning, stacklevel=3)
     return data.with_valid(masks), [note]
 

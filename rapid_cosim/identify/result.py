@@ -25,6 +25,27 @@ DELIVERED = {"dyr": "PSS/E record (.dyr)", "dyd": "PSLF record (.dyd)", "report"
              "pdf": "validation report (PDF)"}
 
 
+def recording_story(recordings: dict[str, dict]) -> list[str]:
+    """The recordings in a few lines: one for those on regular stamps with nothing
+    repaired, masked or bridged, one for those that differ only by jitter, and every fact
+    of the others."""
+    def only_jitter(r: dict) -> bool:
+        return not (r["masked"] or r["bridged"] or r["rocof_unfit"]) and all(
+            not (b["dropped"] or b["repeated"] or b["reordered"]) for b in r["timebase"].values())
+
+    plain = [name for name, r in recordings.items() if r["plain"]]
+    jittered = [name for name, r in recordings.items() if not r["plain"] and only_jitter(r)]
+    lines = [f"recordings: {', '.join(plain)} on regular stamps, nothing repaired, masked or bridged"] if plain else []
+    if jittered:
+        rms = [1e3 * b["jitter_rms"] for name in jittered for b in recordings[name]["timebase"].values()]
+        lines.append(f"recordings: {', '.join(jittered)} with jittered stamps ({min(rms):.2g}-{max(rms):.2g} ms RMS), "
+                     "no frame missing, nothing repaired, masked or bridged")
+    for name, r in recordings.items():
+        if name not in plain and name not in jittered:
+            lines += [f"recording {name}: {line}" for line in r["lines"]]
+    return lines
+
+
 def cannot_carry(structure: str, effects: list[str], *, freed: bool) -> list[str]:
     """The explanation's effects that ``structure`` (as fitted) has no part for."""
     carried = set(CARRIES.get(structure, ((), ""))[0])
@@ -75,6 +96,7 @@ class Identification:
     notes: dict[str, str] = field(default_factory=dict)  # why one of those was not written
     diagnosis: str = ""  # the explanation as diagnosis.json, for the report
     heldout_configs: list[str] = field(default_factory=list)  # the held-out tests on the recommended record's bench
+    recordings: dict[str, dict] = field(default_factory=dict)  # per test: its stamps, masks, bridges (Recording)
 
     def record(self, model: str) -> StandardRecord:
         return next(r for r in self.records if r.model == model)
@@ -117,6 +139,8 @@ class Identification:
             if kind in self.files or kind in self.notes:
                 lines.append(f"\n{label}: " + (f"`{self.files[kind]}`" if kind in self.files
                                                 else f"none ({self.notes[kind]})"))
+        lines += ["", "## The recordings", ""]
+        lines += [f"- {name}: {'; '.join(r['lines'])}" for name, r in self.recordings.items()]
         lines += ["", f"{self.seconds:.0f} s."]
         return "\n".join(lines) + "\n"
 
@@ -136,6 +160,7 @@ class Identification:
                 lines.append(f"  held out: {r.fidelity(self.heldout, failing=True)}")
         else:
             lines.append(f"recommended record: none ({self.reason})")
+        lines += recording_story(self.recordings)
         lines.append("written:")
         for kind, label in DELIVERED.items():
             if kind in self.files:

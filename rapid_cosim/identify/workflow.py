@@ -67,7 +67,8 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=d.records, recommended=d.recommended,
-                            reason=d.reason, structure_verdict=d.verdict.structure, seconds=0.0)
+                            reason=d.reason, structure_verdict=d.verdict.structure, seconds=0.0,
+                            recordings={e.name: e.recording.summary() for e in (*training, *heldout)})
     result.diagnosis = str(explanation.save(workdir / "explanation")[0])
     if d.recommended is not None:  # the held-out tests on the record's bench, as the selection predicted them
         fit = result.record(d.recommended).fit

@@ -105,7 +105,8 @@ def draw_inputs(ax, exp) -> None:
     for k, spec in enumerate(exp.inputs):
         source = exp.files[spec.file] if spec.file is not None else exp.data
         unit = f" ({spec.conversion.unit})" if spec.conversion.unit else ""
-        ax.plot(source.time, source.columns[spec.column], color=f"C{k + 2}", lw=0.8,
+        values = np.where(source.valid[spec.column], source.columns[spec.column], np.nan)  # masked: not drawn
+        ax.plot(source.time, values, color=f"C{k + 2}", lw=0.8,
                 label=f"recorded {spec.column}{unit}, drives {spec.name}")
     ax.set_ylabel(exp.inputs[0].column + (f" ({exp.inputs[0].conversion.unit})" if exp.inputs[0].conversion.unit
                                           else ""))

@@ -30,7 +30,7 @@ from .fits import plot_experiment
 from .htmlkit import STYLE, e, mark, png
 from .provenance import provenance
 from .sections import (diagnosis_section, metrics_table, noise_section, provenance_section, record_section,
-                       recording_section, summary, tolerance_table)
+                       recording_section, summary, timebase_section, tolerance_table)
 from .tolerances import Check, Tolerances, judge, verdict
 from .unit import DeliveredRecord, DiagnosisSummary, delivered_record, noise_summary
 from .validation import ValidationMetrics, metrics
@@ -115,6 +115,7 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
             f"<p id=delivered>{e(opts.record_note)}</p>" if opts.record_note else "",
             record_section(record, note, unc.level if unc is not None else None),
             "<h2>Noise model and diagnosis</h2>", recording_section(recorded),
+            timebase_section([(x.name, x.recording.lines()) for x in experiments]),
             noise_section(noise_summary(experiments)),
             diagnosis_section(opts.diagnosis),
             '<section class="figures"><h2>Measured and simulated</h2>', *figures, "</section>",

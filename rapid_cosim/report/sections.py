@@ -81,6 +81,15 @@ def recording_section(lines: Sequence[str]) -> str:
     return f"<ul id=recorded class=note>{''.join(f'<li>{e(w)}</li>' for w in lines)}</ul>" if lines else ""
 
 
+def timebase_section(recordings: Sequence[tuple[str, Sequence[str]]]) -> str:
+    """Per test, what its recording's stamps are and what was repaired, masked or bridged."""
+    items = "".join(f"<li><b>{e(name)}</b>: {'; '.join(e(w) for w in lines)}</li>" for name, lines in recordings)
+    return ("<h3>The recordings as recorded</h3><ul id=timebase class=note>" + items + "</ul>"
+            "<p class=note>Nothing is repaired silently: a repeated stamp is dropped only where its values agree, a "
+            "late frame sorted only within a frame; masked samples are out of the fit and out of the ROCOF's "
+            "windows; input holes are bridged by interpolation.</p>") if items else ""
+
+
 def noise_section(noise: NoiseSummary) -> str:
     rows = [f"<tr><td class=text>{e(', '.join(r.tests))}</td><td class=text>{e(r.family)}</td>"
             f"<td class=text>{e(r.description)}</td><td class=text>{e(r.detail)}</td></tr>" for r in noise.rows]

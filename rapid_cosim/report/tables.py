@@ -44,6 +44,8 @@ def summary_text(summary: Mapping) -> str:
         lines.append(line)
     if summary.get("stop_reason"):
         lines.append(f"  stop: {summary['stop_reason']}")
+    for name, recording in (summary.get("recordings") or {}).items():
+        lines += [f"  {name}: {line}" for line in recording.get("lines", [])]
     if summary.get("damaged"):
         lines.append(f"  shown: what is intact; {len(summary['damaged'])} damaged part(s)")
     return "\n".join(lines)

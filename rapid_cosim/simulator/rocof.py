@@ -45,6 +45,7 @@ ROCOF = "rocof"  # the benches' ROCOF input (Hz/s)
 FREQUENCY = "f_dev"  # the benches' frequency input (Hz, deviation from f_nom)
 WINDOW = 0.3  # s: the default Savitzky-Golay window
 ORDER = 2  # the local polynomial (a quadratic: its slope is a linear fit's over a symmetric window)
+MIN_SPAN = 3  # steps: a window holds a fit with ORDER + 2 valid samples spanning at least this many
 
 
 def points(dt: float, window: float = WINDOW) -> int:
@@ -68,7 +69,7 @@ class RocofOperator:
     """The ROCOF as a linear map of the recorded frequency: ``rocof = matrix @ f`` on the
     frequency's own samples (columns of masked samples are zero), and the rows whose
     window could not hold a fit (``unfit``: fewer than ORDER + 2 valid samples, or spanning
-    under half the window) with their reason. The same map gives the derived ROCOF's
+    fewer than MIN_SPAN steps). The same map gives the derived ROCOF's
     noise exactly (:mod:`rapid_cosim.experiment.electrical`)."""
 
     time: np.ndarray
@@ -143,7 +144,7 @@ def rocof_operator(time: np.ndarray, window: float = WINDOW, breaks: tuple[float
     gram = np.einsum("nwi,nwj->nij", basis, basis)
     count = member.sum(axis=1)
     span = np.where(member, t[idx], np.inf).min(axis=1), np.where(member, t[idx], -np.inf).max(axis=1)
-    unfit = (count < ORDER + 2) | (span[1] - span[0] < reach)
+    unfit = (count < ORDER + 2) | (span[1] - span[0] < MIN_SPAN * dt)
     gram[unfit] = np.eye(3)
     slope = np.linalg.solve(gram, np.broadcast_to(np.array([0.0, 1.0, 0.0]), (n, 3))[..., None])[..., 0]
     coef = np.einsum("nwi,ni->nw", basis, slope) / reach
