@@ -299,3 +299,29 @@ def test_a_co_simulation_set_over_its_budget_times_out_and_the_next_runs(kinds, 
     again = sim.simulate_batch(["e"], np.array([[0.7], [0.6]]), stop_time=5.0, output_interval=0.01)
     assert np.all(again.ok)
 
+
+
+@pytest.mark.parametrize("runner", ["exponential", "compiled", "python"])
+@pytest.mark.parametrize("kind", ["me3", "cs3"])
+def test_fmi3_instances_keep_the_standards_state_machine(kinds, kind, runner):
+    """The FMI 3.0 test FMUs check the state machine as strictly as the standard's Reference
+    FMUs (an illegal call fails: "Illegal call sequence"; tests/fmus/fmu_fmi3.h): a fresh
+    instance's first set, sets on the reset instance, a set after one the model terminated
+    and after a failed one, on every runner that takes the kind."""
+    grid = dict(stop_time=5.0, output_interval=0.5, outputs=["x", "count"], runner=runner)
+    if kind == "me3" and runner == "python":
+        with pytest.raises(ParameterError, match="Python reference loop runs FMI 2.0 ones"):
+            Simulator(kinds["Counter", kind]).simulate({}, **grid)
+        return
+    sim = Simulator(kinds["Counter", kind])
+    sets = np.array([[1e9], [3.2], [1e9]])
+    batch = _quiet(sim.simulate_batch, ["stop_at"], sets, **grid)
+    assert batch.status.tolist() == [OK, TERMINATED, OK], batch.messages
+    np.testing.assert_array_equal(batch.values[2], batch.values[0])
+    sim.timeout = 1e-12  # a failed set: over its budget (200 steps: the exponential runner looks every 64)
+    failed = _quiet(sim.simulate_batch, ["stop_at"], sets[:1], **{**grid, "output_interval": 0.025})
+    assert failed.status.tolist() == [TIMEOUT]
+    sim.timeout = None
+    again = _quiet(sim.simulate_batch, ["stop_at"], sets, **grid)
+    assert again.status.tolist() == [OK, TERMINATED, OK] and not any("Illegal" in m for m in again.messages)
+    np.testing.assert_array_equal(again.values[0], batch.values[0])

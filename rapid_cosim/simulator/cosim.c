@@ -483,6 +483,12 @@ static int run_set(CsRunner *r, const double *params, double *out, double *t_rea
     return CS_OK;
 }
 
+/* A new instance in place of the current one. */
+static void renew(CsRunner *r) {
+    free_instance(r);
+    instantiate(r);
+}
+
 /* After a failure the instance may be in any state: reset it, or make a new one. */
 static void recover(CsRunner *r) {
     int s = r->version == 3 ? (int)r->f3.reset(r->c) : (int)r->f2.reset(r->c);
@@ -490,8 +496,7 @@ static void recover(CsRunner *r) {
         r->fresh = 1;
         return;
     }
-    free_instance(r);
-    instantiate(r);
+    renew(r);
 }
 
 /* Run every set of the batch. out: n_sets x n_times x n_out (NaN after a failure, or after
@@ -532,6 +537,9 @@ RC_EXPORT int cs_run(CsRunner *r, const CsBatch *b, double *out, int *status, do
             for (j = (size_t)r->rows_done * b->n_out; j < per_set; j++) o[j] = NAN;
             if (r->version == 3) r->f3.terminate(r->c);
             else r->f2.terminate(r->c);
+            /* the next set on a new instance: the standard's Reference FMUs keep their
+             * terminateSimulation through fmi2Reset / fmi3Reset (Stair would stop at once) */
+            renew(r);
             if (r->rows_done >= b->n_times) {
                 status[i] = CS_OK;
                 r->message[0] = 0;

@@ -326,10 +326,15 @@ class CosimLoop:
         f.terminate()
 
     def _terminate(self) -> None:
+        """After a terminate request: the next set on a new instance (the standard's
+        Reference FMUs keep terminateSimulation through a reset), as the C driver does."""
         try:
             self._instance.terminate()
+            self._instance.freeInstance()
         except Exception:
             pass
+        self._instance = self._instantiate()
+        self._fresh = True
 
     def _recover(self) -> None:
         try:

@@ -1039,6 +1039,12 @@ static int ex_run_set(Runner *r, Plan *p, const double *params, double *out, dou
     FMI(r->fmi.exit_init(r->c), "fmi2ExitInitializationMode");
     if ((s = update_discrete(r, &has_event, &t_event))) return STOPPED(s, 0, t);
     FMI(r->fmi.enter_continuous(r->c), "fmi2EnterContinuousTimeMode");
+    if ((s = fmi3_tolerances(r))) return s;
+    if (r->version == 3) { /* the tolerances may have changed: CVODE's over a step with them */
+        const double *a = r->sun.N_VGetArrayPointer(r->abstol);
+        double *tight = r->sun.N_VGetArrayPointer(p->abstol_tight);
+        for (i = 0; i < r->n_dim; i++) tight[i] = EX_TOL * a[i];
+    }
     max_step = (b->times[b->n_times - 1] - b->start_time) / 50.0;
     if (r->span[0] != b->start_time || r->span[1] != b->times[b->n_times - 1]) {
         r->sun.CVodeSetMaxStep(r->mem, max_step);

@@ -318,7 +318,7 @@ class ReferenceLoop:
                 set_inputs(t)
             values[k] = self._read_typed(names, types)
             rows = k + 1
-        self._instance.terminate()
+        self._renew()
         values[rows:] = np.nan
         if rows >= times.size:
             return values
@@ -337,6 +337,17 @@ class ReferenceLoop:
             if terminate:
                 raise _TerminateRequest()
         return bool(defined), float(t_next)
+
+    def _renew(self) -> None:
+        """After a terminate request: a new instance for the next run (the standard's
+        Reference FMUs keep terminateSimulation through fmi2Reset), as runner.c does."""
+        self._instance.terminate()
+        if self._solver is not None:
+            self._solver.close()
+        self._solver = None  # its callbacks point at the instance freed here
+        self._instance.freeInstance()
+        self._instance = instantiate_fmu(str(self.fmu.dir), self.fmu.model_description, fmi_type="ModelExchange")
+        self._fresh = True
 
     def _recover(self) -> None:
         """After a failure the instance may be in any state; a reset brings it back."""

@@ -563,7 +563,7 @@ RC_EXPORT Runner *rc_open(const char *fmu_binary, const char *instance_name, con
     r->px = r->sun.N_VGetArrayPointer(r->x);
     tol = r->sun.N_VGetArrayPointer(r->abstol);
     for (i = 0; i < r->n_dim; i++) nominals[i] = 1.0;
-    if (n_states) r->fmi.get_nominals(r->c, nominals, (size_t)n_states);
+    if (n_states && r->version == 2) r->fmi.get_nominals(r->c, nominals, (size_t)n_states); /* FMI 3.0: per set */
     for (i = 0; i < r->n_dim; i++) tol[i] = rtol * fabs(nominals[i]);
     for (i = 0; i < r->n_dim; i++) r->px[i] = 0.0;
     r->mem = r->sun.CVodeCreate(CV_BDF, r->ctx);
@@ -626,6 +626,31 @@ RC_EXPORT void rc_close(Runner *r) {
             return RC_FMI;                                                               \
         }                                                                                \
     } while (0)
+
+/* An FMI 3.0 FMU's absolute tolerances (rtol times its states' nominals), taken per set
+ * once initialised, as fmpy takes them: FMI 3.0 allows fmi3GetNominalsOfContinuousStates
+ * only from Initialization Mode on, and a strict FMU (the standard's Reference FMUs) logs
+ * an illegal call sequence before it and refuses every call after. FMI 2.0 allows it once
+ * instantiated: rc_open takes them there. */
+static int fmi3_tolerances(Runner *r) {
+    double nominals[1024], *tol;
+    int i, changed = 0;
+    if (r->version != 3 || !r->n_states) return RC_OK;
+    FMI(r->fmi.get_nominals(r->c, nominals, (size_t)r->n_states), "fmi3GetNominalsOfContinuousStates");
+    tol = r->sun.N_VGetArrayPointer(r->abstol);
+    for (i = 0; i < r->n_states; i++) {
+        double a = r->rtol * fabs(nominals[i]);
+        if (a != tol[i]) {
+            tol[i] = a;
+            changed = 1;
+        }
+    }
+    if (changed && r->sun.CVodeSVtolerances(r->mem, r->rtol, r->abstol)) {
+        set_message(r, "CVodeSVtolerances failed");
+        return RC_SOLVER;
+    }
+    return RC_OK;
+}
 
 /* Event iteration (FMI 2.0, section 3.2.2): until no new discrete states are needed. */
 static int update_discrete(Runner *r, int *has_event, double *t_event) {
@@ -819,6 +844,7 @@ static int run_set(Runner *r, const double *params, double *out, double *t_reach
     FMI(r->fmi.exit_init(r->c), "fmi2ExitInitializationMode");
     if ((s = update_discrete(r, &has_event, &t_event))) return STOPPED(s, 0, t);
     FMI(r->fmi.enter_continuous(r->c), "fmi2EnterContinuousTimeMode");
+    if ((s = fmi3_tolerances(r))) return s;
     max_step = (b->times[b->n_times - 1] - b->start_time) / 50.0;
     if (r->span[0] != b->start_time || r->span[1] != b->times[b->n_times - 1]) {
         r->sun.CVodeSetMaxStep(r->mem, max_step);
@@ -861,15 +887,20 @@ static int run_set(Runner *r, const double *params, double *out, double *t_reach
     return RC_OK;
 }
 
+/* A new instance in place of the current one. */
+static void renew(Runner *r) {
+    r->fmi.free_instance(r->c);
+    r->c = NULL;
+    instantiate(r);
+}
+
 /* After a failure the instance may be in any state: reset it, or make a new one. */
 static void recover(Runner *r) {
     if (r->fmi.reset(r->c) < fmi2Error) {
         r->fresh = 1;
         return;
     }
-    r->fmi.free_instance(r->c);
-    r->c = NULL;
-    instantiate(r);
+    renew(r);
 }
 
 /* After a set: a failure's outputs are NaN and the instance recovers; a terminated set keeps
@@ -881,6 +912,9 @@ static int finish_set(Runner *r, int status, double *o) {
     if (status == RC_TERMINATED) {
         for (j = (size_t)r->rows_done * per_row; j < (size_t)b->n_times * per_row; j++) o[j] = NAN;
         r->fmi.terminate(r->c);
+        /* the next set on a new instance: the standard's Reference FMUs keep their
+         * terminateSimulation through fmi2Reset / fmi3Reset */
+        renew(r);
         if (r->rows_done >= b->n_times) {
             r->message[0] = 0;
             return RC_OK;

@@ -7,6 +7,26 @@
 #define VR_BINARY 400
 #define VR_TIME 999
 
+/* The FMI 3.0 state machine, checked as strictly as the standard's Reference FMUs check
+ * it: a call in a state that does not allow it logs "Illegal call sequence", fails, and
+ * leaves the instance Terminated (only fmi3Reset and fmi3FreeInstance then work). */
+#define INSTANTIATED 1
+#define INITIALIZATION 2
+#define EVENT 4
+#define CONTINUOUS 8
+#define STEP 16
+#define TERMINATED 32
+#define ALLOWED(c, states, name)                                                                  \
+    do {                                                                                          \
+        Model *m_ = (Model *)(c);                                                                 \
+        if (!((m_->mode ? m_->mode : INSTANTIATED) & (states))) {                                 \
+            if (m_->log) m_->log(m_->env, fmi3Error, "logStatusError", name ": Illegal call sequence."); \
+            m_->mode = TERMINATED;                                                                \
+            return fmi3Error;                                                                     \
+        }                                                                                         \
+    } while (0)
+#define EVALUATED (INITIALIZATION | EVENT | CONTINUOUS | TERMINATED) /* states, derivatives, nominals */
+
 const char *fmi3GetVersion(void) { return fmi3Version; }
 fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean on, size_t n, const fmi3String cat[]) {
     (void)c; (void)on; (void)n; (void)cat;
@@ -58,11 +78,15 @@ void fmi3FreeInstance(fmi3Instance c) { free(c); }
 fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean tol_defined, fmi3Float64 tol, fmi3Float64 start,
                                        fmi3Boolean stop_defined, fmi3Float64 stop) {
     (void)tol_defined; (void)tol; (void)stop_defined; (void)stop;
+    ALLOWED(c, INSTANTIATED, "fmi3EnterInitializationMode");
     ((Model *)c)->time = start;
+    ((Model *)c)->mode = INITIALIZATION;
     return fmi3OK;
 }
 fmi3Status fmi3ExitInitializationMode(fmi3Instance c) {
     Model *m = (Model *)c;
+    ALLOWED(c, INITIALIZATION, "fmi3ExitInitializationMode");
+    m->mode = m->cs ? STEP : EVENT;
     model_initialize(m);
     m->initialized = 1;
     model_derivatives(m);
@@ -73,8 +97,16 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance c) {
     }
     return fmi3OK;
 }
-fmi3Status fmi3EnterEventMode(fmi3Instance c) { (void)c; return fmi3OK; }
-fmi3Status fmi3Terminate(fmi3Instance c) { (void)c; return fmi3OK; }
+fmi3Status fmi3EnterEventMode(fmi3Instance c) {
+    ALLOWED(c, CONTINUOUS, "fmi3EnterEventMode");
+    ((Model *)c)->mode = EVENT;
+    return fmi3OK;
+}
+fmi3Status fmi3Terminate(fmi3Instance c) {
+    ALLOWED(c, EVENT | CONTINUOUS | STEP, "fmi3Terminate");
+    ((Model *)c)->mode = TERMINATED;
+    return fmi3OK;
+}
 fmi3Status fmi3Reset(fmi3Instance c) {
     reset_model((Model *)c);
     return fmi3OK;
@@ -307,6 +339,7 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *need_update, fm
                                     fmi3Boolean *next_defined, fmi3Float64 *next_time) {
     Model *m = (Model *)c;
     EventInfo e;
+    ALLOWED(c, EVENT, "fmi3UpdateDiscreteStates");
     take_event(m, &e);
     *need_update = 0;
     *terminate = e.terminate != 0;
@@ -316,20 +349,27 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *need_update, fm
     *next_time = e.next_event;
     return fmi3OK;
 }
-fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) { (void)c; return fmi3OK; }
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) {
+    ALLOWED(c, EVENT, "fmi3EnterContinuousTimeMode");
+    ((Model *)c)->mode = CONTINUOUS;
+    return fmi3OK;
+}
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance c, fmi3Boolean nosp, fmi3Boolean *enter, fmi3Boolean *term) {
-    (void)c; (void)nosp;
+    (void)nosp;
+    ALLOWED(c, CONTINUOUS, "fmi3CompletedIntegratorStep");
     *enter = 0;
     *term = 0;
     return fmi3OK;
 }
 fmi3Status fmi3SetTime(fmi3Instance c, fmi3Float64 t) {
+    ALLOWED(c, EVENT | CONTINUOUS, "fmi3SetTime");
     ((Model *)c)->time = t;
     return fmi3OK;
 }
 fmi3Status fmi3SetContinuousStates(fmi3Instance c, const fmi3Float64 x[], size_t nx) {
     Model *m = (Model *)c;
     size_t k;
+    ALLOWED(c, CONTINUOUS, "fmi3SetContinuousStates");
     if (nx != N_STATES) return fmi3Error;
     for (k = 0; k < nx; k++) m->r[state_vrs[k]] = x[k];
     return fmi3OK;
@@ -337,6 +377,7 @@ fmi3Status fmi3SetContinuousStates(fmi3Instance c, const fmi3Float64 x[], size_t
 fmi3Status fmi3GetContinuousStates(fmi3Instance c, fmi3Float64 x[], size_t nx) {
     Model *m = (Model *)c;
     size_t k;
+    ALLOWED(c, EVALUATED, "fmi3GetContinuousStates");
     if (nx != N_STATES) return fmi3Error;
     for (k = 0; k < nx; k++) x[k] = m->r[state_vrs[k]];
     return fmi3OK;
@@ -344,19 +385,21 @@ fmi3Status fmi3GetContinuousStates(fmi3Instance c, fmi3Float64 x[], size_t nx) {
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 dx[], size_t nx) {
     Model *m = (Model *)c;
     size_t k;
+    ALLOWED(c, EVALUATED, "fmi3GetContinuousStateDerivatives");
     if (nx != N_STATES) return fmi3Error;
     model_derivatives(m);
     for (k = 0; k < nx; k++) dx[k] = m->r[der_vrs[k]];
     return fmi3OK;
 }
 fmi3Status fmi3GetEventIndicators(fmi3Instance c, fmi3Float64 z[], size_t nz) {
+    ALLOWED(c, EVALUATED, "fmi3GetEventIndicators");
     if (nz != N_INDICATORS) return fmi3Error;
     if (nz) model_indicators((Model *)c, z);
     return fmi3OK;
 }
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance c, fmi3Float64 x[], size_t nx) {
     size_t k;
-    (void)c;
+    ALLOWED(c, EVALUATED, "fmi3GetNominalsOfContinuousStates");
     for (k = 0; k < nx; k++) x[k] = 1.0;
     return fmi3OK;
 }
@@ -378,6 +421,7 @@ fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean 
                       fmi3Boolean *terminate, fmi3Boolean *early, fmi3Float64 *last) {
     Model *m = (Model *)c;
     (void)nosp;
+    ALLOWED(c, STEP, "fmi3DoStep");
     if (!check_step(m, h)) return fmi3Error;
     *terminate = cs_step(m, t, h) != 0;
     *event = 0;

@@ -82,6 +82,7 @@ typedef struct {
     fmi3InstanceEnvironment env;
     fmi3LogMessageCallback log;
     fmi3IntermediateUpdateCallback update;
+    int mode;               /* the FMI 3.0 state machine's state (fmu_fmi3.h) */
 #else
     fmi2CallbackFunctions cb;
 #endif
@@ -109,7 +110,7 @@ static void reset_model(Model *m) {
     m->cb = keep.cb;
 #endif
     m->cs = keep.cs;
-    model_start(m);
+    model_start(m); /* FMI 3.0: back in Instantiated (mode 0) */
 }
 
 /* ---- the Co-Simulation solver ---- */
