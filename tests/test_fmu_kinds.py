@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import re
 import warnings
+import zipfile
 
 import fmpy
 import numpy as np
@@ -325,3 +326,45 @@ def test_fmi3_instances_keep_the_standards_state_machine(kinds, kind, runner):
     again = _quiet(sim.simulate_batch, ["stop_at"], sets, **grid)
     assert again.status.tolist() == [OK, TERMINATED, OK] and not any("Illegal" in m for m in again.messages)
     np.testing.assert_array_equal(again.values[0], batch.values[0])
+
+
+# --------------------------------------------------------------------------- inputs not given
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_inputs_not_given_are_held_at_their_start_values_with_a_note(kinds, kind):
+    """As fmpy holds them: the droop twin's dw at its start 0 leaves p at p_ref; the note
+    names the input and the value, once per simulator."""
+    from rapid_cosim.simulator.simulation import InputsHeld
+
+    sim = Simulator(kinds["DroopPlant", kind])
+    with pytest.warns(InputsHeld, match=r"DroopPlant: input\(s\) not given are held at their start values: dw = 0"):
+        traj = sim.simulate({}, stop_time=5.0, output_interval=0.5)
+    np.testing.assert_allclose(traj["p"], P_REF, atol=1e-12)
+    assert sim.prepare([], stop_time=5.0, output_interval=0.5).held_inputs == {"dw": "0.0"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", InputsHeld)  # noted once
+        batch = sim.simulate_batch(["p_ref"], np.array([[0.5], [0.7]]), stop_time=5.0, output_interval=0.5)
+    np.testing.assert_allclose(batch.values[:, :, 0], [[0.5] * 11, [0.7] * 11], atol=1e-12)
+    ref = fmpy.simulate_fmu(str(kinds["DroopPlant", kind]), stop_time=5.0, output_interval=0.5)
+    np.testing.assert_allclose(ref["p"], P_REF, atol=1e-12)
+
+
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_an_input_without_a_start_value_must_be_given(version, tmp_path):
+    from c_fmus import build_c_fmu
+
+    fmu = build_c_fmu("DroopPlant", tmp_path, fmi_version=version)
+    with zipfile.ZipFile(fmu) as zf:
+        files = {n: zf.read(n) for n in zf.namelist()}
+    xml = files["modelDescription.xml"].decode()
+    files["modelDescription.xml"] = (re.sub(r'(name="dw"[^>]*?) start="0.0"', r"\1", xml) if version == "3.0"
+                                     else xml.replace('<Real start="0.0"/></ScalarVariable>',
+                                                      "<Real/></ScalarVariable>")).encode()
+    assert files["modelDescription.xml"] != xml.encode()
+    unset = tmp_path / "unset.fmu"
+    with zipfile.ZipFile(unset, "w") as zf:
+        for name, data in files.items():
+            zf.writestr(name, data)
+    with pytest.raises(ParameterError, match="DroopPlant has inputs dw; dw has no start value to hold: give it values"):
+        Simulator(unset).simulate({}, stop_time=1.0, output_interval=0.5)

@@ -57,7 +57,7 @@ class _Batch(ctypes.Structure):
         ("n_out", c_int), ("out_vrs", POINTER(c_uint)), ("out_types", POINTER(c_int)),
         ("n_inputs", c_int), ("input_vrs", POINTER(c_uint)), ("n_rows", c_int),
         ("input_time", POINTER(c_double)), ("input_values", POINTER(c_double)),
-        ("start_time", c_double), ("timeout", c_double),
+        ("start_time", c_double), ("timeout", c_double), ("out_elem", POINTER(c_int)),
     ]
 
 
@@ -222,6 +222,10 @@ class PreparedRun:
                                  times=_ptr(self._keep[1], c_double), n_out=self.n_out,
                                  out_vrs=_ptr(self._keep[2], c_uint), out_types=_ptr(self._keep[3], c_int),
                                  start_time=start_time, timeout=timeout or 0.0)
+        elements = runner.fmu.output_elements(names)
+        if elements is not None:
+            self._keep.append(elements)
+            b.out_elem = _ptr(elements, c_int)
         if inputs is not None:
             if len(inputs.names) > 64:
                 raise SimulationError(f"{runner.fmu.name}: the runner drives at most 64 inputs")

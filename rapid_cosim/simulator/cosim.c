@@ -96,6 +96,7 @@ typedef struct {
     const double *out_w; /* n_times: its weight (1: the point's values) */
     double start_time, stop_time, timeout, tolerance;
     int interpolation; /* 0 held, 1 FMI 2.0 input derivatives, 2 FMI 3.0 intermediate update */
+    const int *out_elem; /* n_out x 2: an array element's offset and array size (NULL: none) */
 } CsBatch;
 
 typedef struct {
@@ -333,7 +334,8 @@ static int read_outputs(CsRunner *r, int all_real, double t) {
             unsigned vr = b->out_vrs[j];
             int code = b->out_types[j];
             if (r->version == 3) {
-                FMI(fmi3_read(&r->f3, r->c, code, vr, &r->cur[j]), "fmi3Get (output)");
+                FMI(fmi3_read_output(&r->f3, r->c, code, vr, b->out_elem ? b->out_elem + 2 * j : NULL, &r->cur[j]),
+                    "fmi3Get (output)");
             } else if (code == 0) {
                 FMI(r->f2.get_real(r->c, &vr, 1, &r->cur[j]), "fmi2GetReal");
             } else if (code == 1) {
@@ -368,7 +370,7 @@ static void fill_rows(CsRunner *r, int j, double *out) {
             memcpy(row, r->cur, b->n_out * sizeof(double));
         } else {
             for (m = 0; m < b->n_out; m++) {
-                int real = b->out_types[m] == 0 || b->out_types[m] == 3;
+                int code = b->out_types[m] & ~RC_ELEMENT, real = code == 0 || code == 3;
                 row[m] = real ? r->prev[m] + w * (r->cur[m] - r->prev[m]) : r->prev[m];
             }
         }

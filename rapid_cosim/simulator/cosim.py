@@ -39,7 +39,7 @@ from ..errors import SimulationError
 from . import compiled
 from .compiled import FMI, NONFINITE, OK, TERMINATED, TIMEOUT, _address, _ptr
 from .communication import left_values, plan_communication
-from .fmu import LoadedFmu
+from .fmu import ELEMENT, LoadedFmu
 from .inputs import InputTable
 
 INTERPOLATION = {"hold": 0, "derivatives": 1, "intermediate": 2}
@@ -59,7 +59,7 @@ class _CsBatch(ctypes.Structure):
         ("u", POINTER(c_double)), ("du", POINTER(c_double)), ("read", POINTER(c_int)),
         ("out_comm", POINTER(c_int)), ("out_w", POINTER(c_double)),
         ("start_time", c_double), ("stop_time", c_double), ("timeout", c_double), ("tolerance", c_double),
-        ("interpolation", c_int),
+        ("interpolation", c_int), ("out_elem", POINTER(c_int)),
     ]
 
 
@@ -111,7 +111,7 @@ class PreparedCosim:
             "param_vrs": np.array([vr[p] for p in param_names], dtype=np.uint32),
             "times": np.ascontiguousarray(times, dtype=float),
             "out_vrs": np.array([vr[o] for o in names], dtype=np.uint32),
-            "out_types": np.array(types, dtype=np.int32), "plan": plan,
+            "out_types": np.array(types, dtype=np.int32), "plan": plan, "out_elem": fmu.output_elements(names),
         }
         b = self._batch = _CsBatch(
             n_params=self.n_params, param_vrs=_ptr(keep["param_vrs"], c_uint), n_times=self.n_times,
@@ -121,6 +121,8 @@ class PreparedCosim:
             read=_ptr(plan.read, c_int), out_comm=_ptr(plan.out_comm, c_int), out_w=_ptr(plan.out_w, c_double),
             start_time=start_time, stop_time=float(plan.comm[-1]), timeout=timeout or 0.0,
             tolerance=driver.relative_tolerance, interpolation=INTERPOLATION[plan.interpolation])
+        if keep["out_elem"] is not None:
+            b.out_elem = _ptr(keep["out_elem"], c_int)
         if inputs is not None:
             if len(inputs.names) > 64:
                 raise SimulationError(f"{fmu.name}: the Co-Simulation driver drives at most 64 inputs")
@@ -173,6 +175,7 @@ class CosimLoop:
     def __init__(self, fmu: LoadedFmu, relative_tolerance: float):
         self.fmu, self.relative_tolerance = fmu, relative_tolerance
         self._table: InputTable | None = None
+        self._elements: np.ndarray | None = None  # the outputs' (offset, size) where one is an array element
         self._input_vrs: list[int] = []
         self._instance = self._instantiate()
         self._fresh = True
@@ -201,6 +204,7 @@ class CosimLoop:
         vr = self.fmu.value_references
         params = [vr[p] for p in param_names]
         outs = [vr[o] for o in names]
+        elements = self.fmu.output_elements(names)
         input_vrs = [vr[i] for i in inputs.names] if inputs is not None else []
 
         def call(values):
@@ -210,6 +214,7 @@ class CosimLoop:
             status = np.zeros(n, dtype=np.int32)
             messages = []
             self._table, self._input_vrs, self._interpolation = inputs, input_vrs, plan.interpolation
+            self._elements = elements
             try:
                 for i, row in enumerate(values):
                     rows = [0]
@@ -248,7 +253,13 @@ class CosimLoop:
                        6: f.getInt16, 7: f.getUInt16, 8: f.getUInt32, 9: f.getInt64, 10: f.getUInt64}
         else:
             getters = {0: f.getReal, 1: f.getInteger, 2: f.getBoolean}
-        return [float(getters[kind]([vr])[0]) for vr, kind in zip(outs, types)]
+        if self._elements is None:
+            return [float(getters[kind]([vr])[0]) for vr, kind in zip(outs, types)]
+        values = []  # an array element (ELEMENT): the whole array read, its element taken
+        for (offset, size), vr, kind in zip(self._elements.tolist(), outs, types):
+            values.append(float(getters[kind & ~ELEMENT]([vr], size)[offset] if kind & ELEMENT else
+                                getters[kind]([vr])[0]))
+        return values
 
     def _run(self, params, param_vrs, outs, types, input_vrs, plan, start_time, timeout, out, rows):
         f, fmu = self._instance, self.fmu
@@ -284,7 +295,8 @@ class CosimLoop:
                 if w == 1.0:
                     out[k] = cur
                 else:
-                    out[k] = [p + w * (c - p) if kind in (0, 3) else p for p, c, kind in zip(prev, cur, types)]
+                    out[k] = [p + w * (c - p) if kind & ~ELEMENT in (0, 3) else p
+                              for p, c, kind in zip(prev, cur, types)]
                 k += 1
             rows[0] = k
 

@@ -4,7 +4,9 @@
  *
  * Output type codes (mirrored in rapid_cosim/simulator/fmu.py): 0 Float64 (FMI 2.0 Real),
  * 1 Int32 (FMI 2.0 Integer and Enumeration), 2 Boolean, 3 Float32, 4 Int8, 5 UInt8,
- * 6 Int16, 7 UInt16, 8 UInt32, 9 Int64 (FMI 3.0 Enumeration), 10 UInt64.
+ * 6 Int16, 7 UInt16, 8 UInt32, 9 Int64 (FMI 3.0 Enumeration), 10 UInt64; plus RC_ELEMENT
+ * for one element of an FMI 3.0 array (its offset and the array's size given beside), so
+ * that every path reading Float64 scalars in one call leaves arrays to the typed reads.
  */
 #ifndef RC_FMI3_TABLE_H
 #define RC_FMI3_TABLE_H
@@ -79,6 +81,9 @@ static int fmi3_load(void *lib, Fmi3 *f, int me, char *err, int err_len) {
     return err[0] != 0;
 }
 
+#define RC_ELEMENT 16          /* flag of a type code: one element of an array */
+#define RC_MAX_ELEMENTS 1024   /* elements of an array output (fmu.py: MAX_ELEMENTS) */
+
 /* One output of type code `code` (see above) as a double. */
 static fmi3Status fmi3_read(const Fmi3 *f, fmi3Instance c, int code, fmi3ValueReference vr, double *out) {
     fmi3Status s;
@@ -96,6 +101,37 @@ static fmi3Status fmi3_read(const Fmi3 *f, fmi3Instance c, int code, fmi3ValueRe
     case 10: { fmi3UInt64 v = 0; s = f->get_uint64(c, &vr, 1, &v, 1); *out = (double)v; return s; }
     default: return fmi3Error;
     }
+}
+
+/* Element `offset` of the array output vr of `size` elements (code without RC_ELEMENT). */
+static fmi3Status fmi3_read_element(const Fmi3 *f, fmi3Instance c, int code, fmi3ValueReference vr, int offset,
+                                    int size, double *out) {
+    fmi3UInt64 buf[RC_MAX_ELEMENTS]; /* 8 bytes per element: room for any numeric type */
+    fmi3Status s;
+    size_t n = (size_t)size;
+    if (size < 1 || size > RC_MAX_ELEMENTS || offset < 0 || offset >= size) return fmi3Error;
+#define EL(k, T, get) \
+    case k: { T *v = (T *)(void *)buf; s = f->get(c, &vr, 1, v, n); *out = (double)v[offset]; return s; }
+    switch (code) {
+    EL(0, fmi3Float64, get_float64) EL(1, fmi3Int32, get_int32) EL(3, fmi3Float32, get_float32)
+    EL(4, fmi3Int8, get_int8) EL(5, fmi3UInt8, get_uint8) EL(6, fmi3Int16, get_int16)
+    EL(7, fmi3UInt16, get_uint16) EL(8, fmi3UInt32, get_uint32) EL(9, fmi3Int64, get_int64)
+    EL(10, fmi3UInt64, get_uint64)
+    case 2: { fmi3Boolean *v = (fmi3Boolean *)(void *)buf; s = f->get_boolean(c, &vr, 1, v, n); *out = v[offset] ? 1.0 : 0.0; return s; }
+    default: return fmi3Error;
+    }
+#undef EL
+}
+
+/* An output of type code `code`: a scalar, or (RC_ELEMENT) the element elem[0] of an array
+ * of elem[1] elements. */
+static fmi3Status fmi3_read_output(const Fmi3 *f, fmi3Instance c, int code, fmi3ValueReference vr, const int *elem,
+                                   double *out) {
+    if (code & RC_ELEMENT) {
+        if (!elem) return fmi3Error;
+        return fmi3_read_element(f, c, code & ~RC_ELEMENT, vr, elem[0], elem[1], out);
+    }
+    return fmi3_read(f, c, code, vr, out);
 }
 
 #endif

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import difflib
 import hashlib
+import itertools
 import math
 import os
 import shutil
@@ -39,6 +40,9 @@ from ..errors import FmuError, ParameterError
 OUTPUT_TYPES = {"Real": 0, "Float64": 0, "Integer": 1, "Int32": 1, "Boolean": 2, "Float32": 3, "Int8": 4,
                 "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10}
 ENUMERATION = {"2.0": 1, "3.0": 9}
+# One element of an FMI 3.0 array, recorded as a variable of its own ("y[2]", "A[1,2]"): a
+# flag on its type's code, its offset and its array's size passed beside (fmi3_table.h).
+ELEMENT, MAX_ELEMENTS = 16, 1024
 REAL_TYPES = ("Real", "Float64")  # what parameters and inputs may be (FMI 2.0, FMI 3.0)
 MODEL_EXCHANGE, CO_SIMULATION = "ModelExchange", "CoSimulation"
 INTERFACE_NAMES = {MODEL_EXCHANGE: "Model Exchange", CO_SIMULATION: "Co-Simulation"}
@@ -123,6 +127,20 @@ class LoadedFmu:
         self.value_references = {v.name: v.valueReference for v in variables}
         # arrays (FMI 3.0 dimensions) are not simulated: their type says so
         self.types = {v.name: v.type if not getattr(v, "dimensions", None) else f"{v.type}[]" for v in variables}
+        self.elements: dict[str, tuple[int, int]] = {}  # array element -> (offset, size of the array)
+        self.arrays: dict[str, list[str]] = {}  # FMI 3.0 array of a known size -> its elements, row-major
+        by_vr = {v.valueReference: v for v in variables}
+        for v in variables:
+            shape = _shape(v, by_vr) if getattr(v, "dimensions", None) else None
+            if shape is None or not 0 < math.prod(shape) <= MAX_ELEMENTS:
+                continue
+            names = [f"{v.name}[{','.join(map(str, index))}]" for index in
+                     itertools.product(*(range(1, d + 1) for d in shape))]
+            self.arrays[v.name] = names
+            for offset, name in enumerate(names):
+                self.elements[name] = (offset, len(names))
+                self.types[name] = v.type
+                self.value_references[name] = v.valueReference
         self.parameters: dict[str, ParameterInfo] = {
             v.name: ParameterInfo(name=v.name, start=_float(v.start), min=_float(v.min), max=_float(v.max),
                                   unit=v.unit or "", description=v.description or "",
@@ -131,6 +149,7 @@ class LoadedFmu:
             for v in variables if v.causality in ("parameter", "calculatedParameter")}
         self.outputs = [v.name for v in variables if v.causality == "output"]
         self.inputs = [v.name for v in variables if v.causality == "input"]
+        self.input_starts = {v.name: v.start for v in variables if v.causality == "input"}  # as declared (text)
         self.variables = [v.name for v in variables]
         self.n_states = md.numberOfContinuousStates
         self.n_event_indicators = md.numberOfEventIndicators
@@ -173,15 +192,33 @@ class LoadedFmu:
         """What instantiation is given: FMI 2.0 a URI, FMI 3.0 a path ending in a separator."""
         return str(self.dir / "resources") + os.sep if self.fmi3 else self.resource_uri
 
+    def _numeric(self, name: str) -> bool:
+        return self.types[name] in OUTPUT_TYPES or self.types[name] == "Enumeration"
+
     @property
     def numeric_outputs(self) -> list[str]:
-        """The outputs a run records when none are named: those that are numbers."""
-        return [n for n in self.outputs if self.types[n] in OUTPUT_TYPES or self.types[n] == "Enumeration"]
+        """The outputs a run records when none are named: those that are numbers, an
+        array's elements in its place."""
+        return [e for n in self.outputs for e in self.expand_outputs([n]) if self._numeric(e)]
 
     @property
     def skipped_outputs(self) -> list[str]:
-        """Outputs left out when none are named (String, Binary, Clock, arrays)."""
-        return [n for n in self.outputs if n not in self.numeric_outputs]
+        """Outputs left out when none are named (String, Binary, Clock, arrays of those or
+        of a size not known from the model description)."""
+        return [n for n in self.outputs if not any(self._numeric(e) for e in self.expand_outputs([n]))]
+
+    def expand_outputs(self, names: Sequence[str]) -> list[str]:
+        """The names, an FMI 3.0 array's in place of its elements ("y" -> "y[1]", "y[2]")."""
+        return [e for n in names for e in self.arrays.get(n, [n])]
+
+    def output_elements(self, names: Sequence[str]):
+        """(offset, size) per name, an int32 array for the runners; None when no name is
+        an array element."""
+        if not any(n in self.elements for n in names):
+            return None
+        import numpy as np
+
+        return np.array([self.elements.get(n, (0, 1)) for n in names], dtype=np.int32)
 
     def close(self) -> None:
         self._finalizer()
@@ -224,25 +261,41 @@ class LoadedFmu:
             raise ParameterError(f"{self.name} has no variable(s) {hints}")
         def code(n):
             kind = self.types[n]
-            return ENUMERATION[self.fmi_version] if kind == "Enumeration" else OUTPUT_TYPES.get(kind)
+            c = ENUMERATION[self.fmi_version] if kind == "Enumeration" else OUTPUT_TYPES.get(kind)
+            return c if c is None or n not in self.elements else c | ELEMENT
 
         bad = [f"{n} ({self.types[n]})" for n in names if code(n) is None]
         if bad:
             raise ParameterError(f"{self.name}: cannot record {', '.join(bad)}; numeric variables (Real, Integer, "
-                                 "Enumeration and Boolean; in FMI 3.0 the Float and Int types) can be recorded")
+                                 "Enumeration and Boolean; in FMI 3.0 the Float and Int types, and the elements "
+                                 "of arrays whose size the model description gives) can be recorded")
         return [code(n) for n in names]
 
-    def check_inputs(self, names: Sequence[str]) -> None:
-        """The inputs given are exactly the FMU's inputs, all of type Real."""
-        missing = [n for n in self.inputs if n not in names]
+    def check_inputs(self, names: Sequence[str]) -> dict[str, str]:
+        """The inputs given are the FMU's, of type Real; returns those not given, which
+        are held at their declared start values (name -> start, as declared), as fmpy
+        holds them. One without a start value has no value to hold: refused."""
         extra = [n for n in names if n not in self.inputs]
-        if missing or extra:
-            raise ParameterError(f"{self.name} has inputs {self.inputs or '(none)'}; "
-                                 f"missing {missing}, unknown {extra}")
+        if extra:
+            raise ParameterError(f"{self.name} has inputs {self.inputs or '(none)'}; unknown {extra}")
         bad = [f"{n} ({self.types[n]})" for n in names if self.types[n] not in REAL_TYPES]
         if bad:
             raise ParameterError(f"{self.name}: input(s) {', '.join(bad)} are not Real; rapid-cosim drives "
                                  "Real (FMI 3.0: Float64) inputs only")
+        held = {n: self.input_starts[n] for n in self.inputs if n not in names}
+        unset = [n for n, start in held.items() if start is None]
+        if unset:
+            raise ParameterError(f"{self.name} has inputs {', '.join(self.inputs)}; {', '.join(unset)} "
+                                 f"{'has' if len(unset) == 1 else 'have'} no start value to hold: give "
+                                 f"{'it' if len(unset) == 1 else 'them'} values")
+        return held
+
+    def describe_held(self, held: Mapping[str, str]) -> str:
+        """E.g. "u = 0, flag = false, label = 'Set me!'" (String and Binary starts quoted)."""
+        quoted = ("String", "Binary")
+        return ", ".join(f"{n} = {start!r}" if self.types[n] in quoted else
+                         f"{n} = [{start}]" if self.types[n].endswith("[]") else f"{n} = {start}"
+                         for n, start in held.items())
 
 
 def _intermediate_update(path: Path) -> set[str]:
@@ -255,6 +308,19 @@ def _intermediate_update(path: Path) -> set[str]:
     variables = root.find("ModelVariables")
     return {v.get("name") for v in (variables if variables is not None else [])
             if v.get("intermediateUpdate") in ("true", "1")}
+
+
+def _shape(v, by_vr) -> tuple[int, ...] | None:
+    """An FMI 3.0 array's dimensions: given, or the start values of the structural
+    parameters that size them (not settable here, so fixed); None if one is not known."""
+    shape = []
+    for d in v.dimensions:
+        size = d.start if d.start is not None else getattr(by_vr.get(d.valueReference), "start", None)
+        try:
+            shape.append(int(size))
+        except (TypeError, ValueError):
+            return None
+    return tuple(shape)
 
 
 def _float(value) -> float | None:

@@ -127,8 +127,9 @@ typedef struct {
     fmi2NewDiscreteStatesTYPE *new_discrete_states;
     fmi2EnterContinuousTimeModeTYPE *enter_continuous;
     fmi2CompletedIntegratorStepTYPE *completed_step;
-    /* an output of an FMI 3.0 type code (fmi3_table.h) as a double; FMI 3.0 only */
-    fmi2Status (*get_typed)(fmi2Component c, int code, fmi2ValueReference vr, double *value);
+    /* an output of an FMI 3.0 type code (fmi3_table.h; elem: an array element's offset
+     * and size) as a double; FMI 3.0 only */
+    fmi2Status (*get_typed)(fmi2Component c, int code, fmi2ValueReference vr, const int *elem, double *value);
 } Fmi2;
 
 /* Set status codes (mirrored in rapid_cosim/simulator/compiled.py). */
@@ -154,6 +155,7 @@ typedef struct {
     const double *input_values; /* n_rows x n_inputs */
     double start_time;
     double timeout; /* seconds per set; <= 0: none */
+    const int *out_elem; /* n_out x 2: an array element's offset and array size (NULL: none) */
 } Batch;
 
 typedef struct {
@@ -415,8 +417,9 @@ static fmi2Status fmi3_get_boolean(fmi2Component c, const fmi2ValueReference vr[
     }
     return fmi2OK;
 }
-static fmi2Status fmi3_get_typed(fmi2Component c, int code, fmi2ValueReference vr, double *value) {
-    return (fmi2Status)fmi3_read(F3(c), I3(c), code, vr, value);
+static fmi2Status fmi3_get_typed(fmi2Component c, int code, fmi2ValueReference vr, const int *elem,
+                                 double *value) {
+    return (fmi2Status)fmi3_read_output(F3(c), I3(c), code, vr, elem, value);
 }
 static fmi2Status fmi3_set_time(fmi2Component c, fmi2Real t) { return (fmi2Status)F3(c)->set_time(I3(c), t); }
 static fmi2Status fmi3_set_states(fmi2Component c, const fmi2Real x[], size_t n) {
@@ -799,7 +802,8 @@ static int read_outputs(Runner *r, double *row) {
             row[j] = v ? 1.0 : 0.0;
         } else {
             if (!r->fmi.get_typed) { set_message(r, "output %d has an FMI 3.0 type", j); return RC_FMI; }
-            FMI(r->fmi.get_typed(r->c, b->out_types[j], vr, &row[j]), "fmi3Get (typed output)");
+            FMI(r->fmi.get_typed(r->c, b->out_types[j], vr, b->out_elem ? b->out_elem + 2 * j : NULL, &row[j]),
+                "fmi3Get (typed output)");
         }
         if (!isfinite(row[j])) {
             set_message(r, "output %d is %g", j, row[j]);

@@ -68,6 +68,11 @@ class OutputsSkipped(UserWarning):
     named none."""
 
 
+class InputsHeld(UserWarning):
+    """Inputs not given are held at their declared start values (as fmpy holds them);
+    the note names them and the values."""
+
+
 @dataclass(frozen=True)
 class Trajectory:
     time: np.ndarray
@@ -131,6 +136,7 @@ class Simulator:
         self._runners: dict[str, object] = {}
         self._batches: dict[tuple, PreparedBatch] = {}
         self._noted = False
+        self._held_noted: set[tuple[str, ...]] = set()
 
     # the FMU's declarations
     name = property(lambda self: self.fmu.name)
@@ -184,23 +190,25 @@ class Simulator:
                           OutputsSkipped, stacklevel=4)
         return self.fmu.numeric_outputs
 
-    def _input_table(self, input_time, inputs) -> InputTable | None:
+    def _input_table(self, input_time, inputs) -> tuple[InputTable | None, dict[str, str]]:
+        """The table of the inputs given, and those held at their start values (noted once
+        per simulator and set of inputs held)."""
         if isinstance(inputs, InputTable):
             table = inputs
         elif inputs:
             table = InputTable.from_columns(input_time, inputs)
         else:
             table = None
-        if table is None:
-            if self.inputs:
-                raise ParameterError(f"{self.name} has inputs {', '.join(self.inputs)}; give them values")
-            return None
-        if ROCOF in self.inputs and FREQUENCY in table.names and ROCOF not in table.names:
+        if table is not None and ROCOF in self.inputs and FREQUENCY in table.names and ROCOF not in table.names:
             table = with_rocof(table)  # a recorded-frequency bench always gets its ROCOF (.rocof)
-        elif ROCOF in table.names and ROCOF not in self.inputs and FREQUENCY in table.names:
+        elif table is not None and ROCOF in table.names and ROCOF not in self.inputs and FREQUENCY in table.names:
             table = without_rocof(table)  # an experiment's derived ROCOF, offered to a model without it
-        self.fmu.check_inputs(table.names)
-        return table
+        held = self.fmu.check_inputs(table.names if table is not None else ())
+        if held and tuple(held) not in self._held_noted:
+            self._held_noted.add(tuple(held))
+            warnings.warn(f"{self.name}: input(s) not given are held at their start values: "
+                          f"{self.fmu.describe_held(held)}", InputsHeld, stacklevel=5)
+        return (table if table is not None and table.names else None), held
 
     def prepare(self, names: Sequence[str], *, output_times: np.ndarray | None = None,
                 stop_time: float | None = None, output_interval: float | None = None,
@@ -211,10 +219,10 @@ class Simulator:
         with many value tables (see :meth:`simulate_batch`). ``communication_step`` (s)
         bounds a Co-Simulation FMU's communication step (see :mod:`.cosim`); Model
         Exchange FMUs ignore it."""
-        record = list(outputs) if outputs is not None else self._default_outputs()
+        record = self.fmu.expand_outputs(outputs) if outputs is not None else self._default_outputs()
         types = self.fmu.output_types(record)
         times = time_base(start_time, stop_time, output_interval, output_times)
-        table = self._input_table(input_time, inputs)
+        table, held = self._input_table(input_time, inputs)
         kind, run = self._runner(runner)
         names = list(names)
         if self.fmu.co_simulation:
@@ -224,7 +232,7 @@ class Simulator:
         else:
             def call(values):
                 return self._run_reference(run, names, values, record, types, start_time, times, table)
-        return PreparedBatch(self, names, tuple(record), times, call)
+        return PreparedBatch(self, names, tuple(record), times, call, held)
 
     def simulate_batch(self, names: Sequence[str], values, *, check: bool = True, **kwargs) -> BatchResult:
         """Run each row of ``values`` (sets x len(names)) from ``start_time``; the keywords
@@ -320,9 +328,11 @@ class Simulator:
 class PreparedBatch:
     """What :meth:`Simulator.prepare` returns: call :meth:`run` with a value table."""
 
-    def __init__(self, sim: Simulator, names: list[str], outputs: tuple[str, ...], times: np.ndarray, call):
+    def __init__(self, sim: Simulator, names: list[str], outputs: tuple[str, ...], times: np.ndarray, call,
+                 held_inputs: Mapping[str, str] | None = None):
         times.flags.writeable = False  # shared by every result of the batch
         self.sim, self.names, self.outputs, self.time, self._call = sim, names, outputs, times, call
+        self.held_inputs = dict(held_inputs or {})  # inputs not given -> the start value they are held at
 
     def run(self, values, check: bool = False) -> BatchResult:
         values = np.asarray(values, dtype=float)
