@@ -101,9 +101,17 @@ class LoadedFmu:
             raise FmuError(f"{self.path}: FMI {md.fmiVersion}; rapid-cosim simulates FMI 2.0 and 3.0 FMUs")
         offered = [name for name, part in ((MODEL_EXCHANGE, md.modelExchange), (CO_SIMULATION, md.coSimulation))
                    if part is not None]
+        clocks = [v.name for v in md.modelVariables if v.type == "Clock"]
         if not offered:
-            raise FmuError(f"{self.path}: an FMU with neither a Model Exchange nor a Co-Simulation interface "
-                           "(Scheduled Execution is not simulated here)")
+            what = ("only a Scheduled Execution interface (model partitions activated by FMI 3.0 clocks"
+                    f"{' ' + ', '.join(clocks) if clocks else ''})"
+                    if getattr(md, "scheduledExecution", None) is not None else
+                    "neither a Model Exchange nor a Co-Simulation interface")
+            raise FmuError(f"{self.path}: an FMU with {what}; rapid-cosim simulates Model Exchange and "
+                           "Co-Simulation FMUs")
+        if clocks:
+            raise FmuError(f"{self.path}: FMI 3.0 clocks ({', '.join(clocks)}) need event handling by clock, "
+                           "which rapid-cosim does not do; it simulates FMUs without clocks")
         if interface is not None and interface not in offered:
             raise FmuError(f"{self.path}: no {INTERFACE_NAMES.get(interface, interface)} interface; the FMU offers "
                            f"{', '.join(INTERFACE_NAMES[o] for o in offered)}")
