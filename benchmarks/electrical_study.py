@@ -293,9 +293,8 @@ def _verdict(v) -> str:
 def candidate_structures():
     """TG Type I, TGOV1 and IEEEG1 with the constants the events document (generate.py);
     TG Type I's T5 estimated as in its events (the field unit's structure file fixes it at
-    6 s, and its pmax at 1.0, which a 200 MW event here exceeds); IEEEG1's K3 fixed at 0.7
-    (K1 + K3 scales K: both free, K is not determined), which the _b events' 0.75 and 0.65
-    do not match."""
+    6 s, and its pmax at 1.0, which a 200 MW event here exceeds); IEEEG1's K3 the rest of
+    the shaft, 1 - K1 (K3_rest: the stages sum to one, as every event's plant's do)."""
     from generate import ESTIMATE, IEEEG1_FIXED, TGOV1_FIXED, TGTYPEI_FIXED
 
     from rapid_cosim.diagnose.structures import Structure
@@ -306,7 +305,7 @@ def candidate_structures():
     tgov1 = Structure("TGOV1", f"{bench}TGOV1", f"{bench}TGOV1", {f"gov.{k}": v for k, v in TGOV1_FIXED.items()},
                       {"gov.R": {"min": 0.02, "max": 0.12}, "gov.T1": {"min": 0.05, "max": 3.0},
                        "gov.T2": {"min": 0.0, "max": 10.0}, "gov.T3": {"min": 1.0, "max": 20.0}}, "study")
-    fixed = {**{f"gov.{k}": v for k, v in IEEEG1_FIXED.items()}, "gov.K3": 0.7}
+    fixed = {**{f"gov.{k}": v for k, v in IEEEG1_FIXED.items()}, "gov.K3_rest": 1.0}
     ieeeg1 = Structure("IEEEG1", f"{bench}IEEEG1", f"{bench}IEEEG1", fixed,
                        {"gov.K": {"min": 5.0, "max": 50.0}, "gov.T4": {"min": 0.05, "max": 2.0},
                         "gov.T5": {"min": 1.0, "max": 20.0}, "gov.K1": {"min": 0.05, "max": 0.6}}, "study")

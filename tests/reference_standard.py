@@ -21,8 +21,8 @@ DEFAULTS = {
     "HYGOV": {"R": 0.05, "r": 0.3, "Tr": 5.0, "Tf": 0.05, "Tg": 0.5, "VELM": 0.2, "GMAX": 1.0, "GMIN": 0.0,
               "TW": 1.0, "At": 1.2, "Dturb": 0.5, "qNL": 0.08, "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
     "IEEEG1": {"K": 20.0, "T1": 0.001, "T2": 0.0, "T3": 0.1, "Uo": 1.0, "Uc": -1.0, "PMAX": 1.0, "PMIN": 0.0,
-               "T4": 0.3, "K1": 0.2, "T5": 7.0, "K3": 0.3, "T6": 0.6, "K5": 0.5, "T7": 0.05, "K7": 0.0,
-               "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
+               "T4": 0.3, "K1": 0.2, "T5": 7.0, "K3": 0.3, "K3_rest": 0.0, "T6": 0.6, "K5": 0.5, "T7": 0.05,
+               "K7": 0.0, "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
     "GGOV1": {"R": 0.04, "Rselect": 1.0, "Tpelec": 1.0, "maxerr": 0.05, "minerr": -0.05, "Kpgov": 10.0,
               "Kigov": 2.0, "Kdgov": 0.0, "Tdgov": 1.0, "Vmax": 1.0, "Vmin": 0.15, "Tact": 0.5, "Kturb": 1.5,
               "Wfnl": 0.2, "Tb": 0.5, "Tc": 0.0, "Flag": 1.0, "Tfload": 3.0, "Kpload": 2.0, "Kiload": 0.67,
@@ -81,15 +81,21 @@ class Standard:
         return dx, p["At"] * h * (q - p["qNL"]) + p["Dturb"] * dw * g
 
     # ------------------------------------------------------------------ IEEEG1
+    def _ieeeg1_k3(self) -> float:
+        """The second stage's fraction: with K3_rest = 1, the rest of the shaft (the stages sum to one)."""
+        p = self.p
+        return 1 - p["K1"] - p["K5"] - p["K7"] if p["K3_rest"] == 1 else p["K3"]
+
     def _ieeeg1(self, dw, x):
         p = self.p
         xl, gv, x4, x5, x6, x7 = x
-        gv0 = p["p_ref"] / (p["K1"] + p["K3"] + p["K5"] + p["K7"])
+        k3 = self._ieeeg1_k3()
+        gv0 = p["p_ref"] / (p["K1"] + k3 + p["K5"] + p["K7"])
         ysp = p["K"] * (xl + p["T2"] / p["T1"] * (dw - xl))
         vl = rate_limit((gv0 + ysp - gv) / p["T3"], p["Uc"], p["Uo"], p["eps_v"])
         dx = [(dw - xl) / p["T1"], non_windup(vl, gv, p["PMIN"], p["PMAX"], p), (gv - x4) / p["T4"],
               (x4 - x5) / p["T5"], (x5 - x6) / p["T6"], (x6 - x7) / p["T7"]]
-        return dx, p["K1"] * x4 + p["K3"] * x5 + p["K5"] * x6 + p["K7"] * x7
+        return dx, p["K1"] * x4 + k3 * x5 + p["K5"] * x6 + p["K7"] * x7
 
     # ------------------------------------------------------------------ GGOV1
     def _ggov1_feedback(self, pef, v):
@@ -141,7 +147,7 @@ class Standard:
         if self.model == "GGOV1":
             v0 = p["p_ref"] / p["Kturb"] + p["Wfnl"]
             return np.array([p["p_ref"], 0.0, v0, 0.0, v0, v0, v0, 0.0, v0, v0, p["p_ref"]])
-        gv0 = p["p_ref"] / (p["K1"] + p["K3"] + p["K5"] + p["K7"])
+        gv0 = p["p_ref"] / (p["K1"] + self._ieeeg1_k3() + p["K5"] + p["K7"])
         return np.array([0.0, gv0, gv0, gv0, gv0, gv0])
 
     def simulate(self, t_out):

@@ -72,24 +72,33 @@ def test_heldout_evidence_settles_a_training_tie_only_when_it_adds_up():
     v = settle_on_heldout(decide(ranking), ranking, {"delay": 300.0, "measurement_lag": 303.0})
     assert v.effect == "ambiguous" and set(v.candidates) == {"delay", "measurement_lag"}
     assert "do not separate" in v.reason
-    # a tie with none is the material-size question: left alone
+    # none, with a caveat, is not a tie to settle: left alone
     tie = _ranked(none=0.0, backlash=-4.0, deadband=-2.0)
     v = decide(tie, not_excluded=["deadband"])
-    assert settle_on_heldout(v, tie, {"none": 0.0, "deadband": 100.0}).candidates == ["none", "deadband"]
+    assert settle_on_heldout(v, tie, {"none": 0.0, "deadband": 100.0}).effect == "none"
 
 
 def test_an_effect_that_barely_beats_none_is_not_named():
     ranking = _ranked(none=0.0, backlash=-4.0, deadband=-2.0)
     assert decide(ranking).effect == "none"
-    v = decide(ranking, not_excluded=["deadband"])  # but a material deadband fits as well
-    assert v.effect == "ambiguous" and v.candidates == ["none", "deadband"]
+    v = decide(ranking, not_excluded=["deadband"])  # a material deadband fits as well: a caveat, not a verdict
+    assert v.effect == "none" and v.candidates == [] and "cannot exclude deadband at a material size" in v.reason
 
 
-def test_verdict_none_only_if_material_effects_are_excluded():
+def test_verdict_none_with_what_it_cannot_exclude():
     ranking = _ranked(none=0.0, deadband=7.0, delay=8.0)
     assert decide(ranking).effect == "none"
     v = decide(ranking, not_excluded=["deadband"])
-    assert v.effect == "ambiguous" and v.candidates == ["none", "deadband"]
+    assert v.effect == "none" and "cannot exclude deadband" in v.reason
+
+
+def test_ambiguous_only_between_effects_that_each_beat_none():
+    """delay beats none by 12, measurement_lag by 4: within 10 of each other, but only one
+    is decisive against none, so it is named; both decisive, and within 10: ambiguous."""
+    v = decide(_ranked(none=0.0, delay=-12.0, measurement_lag=-4.0))
+    assert v.effect == "delay" and "does not itself beat none" in v.reason
+    v = decide(_ranked(none=0.0, delay=-22.0, measurement_lag=-14.0))
+    assert v.effect == "ambiguous" and set(v.candidates) == {"delay", "measurement_lag"}
 
 
 def test_laplace_recovers_a_known_gaussian():

@@ -33,15 +33,26 @@ def modelica_parameters(model: str) -> dict[str, tuple[float, float, str]]:
 
 def calibrated_values(model: str) -> dict[str, float]:
     """What an export of the standard structure writes: its fixed values and each
-    estimate at the middle of its range (IEEEG1's K1 at 1 - K3, a single shaft's sum)."""
+    estimate at the middle of its range (IEEEG1's K3 the rest of the shaft: K3_rest)."""
     raw = tomllib.loads((STRUCTURES / f"{model}.toml").read_text())
     values = {k.removeprefix("gov."): float(v) for k, v in raw["fixed"].items()}
     for name, spec in raw["estimate"].items():
         lo, hi = spec["min"], spec["max"]
         values[name.removeprefix("gov.")] = float(np.sqrt(lo * hi) if spec.get("scale") == "log" else (lo + hi) / 2)
     if model == "IEEEG1":
-        values.update(K1=1.0 - values["K3"], Uo=0.0101, Uc=-0.0298)  # the field unit's asymmetric rates
+        values.update(Uo=0.0101, Uc=-0.0298)  # the field unit's asymmetric rates
     return values
+
+
+def test_an_ieeeg1_record_carries_stages_that_sum_to_one(tmp_path):
+    """The structure file's K3_rest: the .dyr's K3 is 1 - K1 (K5 = K7 = 0), so the record
+    read back (K3 explicit) is the model calibrated."""
+    values = calibrated_values("IEEEG1")
+    assert values["K3_rest"] == 1.0 and values["K5"] == values["K7"] == 0.0
+    psse_dyr.write_record(tmp_path / "unit.dyr", "IEEEG1", values, bus=7, machine_id="2")
+    record = read_record(tmp_path / "unit.dyr")
+    assert record.values["K1"] + record.values["K3"] == pytest.approx(1.0, abs=1e-15)
+    assert record.values["K1"] == values["K1"]
 
 
 @pytest.mark.parametrize("model", list(MODELS))

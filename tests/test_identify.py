@@ -190,3 +190,24 @@ def test_with_no_record_recommended_an_earlier_runs_files_are_gone_and_the_notes
     result = rc.identify(unit, workdir=out, log=lambda *_: None)
     assert not any(out.iterdir()) and not result.files
     assert result.notes == {kind: f"no record recommended: {why}" for kind in ("dyr", "dyd", "report")}
+
+
+def _record(model: str, bic: float, n: int, adequate: bool = True):
+    from rapid_cosim.identify.result import StandardRecord
+
+    return StandardRecord(model, model, False, {}, n, bic, adequate, 1.0, {}, [], "within the noise on every test"
+                          if adequate else "not within the noise on test1 (pooled variance ratio 1.30)", "")
+
+
+def test_the_recommendation_follows_the_criterion():
+    """The first by BIC is recommended, however many parameters it has; a simpler record
+    only where it ties (within 10), with both said; a first that is not within the noise
+    is still recommended, and said to be so (issue 32)."""
+    from rapid_cosim.identify.workflow import _recommend
+
+    model, why = _recommend([_record("TGOV1", 124.0, 4), _record("IEEEG1", 0.0, 7)])
+    assert model == "IEEEG1" and why.startswith("first by BIC (IEEEG1, 7 estimated parameters; 124.0 ahead of TGOV1)")
+    model, why = _recommend([_record("TGOV1", 6.0, 4), _record("IEEEG1", 0.0, 5), _record("GGOV1", 50.0, 6)])
+    assert model == "TGOV1" and "it ties with IEEEG1, the first by BIC (6.0 behind, within 10)" in why
+    model, why = _recommend([_record("TGOV1", 30.0, 4), _record("IEEEG1", 0.0, 7, adequate=False)])
+    assert model == "IEEEG1" and "NOT within the noise (not within the noise on test1" in why

@@ -29,6 +29,8 @@ CASES = {
         "valve held at PMAX": {"gov.p_ref": 0.95},
         "lead-lag and four stages": {"gov.T1": 0.5, "gov.T2": 1.5, "gov.K": 25.0, "gov.K5": 0.4, "gov.K7": 0.1,
                                      "gov.T7": 2.0, "src.df": 0.2},
+        "single reheat, the stages summing to one": {"gov.K3_rest": 1.0, "gov.K1": 0.27, "gov.K3": 0.9,
+                                                     "gov.K5": 0.0, "gov.T5": 5.0},
     },
     "GGOV1": {
         "down-step: the governor holds the gate": {},

@@ -178,10 +178,11 @@ def _fit(name, bic, n_estimated, adequate=True):
     return StructureFit(name, bic, 0.0, 0.0, {}, n_estimated, adequate, 1.0, None, {}, None, "")
 
 
-@pytest.mark.parametrize("rival_parameters,verdict", [(4, "TGTypeI"), (2, "ambiguous"), (1, "ambiguous")])
+@pytest.mark.parametrize("rival_parameters,verdict", [(4, "TGTypeI"), (2, "ambiguous"), (1, "IEEEG1")])
 def test_a_richer_structure_must_win_by_the_threshold(rival_parameters, verdict):
     """Within the threshold, a rival with more estimated parameters has not earned them
-    (as an effect must beat none); one as simple or simpler leaves the verdict open."""
+    (as an effect must beat none); one as simple leaves the verdict open; a simpler one
+    ties with the first and is named, the tie said."""
     fits = [_fit("TGTypeI", 100.0, 2), _fit("IEEEG1", 104.0, rival_parameters), _fit("GGOV1", 160.0, 4)]
     for f in fits:
         f.delta = f.bic - fits[0].bic
@@ -190,6 +191,9 @@ def test_a_richer_structure_must_win_by_the_threshold(rival_parameters, verdict)
     if verdict == "TGTypeI":
         assert "IEEEG1 come within 10 with more estimated parameters" in result.reason
         assert "beats GGOV1 by 60.0" in result.reason
+    if verdict == "IEEEG1":
+        assert result.reason.startswith("IEEEG1 ties with TGTypeI (4.0 behind it in BIC, within 10")
+        assert result.candidates == ["IEEEG1", "TGTypeI"] and "beats GGOV1 by 56.0" in result.reason
 
 
 def test_an_ambiguous_verdict_proposes_the_test_that_would_separate(repo, campaign, tmp_path):

@@ -18,14 +18,16 @@ shows. The concentrated variance keeps the ranking right when the model's level 
 Verdict (``threshold`` in BIC units, 10 = "very strong" on Kass and Raftery's scale):
 - an effect is *named* when it beats ``none`` and every other candidate by at least the
   threshold, and, if held-out tests are given, predicts them better than ``none``;
-- ``none`` is returned when nothing beats it, and no effect held at a material size
-  fits about as well (which would mean the data cannot exclude that effect);
+- ``none`` is returned when no effect beats it by the threshold; an effect that, held at
+  a material size, fits about as well is a caveat of that verdict (``not_excluded``, with
+  the staged test that would tell), not a verdict of its own;
 - when effects tie within the threshold on the training tests and held-out tests are
   given, their predictions of those tests are added as further evidence: the held-out
   data term is a log-likelihood ratio on data no fit has seen, in the criterion's units,
   so training difference plus held-out difference is compared with the same threshold;
-- otherwise the answer is *ambiguous*, with the candidates that could not be told apart
-  and the staged test that would separate them best.
+- *ambiguous* is kept for two or more effects that each beat ``none`` by the threshold
+  and lie within it of each other: the candidates that could not be told apart and the
+  staged test that would separate them best.
 """
 
 from __future__ import annotations
@@ -176,20 +178,24 @@ def decide(ranking: Sequence[Ranked], *, threshold: float = THRESHOLD,
         closest = best if best.label != "none" else ranking[1]
         support = (f"no effect improves the criterion decisively (closest: {closest.label}, "
                    f"{_margin(ranking, closest):+.1f} against the base model)")
-        if not_excluded:
-            return Verdict("ambiguous", candidates=["none", *not_excluded],
-                           reason=support + "; but the data cannot exclude " + ", ".join(not_excluded)
-                                  + " at a material size: it fits as well as the base model with other parameters")
+        if not_excluded:  # a caveat, not a verdict: nothing is shown missing
+            return Verdict("none", reason=support + "; the data cannot exclude " + ", ".join(not_excluded)
+                                          + " at a material size (it fits as well as the base model with other "
+                                            "parameters)")
         return Verdict("none", reason=support)
     margin_none = _margin(ranking, best)
-    rivals = [r.label for r in ranking[1:] if r.label != "none" and r.delta < threshold]
+    # ambiguous only between effects that each beat none decisively
+    rivals = [r.label for r in ranking[1:] if r.label != "none" and r.delta < threshold
+              and _margin(ranking, r) >= threshold]
     if rivals:
         return Verdict("ambiguous", candidates=[best.label, *rivals],
                        reason=f"{best.label} and {', '.join(rivals)} are within {threshold:g} of each other")
     second = ranking[1]
-    return Verdict(best.label, effects=[best.label],
-                   reason=f"{best.label} beats none by {margin_none:.1f} and the next candidate "
-                          f"({second.label}) by {second.delta:.1f}")
+    reason = (f"{best.label} beats none by {margin_none:.1f} and the next candidate ({second.label}) by "
+              f"{second.delta:.1f}")
+    if second.delta < threshold:
+        reason += f" (which does not itself beat none by {threshold:g})"
+    return Verdict(best.label, effects=[best.label], reason=reason)
 
 
 def settle_on_heldout(verdict: Verdict, ranking: Sequence[Ranked], heldout_terms: Mapping[str, float],

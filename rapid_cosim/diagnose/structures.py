@@ -280,44 +280,60 @@ def _at_bounds(estimate: dict, best: dict[str, float], share: float = 0.01) -> l
 
 
 def _verdict(fits: list[StructureFit], threshold: float) -> StructureVerdict:
-    best = fits[0]
-    close = [f for f in fits[1:] if f.delta < threshold]
-    # A richer structure must beat a simpler one by the threshold, as an effect must beat none.
+    """The structure verdict from the fits in BIC order (the rules of the module docstring)."""
+    top = fits[0]
+    # A richer structure must beat a simpler one by the threshold, as an effect must beat
+    # none: a simpler structure within it of the first ties with it, and is named.
+    simpler = sorted((f for f in fits[1:] if f.delta < threshold and f.n_estimated < top.n_estimated),
+                     key=lambda f: (f.n_estimated, f.bic))
+    best = simpler[0] if simpler else top
+    others = [f for f in fits if f is not best]
+    close = [f for f in others if f.delta - best.delta < threshold]
     richer = [f.name for f in close if f.n_estimated > best.n_estimated]
-    rivals = [f.name for f in close if f.n_estimated <= best.n_estimated]
+    rivals = [f.name for f in close if f.n_estimated == best.n_estimated]
     if not any(f.adequate for f in fits):
         margin = f", by {fits[1].delta:.1f} in BIC over {fits[1].name}" if len(fits) > 1 else ""
         return StructureVerdict("unexplained", [f.name for f in fits],
-                                f"no structure fits to the noise (best {best.name}{margin}, variance ratio "
-                                f"{best.variance_ratio:.2f}): what is missing is missing from every structure "
+                                f"no structure fits to the noise (best {top.name}{margin}, variance ratio "
+                                f"{top.variance_ratio:.2f}): what is missing is missing from every structure "
                                 "tried, or is another structure", fits)
     if rivals:
         return StructureVerdict("ambiguous", [best.name, *rivals],
-                                f"{best.name} and {', '.join(rivals)} are within {threshold:g} in BIC", fits)
-    beaten = [f for f in fits[1:] if f.name not in richer]
-    reason = (f"{best.name} beats {beaten[0].name} by {beaten[0].delta:.1f} in BIC" if beaten
+                                f"{best.name} and {', '.join(rivals)}, as simple, are within {threshold:g} in BIC",
+                                fits)
+    beaten = [f for f in others if f.name not in richer]
+    reason = (f"{best.name} beats {beaten[0].name} by {beaten[0].delta - best.delta:.1f} in BIC" if beaten
               else f"{best.name} is the only structure tried" if len(fits) == 1 else f"{best.name} is first")
+    if best is not top:
+        reason = (f"{best.name} ties with {top.name} ({best.delta:.1f} behind it in BIC, within {threshold:g}, with "
+                  "fewer estimated parameters, which it names); " + reason)
     if richer:
         reason += (f"; {', '.join(richer)} come within {threshold:g} with more estimated parameters, "
                    "which they do not earn")
-    if best.heldout_score is not None and len(fits) > 1 and fits[1].heldout_score is not None:
-        runner = fits[1]
-        held = runner.heldout_score - best.heldout_score  # positive: the held-out tests agree
+    runner = others[0] if others else None
+    if best.heldout_score is not None and runner is not None and runner.heldout_score is not None:
         # The held-out tests are more evidence of the same kind (the criterion's data term
-        # on tests the fit never saw): they overturn the verdict only if, added to the
-        # training evidence, they leave it short of what named it (the threshold over a
-        # rival, or no more than the criterion over a richer structure).
-        needed = 0.0 if runner.name in richer else threshold
+        # on tests the fit never saw): added to the training evidence they can name a richer
+        # runner that then beats the named one by the threshold, or leave an as-simple or
+        # simpler one within it (ambiguous).
+        held = runner.heldout_score - best.heldout_score  # positive: the held-out tests agree
+        gap = runner.delta - best.delta  # training evidence for best over the runner (negative in a tie)
         if held > 0:
             reason += f"; confirmed on the held-out tests ({held:+.1f})"
-        elif runner.delta + held < needed:
+        elif runner.name in richer and gap + held <= -threshold:
+            return StructureVerdict(runner.name, [runner.name, best.name],
+                                    f"{runner.name} beats {best.name} by {-(gap + held):.1f} over training and "
+                                    f"held-out tests together ({-gap:.1f} on training, {-held:.1f} held out), "
+                                    "which earns its extra parameters", fits)
+        elif runner.name not in richer and gap + held < threshold:
             return StructureVerdict("ambiguous", [best.name, runner.name],
                                     reason + f", but predicts the held-out tests worse than {runner.name} "
-                                             f"({held:+.1f}), which leaves {runner.delta + held:.1f} over all tests",
+                                             f"({held:+.1f}), which leaves {gap + held:.1f} over all tests",
                                     fits)
         else:
             reason += (f"; the held-out tests favour {runner.name} by {-held:.1f}, less than the training "
-                       f"evidence ({runner.delta + held:.1f} left over all tests)")
+                       f"evidence ({gap + held:.1f} left over all tests)")
     if not best.adequate:
         reason += f"; it does not fit to the noise (variance ratio {best.variance_ratio:.2f}): an unexplained remainder"
-    return StructureVerdict(best.name, [best.name], reason, fits)
+    ties = [best.name, top.name] if best is not top else [best.name]
+    return StructureVerdict(best.name, ties, reason, fits)

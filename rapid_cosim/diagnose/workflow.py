@@ -88,7 +88,8 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     chosen = ctx.fits[verdict.effect] if verdict.effect in ctx.fits and verdict.effect != NONE else None
     if chosen is not None and ctx.heldout:
         verdict = _confirm(ctx, chosen, base, verdict)
-        if verdict.effect == "ambiguous":
+        if verdict.effect == NONE:  # not confirmed: a caveat of none, not a verdict
+            not_excluded = [*not_excluded, chosen.spec.label]
             chosen = None
 
     second: list[Ranked] = []
@@ -103,7 +104,11 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
 
     separating = None
     if verdict.effect == "ambiguous":
-        separating = _separating(ctx, verdict, not_excluded)
+        separating = _separating(ctx, verdict.candidates, not_excluded)
+    elif verdict.effect == NONE and not_excluded:  # the staged test that would tell none from the caveat
+        separating = _separating(ctx, [NONE, not_excluded[0]], not_excluded)
+        if separating:
+            verdict.reason += f"; {separating['advice']}"
 
     materiality = {}
     if chosen is not None:
@@ -179,9 +184,9 @@ def _confirm(ctx: Context, chosen: CandidateFit, base: CandidateFit, verdict: Ve
     verdict.held_out = {"tests": [e.name for e in ctx.heldout], "criterion_improvement": improvement,
                         "confirmed": improvement > 0}
     if improvement <= 0:
-        return Verdict("ambiguous", candidates=[verdict.effect, NONE], held_out=verdict.held_out,
+        return Verdict(NONE, held_out=verdict.held_out,
                        reason=f"{verdict.effect} wins on the training tests but does not predict the held-out "
-                              f"tests better than the base model ({improvement:+.1f})")
+                              f"tests better than the base model ({improvement:+.1f}): not named, not excluded")
     verdict.reason += f"; confirmed on held-out {', '.join(e.name for e in ctx.heldout)} ({improvement:+.1f})"
     return verdict
 
@@ -230,17 +235,16 @@ def _second_effect(ctx: Context, chosen: CandidateFit, verdict: Verdict, options
     return fit, verdict, ranked
 
 
-def _separating(ctx: Context, verdict: Verdict, not_excluded: Sequence[str]) -> dict | None:
-    labels = verdict.candidates
+def _separating(ctx: Context, labels: Sequence[str], not_excluded: Sequence[str]) -> dict | None:
     if len(labels) < 2:
         return None
     a = ctx.fits.get(labels[0])
     other = labels[1]
+    b = None
     if other in not_excluded or (labels[0] == NONE and other in CATALOGUE):
         held = tuple((p.name, p.material) for p in CATALOGUE[other].parameters)
-        b = ctx.fits.get(CandidateSpec((other,), held).label)
-    else:
-        b = ctx.fits.get(other)
+        b = ctx.fits.get(CandidateSpec((other,), held).label)  # at its material size
+    b = b or ctx.fits.get(other)
     staged = [e for e in ctx.training if is_staged(e.model)]
     if a is None or b is None or not staged:
         if not staged:

@@ -50,7 +50,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Callable, Mapping
 
 from ..errors import ParameterError, RecordError
 
@@ -109,6 +109,7 @@ class Model:
     fields: tuple[Field, ...]
     pslf_order: tuple[str, ...]
     dropped: tuple[Dropped, ...]
+    resolve: Callable[[dict], dict] | None = None  # iGrGen values -> those the fields carry (K3 in use)
 
     @property
     def pslf_name(self) -> str:
@@ -151,6 +152,15 @@ TGOV1 = Model("TGOV1", (
     _f("Dt", "Dt", 0.0, 0, 10),
 ), ("r", "t1", "vmax", "vmin", "t2", "t3", "dt"), _common())
 
+def _ieeeg1_stages(values: dict) -> dict:
+    """With K3_rest = 1 the record carries the K3 in use, 1 - K1 - K5 - K7: the stages sum
+    to one in the .dyr as in the model."""
+    if values.get("K3_rest", 0.0) <= 0.5:
+        return values
+    rest = 1.0 - sum(values.get(k, default) for k, default in (("K1", 0.2), ("K5", 0.5), ("K7", 0.0)))
+    return {**values, "K3": rest}
+
+
 IEEEG1 = Model("IEEEG1", (
     Field("JBUS", None, None, 0.0, integer=True), Field("M", None, None, 0.0, integer=True),
     _f("K", "K", 20.0, 1, 100), _f("T1", "T1", 0.001, 0.001, 100, zero_as=0.001), _f("T2", "T2", 0.0, 0, 100),
@@ -160,7 +170,7 @@ IEEEG1 = Model("IEEEG1", (
     _none("K4", 0.0, "k4"), _f("T6", "T6", 0.6, 0.001, 100), _f("K5", "K5", 0.5, 0, 1), _none("K6", 0.0, "k6"),
     _f("T7", "T7", 0.05, 0.001, 100), _f("K7", "K7", 0.0, 0, 1), _none("K8", 0.0, "k8"),
 ), ("k", "t1", "t2", "t3", "uo", "uc", "pmax", "pmin", "t4", "k1", "k2", "t5", "k3", "k4", "t6", "k5", "k6", "t7",
-    "k7", "k8"), _common())
+    "k7", "k8"), _common(Dropped("K3_rest", None, "written into K3 as 1 - K1 - K5 - K7")), _ieeeg1_stages)
 
 GGOV1 = Model("GGOV1", (
     _f("Rselect", "Rselect", 1.0, -1, 1, integer=True, choices=(-1.0, 0.0, 1.0)),
@@ -242,6 +252,7 @@ def record_numbers(model: Model, values: Mapping[str, float],
     if unknown:
         raise ParameterError(f"{model.name} has no parameter {', '.join(unknown)}; its parameters: {', '.join(model.params)}")
     extra = dict(extra or {})
+    values = model.resolve(dict(values)) if model.resolve else values
     numbers = []
     for f in model.fields:
         if f.param is not None:

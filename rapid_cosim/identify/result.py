@@ -69,6 +69,7 @@ class StandardRecord:
     words: str
     archive: str
     at_bounds: list[str] = field(default_factory=list)
+    relative_se: dict[str, float] = field(default_factory=dict)  # each estimate's, from the Fisher information
 
     def fidelity(self, tests: Sequence[str], *, failing: bool = False) -> str:
         """RMSE over the noise per test of ``tests`` it has (``failing``: marked where the
@@ -151,6 +152,10 @@ class Identification:
         e = self.explanation
         lines = [f"explanation (TG Type I and the effect catalogue): {e['verdict']}, "
                  f"{'adequate' if e['adequate'] else 'not adequate'} (campaign p {e['p']:.2g})"]
+        if e["effect"] == "none" and e.get("not_excluded"):
+            test = e.get("separating_test")
+            lines[0] += (f"; not excluded at a material size: {', '.join(e['not_excluded'])}"
+                         + (f" ({test['advice']})" if test else ""))
         if self.recommended:
             r = self.record(self.recommended)
             lines.append(f"recommended record: {r.model}" + (f" ({r.fit})" if r.fit != r.model else "")

@@ -112,7 +112,7 @@ class StructureCase:
     plant: dict[str, float]
     binding: bool  # IEEEG1's valve rates bind
     verdict: StructureVerdict | None = None
-    recommended: str | None = None  # by identify's rule: the simplest record within the noise
+    recommended: str | None = None  # by identify's rule: the first by BIC, a simpler one in a tie
     exported: str = ""  # the fit whose record was exported: the named one, else the first by BIC
     freed: bool = False  # the exported record keeps its optional parts (IEEEG1's Uo/Uc)
     rmse: dict[str, float] = field(default_factory=dict)  # exported record, per test: RMSE / noise

@@ -10,9 +10,10 @@ with one noise model.
   free, and that fit is kept only where it wins by the selection threshold (the data
   call for them). Each record's fidelity is stated per test in noise units beside the
   explanation's, with what it cannot carry in plain words.
-* **The recommendation** is the simplest standard record (fewest estimated parameters,
-  then BIC) that is adequate: within the noise on every test. If none is, the best by
-  BIC is named with what it leaves out.
+* **The recommendation** follows the criterion: the first record by BIC (with its optional
+  parts where they won). A simpler record is recommended only where it ties with it
+  (within the selection threshold), and both are said; a record that is not within the
+  noise on every test is still recommended when it is first, and said to be so.
 * **For its report** (:mod:`.deliver`): the held-out tests on the recommended record's
   bench and the explanation's diagnosis, written into the work folder; the records and
   the report are written from them by :func:`rapid_cosim.api.identify`.
@@ -97,7 +98,8 @@ def deliver(structures: Sequence[Structure], training: Sequence[Experiment], hel
             fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print,
             fitted_noise: dict | None = None) -> Delivery:
     """Every standard record by identify's rules (optional parts kept only where they win
-    by the threshold; the simplest record within the noise recommended; a structure no
+    by the threshold; the record the criterion prefers recommended, a simpler one only in
+    a tie; a structure no
     grid simulator's record holds, TG Type I, is ranked but gets no record). ``identify``
     gives it the explanation, whose effects say what each record cannot carry;
     ``rapid-cosim structures`` runs this part alone (no explanation)."""
@@ -140,24 +142,39 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation) ->
     return StandardRecord(model=structure.name, fit=use.name, optional_freed=use is freed,
                           parameters=use.parameters, n_estimated=use.n_estimated, bic=use.bic,
                           adequate=use.adequate, variance_ratio=use.variance_ratio, tests=per_test,
-                          cannot_carry=missing, words=words, archive=use.archive, at_bounds=use.at_bounds)
+                          cannot_carry=missing, words=words, archive=use.archive, at_bounds=use.at_bounds,
+                          relative_se={k: v["relative_se"] for k, v in use.identifiability.get("parameters", {}).items()})
 
 
 def _recommend(records: list[StandardRecord]) -> tuple[str | None, str]:
-    adequate = sorted((r for r in records if r.adequate), key=lambda r: (r.n_estimated, r.bic))
-    if adequate:
-        r = adequate[0]
-        rivals = [o.model for o in adequate[1:]]
-        return r.model, (f"the simplest standard record within the noise ({r.n_estimated} estimated parameters)"
-                         + (f"; also within it: {', '.join(rivals)}" if rivals else ""))
+    """The record the criterion prefers: the first by BIC (with its optional parts where
+    they won); a simpler one only where it ties with it (within the selection threshold),
+    and then both are said. A winner that is not within the noise is still recommended,
+    and said to be so."""
     if not records:
         return None, "no standard structure was given"
-    best = min(records, key=lambda r: r.bic)
-    return best.model, (f"no standard record is within the noise; {best.model} comes closest by BIC "
-                        f"({best.words})")
+    ranked = sorted(records, key=lambda r: r.bic)
+    first = ranked[0]
+    ties = sorted((r for r in ranked[1:] if r.bic - first.bic < THRESHOLD and r.n_estimated < first.n_estimated),
+                  key=lambda r: (r.n_estimated, r.bic))
+    chosen = ties[0] if ties else first
+    if chosen is first:
+        runner = ranked[1] if len(ranked) > 1 else None
+        reason = (f"first by BIC ({first.fit}, {first.n_estimated} estimated parameters"
+                  + (f"; {runner.bic - first.bic:.1f} ahead of {runner.fit}" if runner else "") + ")")
+    else:
+        reason = (f"it ties with {first.fit}, the first by BIC ({chosen.bic - first.bic:.1f} behind, within "
+                  f"{THRESHOLD:g}), with fewer estimated parameters ({chosen.n_estimated} against "
+                  f"{first.n_estimated}): either record fits these tests as well; {first.model} is the richer one")
+    if chosen.adequate:
+        reason += "; within the noise on every test"
+    else:
+        reason += f"; NOT within the noise ({chosen.words})"
+    return chosen.model, reason
 
 
 def _explanation(d) -> dict:
     return {"verdict": d.verdict, "effect": d.effect, "effects": list(d.effects), "adequate": d.adequate,
             "parameters": d.parameters_after, "intervals": d.parameter_intervals, "noise": d.noise,
-            "p": d.adequacy["after"]["p"], "tests": d.adequacy["after"]["tests"]}
+            "p": d.adequacy["after"]["p"], "tests": d.adequacy["after"]["tests"],
+            "not_excluded": list(d.not_excluded), "separating_test": d.separating_test}

@@ -11,7 +11,8 @@ block IEEEG1 "Multi-stage steam turbine-governor IEEEG1 (IEEE 1973; IEEE PES-TR1
   parameter Types.Time T4(min=0.001, max=100) = 0.3 "inlet piping / steam bowl time constant";
   parameter Types.PerUnit K1(min=0, max=1) = 0.2 "fraction of the HP shaft power after the first stage";
   parameter Types.Time T5(min=0.001, max=100) = 7.0 "second stage (reheater) time constant";
-  parameter Types.PerUnit K3(min=0, max=1) = 0.3 "fraction of the HP shaft power after the second stage";
+  parameter Types.PerUnit K3(min=0, max=1) = 0.3 "fraction of the HP shaft power after the second stage (with K3_rest = 0)";
+  parameter Real K3_rest(min=0, max=1) = 0 "1: K3 is the rest of the shaft power, 1 - K1 - K5 - K7, so the stages sum to one (a single-reheat unit; K3 as given is not used); 0: K3 as given";
   parameter Types.Time T6(min=0.001, max=100) = 0.6 "third stage time constant";
   parameter Types.PerUnit K5(min=0, max=1) = 0.5 "fraction of the HP shaft power after the third stage";
   parameter Types.Time T7(min=0.001, max=100) = 0.05 "fourth stage (second reheater) time constant";
@@ -19,7 +20,8 @@ block IEEEG1 "Multi-stage steam turbine-governor IEEEG1 (IEEE 1973; IEEE PES-TR1
   parameter Types.PerUnit p_ref(min=0, max=2) = 0.6 "power at the dispatch (pu)";
   parameter Types.PerUnitRate eps_v(min=1e-9, max=1) = 1e-4 "sharpness: rounding of the rate limits and the gate (pu/s)";
   parameter Types.PerUnitRate K_lim(min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
-  final parameter Types.PerUnit gv0 = p_ref / (K1 + K3 + K5 + K7) "valve opening at the dispatch (pu)";
+  final parameter Types.PerUnit K3s = if K3_rest > 0.5 then 1 - K1 - K5 - K7 else K3 "the second stage's fraction in use (pu)";
+  final parameter Types.PerUnit gv0 = p_ref / (K1 + K3s + K5 + K7) "valve opening at the dispatch (pu)";
   Interfaces.RealInput dw "speed deviation w_ref - w (pu): PSS/E's -SPEED";
   Interfaces.RealOutput pm "mechanical power of the HP shaft (pu)";
   Types.PerUnit xl "governor lead-lag state (pu)";
@@ -54,7 +56,7 @@ equation
   der(x5) = (x4 - x5) / T5;
   der(x6) = (x5 - x6) / T6;
   der(x7) = (x6 - x7) / T7;
-  pm.signal = K1 * x4 + K3 * x5 + K5 * x6 + K7 * x7;
+  pm.signal = K1 * x4 + K3s * x5 + K5 * x6 + K7 * x7;
   annotation(Documentation(info="<html>
 <p>Source: IEEE Committee Report, <i>Dynamic models for steam and hydro turbines in power
 system studies</i>, IEEE Trans. PAS-92 (1973) 1904-1915, fig. 1 and 6; IEEE PES-TR1 (2013),
@@ -63,9 +65,13 @@ adds to the reference; the valve positioner 1/T3 is rate-limited (Uc..Uo) and in
 to the valve opening, held in PMIN..PMAX (<b>non-windup</b>); four stages T4..T7 with
 fractions K1, K3, K5, K7 make the power of the high-pressure shaft.</p>
 <p>Single shaft only: the low-pressure fractions K2, K4, K6, K8 of a cross-compound unit
-are not modelled. PSS/E allows T1 = 0 (no lag): here T1 is at least 0.001 s.</p>
+are not modelled. PSS/E allows T1 = 0 (no lag): here T1 is at least 0.001 s.
+K3_rest = 1 makes K3 the rest of the shaft power, 1 - K1 - K5 - K7: a single-reheat unit
+whose stages sum to one (PES-TR1 sec. 2.2 gives the fractions of one shaft; ANDES normalises
+them to sum to one), so that K alone sets the droop; a unit documented with another split
+keeps K3_rest = 0 and K3 as documented.</p>
 <p>Limits are smooth (eps_v; the non-windup limit holds a state within its speed / K_lim of the limit, as TGOV1's) as the embedded build has no state events.
-Initialisation: steady state at p_ref: every stage at p_ref / (K1 + K3 + K5 + K7).
+Initialisation: steady state at p_ref: every stage at p_ref / (K1 + K3 + K5 + K7), K3 as in use.
 Units: pu on the machine base, s.</p></html>",
-    revisions="<html><ul><li>2026-11-23: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li></ul></html>"));
+    revisions="<html><ul><li>2026-11-23: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li><li>2026-11-26: K3_rest, the stages summing to one.</li></ul></html>"));
 end IEEEG1;
