@@ -24,6 +24,10 @@ fmi         every kind of FMU (FMI 2.0 / 3.0 x Model Exchange / Co-Simulation): 
             against a fresh fmpy.simulate_fmu, accuracy against closed forms, the
             Co-Simulation C driver against its fmpy loop, and memory over 10,000
             simulations and 1,000 instantiations per kind (see fmi_kinds.py).
+reference   the FMI standard's Reference FMUs, both versions and interfaces: time per
+            simulation (ours, a fresh fmpy.simulate_fmu) and the largest difference to
+            fmpy and to closed forms; 10,000 fresh FMI 3.0 instantiations' memory (see
+            fmi_reference.py; skipped where ../shared/reference-fmus is absent).
 swing       the swing term's cost per simulation (issue 26): one recorded event on the
             TGOV1 bench without the swing term and with it, per runner, single calls and
             batches, the ratio (see swing_cost.py).
@@ -274,8 +278,15 @@ def bench_fmi_kinds() -> None:
     bench_fmi()
 
 
+def bench_reference_fmus() -> None:
+    from fmi_reference import bench_reference
+
+    bench_reference()
+
+
 SECTIONS = {"simulation": bench_simulation, "api": bench_api, "input": bench_input, "pf": bench_pf,
-            "archive": bench_archive, "fmi": bench_fmi_kinds, "swing": bench_swing}
+            "archive": bench_archive, "fmi": bench_fmi_kinds, "reference": bench_reference_fmus,
+            "swing": bench_swing}
 
 
 def main(argv: list[str]) -> int:

@@ -368,3 +368,21 @@ def test_an_input_without_a_start_value_must_be_given(version, tmp_path):
             zf.writestr(name, data)
     with pytest.raises(ParameterError, match="DroopPlant has inputs dw; dw has no start value to hold: give it values"):
         Simulator(unset).simulate({}, stop_time=1.0, output_interval=0.5)
+
+
+def test_an_fmu_with_clocks_is_refused_naming_them(kinds, tmp_path):
+    """FMI 3.0 clocks need event handling by clock (and a Scheduled Execution FMU its
+    partitions activated by them): refused by name rather than run wrong."""
+    from rapid_cosim.errors import FmuError
+
+    with zipfile.ZipFile(kinds["Counter", "me3"]) as zf:
+        files = {n: zf.read(n) for n in zf.namelist()}
+    xml = files["modelDescription.xml"].decode()
+    clock = '    <Clock name="tick" valueReference="500" causality="input" variability="discrete"/>\n'
+    files["modelDescription.xml"] = xml.replace("  </ModelVariables>", clock + "  </ModelVariables>").encode()
+    clocked = tmp_path / "clocked.fmu"
+    with zipfile.ZipFile(clocked, "w") as zf:
+        for name, data in files.items():
+            zf.writestr(name, data)
+    with pytest.raises(FmuError, match=r"FMI 3.0 clocks \(tick\) need event handling by clock"):
+        Simulator(clocked)
