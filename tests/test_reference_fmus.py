@@ -44,11 +44,11 @@ def _quiet(fn, *args, **kw):
 
 
 def _runners(version: str, model: str, interface: str) -> list[str]:
-    """Every runner that takes the case: the Python loop runs FMI 2.0 Model Exchange
-    without state events (BouncingBall has them), and fmpy's loop every Co-Simulation FMU."""
+    """Every runner that takes the case: the Python loop runs Model Exchange without state
+    events (BouncingBall and Roberts have them), and fmpy's loop every Co-Simulation FMU."""
     if interface == CS:
         return ["exponential", "python"]  # the C driver (for "compiled" too) and the fmpy loop
-    return ["exponential", "compiled"] + (["python"] if version == "2.0" and model != "BouncingBall" else [])
+    return ["exponential", "compiled"] + ([] if model in ("BouncingBall", "Roberts") else ["python"])
 
 
 @pytest.mark.parametrize("version,model,interface", ref.cases(), ids=["-".join(c) for c in ref.cases()])

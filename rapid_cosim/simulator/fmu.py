@@ -4,10 +4,11 @@ Any FMI 2.0 or 3.0 FMU with a Model Exchange or a Co-Simulation interface is acc
 whoever built it. Model Exchange is used where the FMU has it (rapid-cosim's own
 integrators, :mod:`.compiled`); a Co-Simulation-only FMU runs with its own solver
 (:mod:`.cosim`). It is checked once, on load, with one clear error per problem: the FMI
-version, an interface, a binary for this platform, and variables a run cannot drive
-(non-Real inputs or parameters, String, Binary or array outputs) are refused by name when
-they are asked for. Outputs that are not numbers are left out when none are named
-(:attr:`LoadedFmu.skipped_outputs`).
+version, an interface, a binary for this platform, clocks, and variables a run cannot
+drive (non-Real inputs or parameters given values, String or Binary outputs) are refused
+by name when they are asked for. Inputs not given are held at their start values. FMI 3.0
+arrays of a size the model description gives are recorded element by element. Outputs
+that are not numbers are left out when none are named (:attr:`LoadedFmu.skipped_outputs`).
 
 :class:`FmuRef` carries an FMU by content, so that it can travel to other processes or
 machines and be archived; :func:`load_fmu` keeps one extracted copy per FMU and process

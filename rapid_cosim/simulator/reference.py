@@ -1,7 +1,8 @@
 """The Python model-exchange loop: the reference the compiled runner is checked against.
 
-It drives fmpy's ``FMU2Model`` with the SUNDIALS 7 build that fmpy ships, calling the
-FMU's FMI functions directly (``fmu.dll``, whose ctypes signatures fmpy declared) and
+It drives fmpy's ``FMU2Model`` (``FMU3Model`` for FMI 3.0, whose calls differ only in
+name and in FMI 3.0's initialisation) with the SUNDIALS 7 build that fmpy ships, calling
+the FMU's FMI functions directly (``fmu.dll``, whose ctypes signatures fmpy declared) and
 only what each call needs: fmpy's own ``CVodeSolver`` goes through its generic wrappers
 (argument logging, status checks in Python) and copies states both ways on every step.
 Each right-hand side is still a Python callback and each output sample a Python call,
@@ -34,7 +35,7 @@ from fmpy.sundials import (CV_BDF, CV_NORMAL, CVode, CVodeCreate, CVodeFree, CVo
 from fmpy.sundials.libraries import sundials_core
 
 from ..errors import FmuError, SimulationError, SimulationTimeout
-from .fmu import LoadedFmu
+from .fmu import ELEMENT, LoadedFmu
 from .inputs import InputTable
 
 # Destructors fmpy's binding does not declare (its own solver leaves them to the OS).
@@ -48,19 +49,24 @@ SUNMatDestroy.argtypes, SUNMatDestroy.restype = [c_void_p], None
 _FMI_ERROR = 2  # fmi2Error or worse: the model could not evaluate
 _GET_REAL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(fmi2ValueReference), ctypes.c_size_t,
                              ctypes.c_void_p)
+_GET_FLOAT64 = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(fmi2ValueReference), ctypes.c_size_t,
+                                ctypes.c_void_p, ctypes.c_size_t)
+# The continuous-state functions, same shape in both versions: (instance, array, size).
+_ME_FUNCTIONS = {False: ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2GetContinuousStates", "fmi2GetDerivatives",
+                         "fmi2GetNominalsOfContinuousStates"),
+                 True: ("fmi3SetTime", "fmi3SetContinuousStates", "fmi3GetContinuousStates",
+                        "fmi3GetContinuousStateDerivatives", "fmi3GetNominalsOfContinuousStates")}
 
 
 class Integrator:
     """BDF integration of one FMU instance's continuous states."""
 
     def __init__(self, fmu, n_states: int, *, start_time: float, max_step: float, relative_tolerance: float,
-                 max_num_steps: int = 5000):
+                 max_num_steps: int = 5000, fmi3: bool = False):
         self._component = fmu.component
         dll = fmu.dll
-        self._set_time = dll.fmi2SetTime
-        self._set_states = dll.fmi2SetContinuousStates
-        self._get_states = dll.fmi2GetContinuousStates
-        self._get_derivatives = dll.fmi2GetDerivatives
+        self._set_time, self._set_states, self._get_states, self._get_derivatives, get_nominals = (
+            getattr(dll, name) for name in _ME_FUNCTIONS[fmi3])
         self.before_rhs = None  # called with t before each right-hand side (inputs)
         self._raised: BaseException | None = None  # what a right-hand side raised
         self._real_n = n_states
@@ -74,8 +80,8 @@ class Integrator:
         self._x_array = np.ctypeslib.as_array(self._px, (self._n,))
         tolerance = np.ctypeslib.as_array(NV_DATA_S(self._abstol), (self._n,))
         nominals = (c_double * self._n)(*([1.0] * self._n))
-        if n_states:
-            dll.fmi2GetNominalsOfContinuousStates(self._component, nominals, n_states)
+        if n_states:  # once initialised: FMI 3.0 allows it no earlier
+            get_nominals(self._component, nominals, n_states)
         tolerance[:] = relative_tolerance * np.abs(np.frombuffer(nominals, dtype=float))
         self._data_of: dict[int, object] = {}
         self._mem = CVodeCreate(CV_BDF, self._ctx)
@@ -183,10 +189,10 @@ def _check(flag: int, what: str) -> None:
         raise SimulationError(f"{what} failed with flag {flag}")
 
 
-def _input_setter(fmu, input_vrs, inputs: InputTable, limit: dict):
+def _input_setter(set_real, input_vrs, inputs: InputTable, limit: dict):
     """Sets the inputs at t (returns 0, the right-hand side's "go on")."""
     def set_inputs(t: float) -> int:
-        fmu.setReal(input_vrs, inputs.at(t, limit["row"]).tolist())
+        set_real(input_vrs, inputs.at(t, limit["row"]).tolist())
         return 0
 
     return set_inputs
@@ -234,14 +240,20 @@ class ReferenceLoop:
         if not self._fresh:
             fmu.reset()
         self._fresh = False
-        fmu.setupExperiment(startTime=start_time)
+        v3 = self.fmu.fmi3
+        set_real = fmu.setFloat64 if v3 else fmu.setReal
+        if not v3:
+            fmu.setupExperiment(startTime=start_time)
         if params:
-            fmu.setReal([vr[n] for n in params], list(params.values()))
+            set_real([vr[n] for n in params], list(params.values()))
         limit = {"row": -1}
-        set_inputs = None if inputs is None else _input_setter(fmu, [vr[n] for n in inputs.names], inputs, limit)
+        set_inputs = None if inputs is None else _input_setter(set_real, [vr[n] for n in inputs.names], inputs, limit)
         if set_inputs is not None:
             set_inputs(start_time)
-        fmu.enterInitializationMode()
+        if v3:  # FMI 3.0 takes the start time here (no tolerance given, as runner.c's adapter)
+            fmu.enterInitializationMode(startTime=start_time)
+        else:
+            fmu.enterInitializationMode()
         fmu.exitInitializationMode()
         component, m = fmu.component, len(names)
         out = (fmi2Real * (times.size * m))()  # filled in place, row by row
@@ -255,7 +267,7 @@ class ReferenceLoop:
         max_step = (stop_time - start_time) / 50.0
         if self._solver is None:
             self._solver = Integrator(fmu, self.fmu.n_states, start_time=start_time, max_step=max_step,
-                                      relative_tolerance=self.relative_tolerance)
+                                      relative_tolerance=self.relative_tolerance, fmi3=v3)
         else:  # a joint fit alternates spans: re-initialise the one solver rather than rebuild it
             if self._solver_span != (start_time, stop_time):
                 self._solver.set_max_step(max_step)
@@ -269,7 +281,11 @@ class ReferenceLoop:
         vrs = (fmi2ValueReference * m)(*[vr[n] for n in names])
         row_bytes, base = m * ctypes.sizeof(fmi2Real), ctypes.addressof(out)
         # fmi2GetReal taking the destination as a plain address, to write into ``out`` rows
-        get_real = _GET_REAL(ctypes.cast(fmu.dll.fmi2GetReal, ctypes.c_void_p).value)
+        if v3:
+            get64 = _GET_FLOAT64(ctypes.cast(fmu.dll.fmi3GetFloat64, ctypes.c_void_p).value)
+            get_real = lambda c, vrs, n, address: get64(c, vrs, n, address, n)  # noqa: E731
+        else:
+            get_real = _GET_REAL(ctypes.cast(fmu.dll.fmi2GetReal, ctypes.c_void_p).value)
         reach = (times + 1e-12 * np.maximum(1.0, np.abs(times))).tolist()  # an event this close is "at" t
         deadline = None if timeout is None else time_module.perf_counter() + timeout
         for k, tk in enumerate(times.tolist()):
@@ -325,15 +341,22 @@ class ReferenceLoop:
         raise Terminated(f"the model asked to terminate at t={t:g}", values)
 
     def _read_typed(self, names, types) -> list[float]:
-        fmu, vr = self._instance, self.fmu.value_references
-        getters = (fmu.getReal, fmu.getInteger, fmu.getBoolean)
-        return [float(getters[kind]([vr[n]])[0]) for n, kind in zip(names, types)]
+        """Outputs of any type code (fmi3_table.h), an FMI 3.0 array's element included."""
+        f, vr = self._instance, self.fmu.value_references
+        if not self.fmu.fmi3:
+            getters = (f.getReal, f.getInteger, f.getBoolean)
+            return [float(getters[kind]([vr[n]])[0]) for n, kind in zip(names, types)]
+        getters = (f.getFloat64, f.getInt32, f.getBoolean, f.getFloat32, f.getInt8, f.getUInt8, f.getInt16,
+                   f.getUInt16, f.getUInt32, f.getInt64, f.getUInt64)
+        offset_size = self.fmu.elements
+        return [float(getters[kind & ~ELEMENT]([vr[n]], offset_size[n][1])[offset_size[n][0]]) if kind & ELEMENT
+                else float(getters[kind]([vr[n]])[0]) for n, kind in zip(names, types)]
 
-    @staticmethod
-    def _update_discrete(fmu) -> tuple[bool, float]:
+    def _update_discrete(self, fmu) -> tuple[bool, float]:
+        update = fmu.updateDiscreteStates if self.fmu.fmi3 else fmu.newDiscreteStates  # same results, in order
         needed, defined, t_next = True, False, 0.0
         while needed:
-            needed, terminate, _, _, defined, t_next = fmu.newDiscreteStates()
+            needed, terminate, _, _, defined, t_next = update()
             if terminate:
                 raise _TerminateRequest()
         return bool(defined), float(t_next)

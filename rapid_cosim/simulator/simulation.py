@@ -24,10 +24,13 @@ NaN outputs), and the rest of the batch runs. :meth:`Simulator.simulate` runs on
 and raises :class:`SimulationError` or :class:`SimulationTimeout` instead.
 
 FMI 3.0 Model Exchange FMUs run through the same C runners (an adapter gives the FMI 3.0
-functions FMI 2.0's shape: ``runner.c``). Co-Simulation-only FMUs, FMI 2.0 or 3.0, run
+functions FMI 2.0's shape: ``runner.c``) and the same Python loop. Co-Simulation-only FMUs, FMI 2.0 or 3.0, run
 with their own solver through :mod:`.cosim`: the C driver for runners "compiled" and
 "exponential", fmpy's slave classes for "python". :meth:`Simulator.path` names the path a
 runner takes; archives record it.
+
+Inputs not given are held at their declared start values, as fmpy holds them (an
+:class:`InputsHeld` note names them); one without a start value must be given.
 
 A model may ask to terminate (FMI's terminateSimulation). Its set then keeps the outputs
 up to that moment (NaN after) with the status "terminated", a failure in a batch and in a
@@ -172,9 +175,6 @@ class Simulator:
                 method = "exponential" if name == "exponential" else "cvode"
                 self._runners[key] = compiled.CompiledRunner(self.fmu, self.relative_tolerance, method)
             else:
-                if self.fmu.fmi3:
-                    raise ParameterError(f"{self.name} is an FMI 3.0 Model Exchange FMU; the Python reference loop "
-                                         "runs FMI 2.0 ones: choose the compiled or exponential runner")
                 from .reference import ReferenceLoop
 
                 self._runners[key] = ReferenceLoop(self.fmu, self.relative_tolerance)
