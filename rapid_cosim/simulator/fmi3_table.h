@@ -117,7 +117,12 @@ static fmi3Status fmi3_read_element(const Fmi3 *f, fmi3Instance c, int code, fmi
     EL(4, fmi3Int8, get_int8) EL(5, fmi3UInt8, get_uint8) EL(6, fmi3Int16, get_int16)
     EL(7, fmi3UInt16, get_uint16) EL(8, fmi3UInt32, get_uint32) EL(9, fmi3Int64, get_int64)
     EL(10, fmi3UInt64, get_uint64)
-    case 2: { fmi3Boolean *v = (fmi3Boolean *)(void *)buf; s = f->get_boolean(c, &vr, 1, v, n); *out = v[offset] ? 1.0 : 0.0; return s; }
+    case 2: {
+        fmi3Boolean *v = (fmi3Boolean *)(void *)buf;
+        s = f->get_boolean(c, &vr, 1, v, n);
+        *out = v[offset] ? 1.0 : 0.0;
+        return s;
+    }
     default: return fmi3Error;
     }
 #undef EL
