@@ -18,7 +18,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-png bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -102,11 +102,16 @@ report-example: fmus  ## the validation report (HTML, PDF) of a synthetic TGOV1 
 bench-structures: fmus  ## identify's structure choice on synthetic campaigns (SEEDS=10 per standard structure): named, exported .dyr's RMSE/noise
 	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),10) --n-jobs $(N_JOBS) --json $(RESULTS)/bench-structures/study.json
 
-bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5)
-	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS)
+bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5); then the true model on 200 effect-free campaigns: adequacy p-values, false alarms, interval coverage
+	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS) --calibration 200 \
+		--json $(RESULTS)/bench-diagnose/calibration.json
 
-bench-electrical: fmus  ## fourteen ANDES events, TGOV1, IEEEG1, TG Type I (generate.py --study, needs andes: the test extra): errors, structures and effects, P_e vs P_m; five more with a hidden valve rate; 100 noise draws per event
-	$(PY) benchmarks/electrical_study.py --study $(RESULTS)/electrical --structures --draws 100 --json $(RESULTS)/electrical/study.json
+bench-electrical: fmus  ## fourteen ANDES events, TGOV1, IEEEG1, TG Type I (generate.py --study, needs andes: the test extra): errors, structures and effects, P_e vs P_m; five more with a hidden valve rate; 100 noise draws per event; the true governor on 30 more per event (false alarms, interval coverage)
+	$(PY) benchmarks/electrical_study.py --study $(RESULTS)/electrical --structures --draws 100 --calibration 30 \
+		--json $(RESULTS)/electrical/study.json
+
+bench-timebase: fmus  ## the committed ANDES events with only their time base changed (jitter, dropped frames, repeats, a gap, STAT flags): verdicts, estimates in SE, variance ratios, simulation cost; the electrical unit on untidy stamps
+	$(PY) benchmarks/timebase_study.py --work $(RESULTS)/bench-timebase --unit
 
 bench-speed: fmus  ## where a diagnosis spends its time: field, four-test and event campaigns, before and after
 	$(PY) benchmarks/speed.py

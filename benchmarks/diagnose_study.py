@@ -93,6 +93,11 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--max-effects", type=int, default=2)
     parser.add_argument("--keep", help="work folder to keep (default: a temporary one)")
     parser.add_argument("--report", metavar="WORK", help="print the results kept in WORK again, run nothing")
+    parser.add_argument("--calibration", type=int, default=0, metavar="N",
+                        help="also the true model on N effect-free staged campaigns (seeds 1000..): the adequacy "
+                             "p-values' distribution, the family-wise false alarms and the intervals' coverage")
+    parser.add_argument("--calibration-only", action="store_true", help="run only the calibration study")
+    parser.add_argument("--json", type=Path, help="write the calibration study's figures there")
     args = parser.parse_args(argv)
     if args.report:
         with open(Path(args.report) / "results.pkl", "rb") as f:
@@ -105,6 +110,10 @@ def main(argv: list[str]) -> int:
     fmu_dir = work / "fmus"
     build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in EFFECTS.values())])), package=package,
                  fmu_dir=fmu_dir, log=lambda *_: None)
+    if args.calibration:
+        calibration(args.calibration, work, package, fmu_dir, args.n_jobs, args.json)
+        if args.calibration_only:
+            return 0
     t0 = time.perf_counter()
     cases = [draw_case(t, s, package=package, fmu_dir=fmu_dir)
              for t in args.effects.split(",") if t for s in _seeds(args.seeds)]
@@ -137,6 +146,41 @@ def main(argv: list[str]) -> int:
     if not args.keep:
         shutil.rmtree(work, ignore_errors=True)
     return 0
+
+
+def calibration(n: int, work: Path, package: Path, fmu_dir: Path, n_jobs: int, json_file: Path | None) -> dict:
+    """The true model (TG Type I, nothing hidden) on ``n`` effect-free staged campaigns,
+    the last test held out, as a diagnosis fits and judges its base model
+    (:mod:`rapid_cosim.diagnose.false_alarms`)."""
+    import json
+
+    from rapid_cosim.diagnose.campaigns import draw_case, write_campaign
+    from rapid_cosim.diagnose.false_alarms import fit_truth, summary, summary_text, to_json
+    from rapid_cosim.diagnose.workflow import DiagnoseOptions
+    from rapid_cosim.experiment import load_experiment
+
+    options = DiagnoseOptions(write_model=False)
+
+    def one(seed):
+        case = draw_case("none", seed, package=package, fmu_dir=fmu_dir)
+        folder = work / "calibration" / case.label
+        experiments = [load_experiment(p) for p in write_campaign(case, folder / "data", package=package,
+                                                                  fmu_dir=fmu_dir)]
+        truth = {k: v for k, v in case.plant.items() if k in ("gov.R", "gov.Ts")}
+        fit = fit_truth(case.label, experiments[:-1], experiments[-1:], truth, folder / "fit", options, package,
+                        fmu_dir)
+        shutil.rmtree(folder, ignore_errors=True)
+        return fit
+
+    t0 = time.perf_counter()
+    fits = joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(one)(1000 + k) for k in range(n))
+    s = summary(fits)
+    print(summary_text("staged campaigns (the diagnosis study's plants and recorders, effect-free)", s))
+    print(f"  {time.perf_counter() - t0:.0f} s")
+    if json_file:
+        json_file.parent.mkdir(parents=True, exist_ok=True)
+        json_file.write_text(json.dumps({"summary": s, "draws": to_json(fits)}, indent=1, default=float) + "\n")
+    return s
 
 
 class Crash:

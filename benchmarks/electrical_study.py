@@ -24,6 +24,10 @@ verdict "ambiguous" names none either: no effect improves the criterion decisive
 data cannot exclude some at a material size (a recorded event is a weaker test than a
 staged step).
 
+``--calibration N``: the true governor on each event's P_e with N other noise draws, fitted
+and judged as a diagnosis judges its base model (:func:`calibration`): the adequacy
+p-values' distribution, the family-wise false alarms, the 90 % intervals' coverage.
+
 ``--draws N``: each event again with N other draws of the recorder's noise (:func:`redraws`):
 how often R is within 2 % and the time constants within 15 %, per event and for the study.
 
@@ -129,6 +133,43 @@ def redraws(folders: list[Path], draws: int, workdir: Path) -> dict:
     print(f"  every one of the {len(folders)} recordings has both time constants within 15 % with probability "
           f"{p_all:.2f} (the product)")
     return {"events": out, "all_within": p_all}
+
+
+def calibration(folders: list[Path], draws: int, workdir: Path, n_jobs: int = 2) -> dict:
+    """The true governor on each event's P_e (H documented) with ``draws`` other draws of
+    the recorder's noise (clean.csv plus generate.recorder_noise, seeds (20000 + k, the
+    event's index): no two events share a draw), fitted
+    and judged as a diagnosis fits and judges its base model
+    (:mod:`rapid_cosim.diagnose.false_alarms`): the adequacy p-values' distribution, the
+    family-wise false alarms and the 90 % intervals' coverage of the plant's values."""
+    import generate
+    import joblib
+
+    from rapid_cosim.diagnose.false_alarms import fit_truth, summary, summary_text, to_json
+    from rapid_cosim.diagnose.workflow import DiagnoseOptions
+
+    options = DiagnoseOptions(write_model=False)
+
+    def one(folder: Path, k: int):
+        truth = json.loads((folder / "truth.json").read_text())
+        clean = np.genfromtxt(folder / "clean.csv", delimiter=",", names=True)
+        work = workdir / f"{folder.name}-{k}"
+        work.mkdir(parents=True, exist_ok=True)
+        for name in ("truth.json", "config.toml"):
+            (work / name).write_text((folder / name).read_text())
+        f_noise, p_noise = generate.recorder_noise(clean["time"].size,
+                                                   np.random.default_rng([20_000 + k, folders.index(folder)]))
+        generate.write_data(work / "data.csv", clean["time"], clean["FREQ"] + f_noise, clean["P"] + p_noise)
+        exp = variant(work, "P_e, H fixed")
+        values = {f"gov.{n}": v for n, v in truth["params"].items()}
+        return fit_truth(f"{folder.name}-{k}", [exp], [], values, work / "fit", options, ROOT / "modelica" / "iGrGen",
+                         ROOT / "fmus")
+
+    fits = joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(one)(f, k) for k in range(draws) for f in folders)
+    s = summary(fits)
+    print()
+    print(summary_text(f"P_e events ({len(folders)} ANDES events x {draws} noise draws)", s))
+    return {"summary": s, "draws": to_json(fits)}
 
 
 def show(folder: Path) -> None:
@@ -320,6 +361,10 @@ def main(argv=None) -> int:
     parser.add_argument("--json", type=Path, help="write every figure there")
     parser.add_argument("--show", metavar="EVENT", help="print this event's calibration (H estimated) in full first")
     parser.add_argument("--draws", type=int, default=0, help="each event again with this many other noise draws")
+    parser.add_argument("--calibration", type=int, default=0, metavar="N",
+                        help="the true governor on each event's P_e with N other noise draws: adequacy p-values, "
+                             "family-wise false alarms, the 90 %% intervals' coverage")
+    parser.add_argument("--calibration-only", action="store_true", help="run only the calibration study")
     args = parser.parse_args(argv)
     import generate
 
@@ -331,9 +376,18 @@ def main(argv=None) -> int:
     else:
         folders = args.events or [ROOT / "experiments" / "electrical" / e.name for e in generate.EVENTS]
     folders = [f.resolve() for f in folders]
+    if args.calibration:
+        with tempfile.TemporaryDirectory() as tmp:
+            cal = calibration(folders, args.calibration, Path(tmp))
+        if args.calibration_only:
+            if args.json:
+                args.json.write_text(json.dumps({"calibration": cal}, indent=1, default=float) + "\n")
+            return 0
     if args.show:
         show(next(f for f in folders if f.name == args.show))
     figures = {"errors": table(folders)}
+    if args.calibration:
+        figures["calibration"] = cal
     if args.structures:
         with tempfile.TemporaryDirectory() as tmp:
             figures["structures"] = structures(folders, Path(tmp))

@@ -60,6 +60,7 @@ class Diagnosis:
     heldout: list[str]
     created: str
     residuals: dict[str, dict[str, np.ndarray]] = field(default_factory=dict, repr=False)
+    exchanged_intervals: dict[str, list[float]] = field(default_factory=dict)  # at the swapped optimum
 
     def to_json(self) -> dict:
         data = asdict(self)

@@ -17,10 +17,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..calibration import ensure_run, log_likelihood_for
+from ..calibration import ensure_run
 from ..compiler import build_models
-from ..errors import ConfigError, RapidCosimError
-from ..estimators.laplace import laplace
+from ..errors import ConfigError
 from ..estimators.profile import grid, profile
 from ..engine import make_engine
 from ..objective import ProblemObjective
@@ -31,6 +30,7 @@ from .catalogue import BASES, CATALOGUE, NONE, camel, check_base, composable, ef
     write_bench
 from .context import Context, DiagnoseOptions, split_holdout
 from .features import Features, residual_features
+from .intervals import exchanged, intervals
 from .limits import check_material, inadequate, verdict_text
 from .result import Diagnosis
 from .selection import Ranked, Verdict, bic, decide, decisive, gap, rank, score, settle_on_heldout
@@ -134,6 +134,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
         verdict.reason += "; " + search["warning"]
     gap_before = _gaps(ctx, before_tests)
     gap_after = _gaps(ctx, after_tests)
+    bands = intervals(final_fit, n_jobs=ctx.options.n_jobs, log=ctx.log)
     residuals = {name: {"time": t.time, "before": t.residual, "after": after_tests[name].residual,
                         "whitened_before": t.whitened, "whitened_after": after_tests[name].whitened}
                  for name, t in before_tests.items()}
@@ -146,7 +147,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
         not_excluded=not_excluded, separating_test=separating, held_out=verdict.held_out,
         features=features.to_json(), gap_before=gap_before, gap_after=gap_after,
         parameters_before=base.parameters, parameters_after=final_fit.parameters,
-        parameter_intervals=_intervals(ctx, final_fit),
+        parameter_intervals=bands, exchanged_intervals=exchanged(final_fit, bands, ctx.noise),
         noise=_noise_report(ctx), search=search, profiles=_profiles(ctx, final_fit),
         timing=jitter_share(after_tests, ctx.noise), variants=variants,
         candidate_adequacy={label: {"adequate": a.adequate, "p": a.p, "pooled_variance_ratio": a.pooled_variance_ratio}
@@ -288,29 +289,6 @@ def _write_and_recalibrate(ctx: Context, chosen: CandidateFit, options: Diagnose
 def _gaps(ctx: Context, tests: dict) -> dict[str, dict]:
     held = {e.name for e in ctx.heldout}
     return {name: {**gap(t, ctx.noise[name]), "held_out": name in held} for name, t in tests.items()}
-
-
-def _intervals(ctx: Context, fit: CandidateFit, level: float = 0.9) -> dict[str, list[float]]:
-    """90 % intervals of the calibrated parameters: Laplace's approximation of the
-    whitened Gaussian likelihood (the recorder's noise model takes care of correlated
-    samples, which the earlier AR(1) inflation factor only approximated)."""
-    problem = fit.inputs.problem
-    log_likelihood = log_likelihood_for(problem)
-    if log_likelihood is None:
-        return {}
-    objective = ProblemObjective(problem, fit.inputs.fmus, engine=make_engine(ctx.options.n_jobs))
-    x = np.array([fit.parameters[n] for n in problem.names])
-    try:
-        approx = laplace(lambda X: -log_likelihood(objective(X)), problem.space, x, level=level)
-    except RapidCosimError as e:  # intervals are evidence, not the verdict: report, do not fail
-        ctx.log(f"  no parameter intervals: {e}")
-        return {}
-    z = approx.interval - approx.mean[:, None]
-    out = {}
-    for k, name in enumerate(problem.names):
-        half = z[k, 1] if np.isfinite(z[k, 1]) else np.inf
-        out[name] = [float(x[k] - half), float(x[k] + half)]
-    return out
 
 
 PROFILE_POINTS = 12

@@ -117,6 +117,9 @@ def markdown(folder: str | Path) -> str:
     for name, value in record["parameters_after"].items():
         interval = record["parameter_intervals"].get(name)
         iv = f"[{interval[0]:.4g}, {interval[1]:.4g}]" if interval else "-"
+        other = (record.get("exchanged_intervals") or {}).get(name)
+        if other:  # the tests fit it either way round with a partner
+            iv += f" or [{other[0]:.4g}, {other[1]:.4g}] (exchanged)"
         lines.append(f"| {name} | {_fmt(record['parameters_before'].get(name))} | {value:.4g} | {iv} |")
     lines += ["", "## Gap per test (RMSE over the noise level; gap = RMSE above the noise floor)", "",
               "| test | RMSE/noise before | after | gap before (pu) | gap after (pu) |", "|---|---:|---:|---:|---:|"]
