@@ -23,10 +23,10 @@ ones seeded per event):
 
 For each, on P_e (H documented) and on P_m (``mechanical.csv``: the governor's output with
 the same noise), what ``rapid-cosim structures`` and ``diagnose`` decide: the structure
-(TG Type I, TGOV1, IEEEG1), the effect catalogue's verdict on the true governor, the true
-governor's estimates with their standard errors (Fisher information of the whitened
-residuals) and its variance ratio; and the time per simulation of the event's bench on
-the variant's stamps against the same values on regular stamps. The table puts each beside
+(TG Type I, TGOV1, IEEEG1), the diagnosis of the event's own config (its documented
+governor and the effect catalogue on it): its verdict, the final model's estimates with
+their reported standard errors and its variance ratio; and the time per simulation of
+the event's bench on the variant's stamps against the same values on regular stamps. The table puts each beside
 the clean-stamp run: the estimates' moves in standard errors, the variance ratio's change.
 """
 
@@ -175,29 +175,27 @@ def unit_check(work: Path) -> dict:
 
 
 def judge(folder: Path, kind: str, work: Path) -> dict:
-    """Structure selection, the effect catalogue on the true governor, and its estimates."""
+    """Structure selection (TG Type I, TGOV1, IEEEG1), and the diagnosis of the event's
+    own config (its documented governor, the effect catalogue on it): its verdict, the
+    final model's estimates with their standard errors (the reported 90 % intervals over
+    1.645) and its variance ratio."""
     from electrical_study import candidate_structures, variant
 
+    import rapid_cosim as rc
     from rapid_cosim.calibration import RunOptions
-    from rapid_cosim.diagnose import DiagnoseOptions
-    from rapid_cosim.diagnose.structures import effects_on, select_structure
+    from rapid_cosim.diagnose.structures import select_structure
 
-    governor = json.loads((folder / "truth.json").read_text())["governor"]
     exp = variant(folder, KINDS[kind])
-    candidates = candidate_structures()
     scratch = work / "runs" / folder.parent.name / folder.name / kind
     t0 = time.perf_counter()
-    verdict = select_structure(candidates, [exp], workdir=scratch / "structures", options=RunOptions(method="ms", seed=1),
-                               fmu_dir=ROOT / "fmus", log=lambda *_: None)
-    true = next(c for c in candidates if c.name == governor)
-    effects = effects_on(true, [exp], [], workdir=scratch / "effects",
-                         options=DiagnoseOptions(method="ms", seed=1, write_model=False),
-                         package=ROOT / "modelica" / "iGrGen", fmu_dir=ROOT / "fmus", log=lambda *_: None)
-    fit = next(f for f in verdict.ranking if f.name == governor)
-    se = fit.identifiability.get("parameters", {})
-    return {"structure": verdict.structure, "candidates": verdict.candidates, "effect": effects["effect"],
-            "parameters": fit.parameters, "se": {k: abs(fit.parameters[k]) * v["relative_se"] for k, v in se.items()},
-            "variance_ratio": fit.variance_ratio, "seconds": time.perf_counter() - t0,
+    verdict = select_structure(candidate_structures(), [exp], workdir=scratch / "structures",
+                               options=RunOptions(method="ms", seed=1), fmu_dir=ROOT / "fmus", log=lambda *_: None)
+    d = rc.diagnose([exp], workdir=scratch / "diagnosis", seed=1, package=ROOT / "modelica" / "iGrGen",
+                    fmu_dir=ROOT / "fmus", log=lambda *_: None)
+    se = {k: (hi - lo) / 2 / 1.645 for k, (lo, hi) in d.parameter_intervals.items()}
+    return {"structure": verdict.structure, "candidates": verdict.candidates, "effect": d.verdict,
+            "parameters": d.parameters_after, "se": se,
+            "variance_ratio": d.adequacy["after"]["pooled_variance_ratio"], "seconds": time.perf_counter() - t0,
             "recording": exp.recording.lines()}
 
 

@@ -11,6 +11,7 @@ The public API, in the manner of scipy.optimize::
 ``calibrate``, ``resume``, ``rerun`` and ``load`` return one :class:`Calibration`;
 ``diagnose`` finds what a model misses; ``simulate`` runs one model or FMU; ``export``
 writes a calibration of a standard governor as a PSS/E ``.dyr`` or PSLF ``.dyd`` record;
+``identify`` delivers one unit's record, ``fleet`` checks and identifies many;
 :class:`Experiment` is made from a config file or in code.
 
 The package follows the way data flows, each module knowing only those before it
@@ -30,10 +31,12 @@ __version__ = "0.2.0"
 # function with the module, so a second rc.identify(...) failed. (So the subpackages'
 # modules are imported with ``from rapid_cosim.diagnose import selection``, not
 # ``import rapid_cosim.diagnose.selection as ...``, which reads the name as the function.)
-from . import diagnose as _diagnose, identify as _identify  # noqa: E402, F401
+from . import diagnose as _diagnose, fleet as _fleet, identify as _identify  # noqa: E402, F401
 from .api import Calibration, calibrate, diagnose, export, identify, load, rerun, resume, simulate  # noqa: E402
+from .fleet import run_fleet as fleet  # noqa: E402
 from .experiment import Experiment  # noqa: E402
 from .simulator import Trajectory  # noqa: E402
 
-__all__ = ["Calibration", "Experiment", "Trajectory", "calibrate", "diagnose", "export", "identify", "load", "rerun",
+__all__ = ["Calibration", "Experiment", "Trajectory", "calibrate", "diagnose", "export", "fleet", "identify", "load",
+           "rerun",
            "resume", "simulate", "__version__"]

@@ -267,6 +267,22 @@ def cmd_identify(args) -> int:
     return 0
 
 
+def cmd_fleet(args) -> int:
+    from .fleet import run_fleet
+
+    result = run_fleet(args.fleet, results=args.results, workers=args.workers, scheduler=args.scheduler,
+                       seed=args.seed, package=args.package, fmu_dir=args.fmus, pdf=args.pdf, progress=not args.quiet)
+    passed = sum(u["path"] == "record on file passes" for u in result.units)
+    identified = sum(u["path"] == "identified" for u in result.units)
+    print(f"\n{len(result.units)} units in {result.seconds:.0f} s: {passed} records on file pass, {identified} "
+          f"identified, {result.failed} failed ({len(result.kept)} kept from an earlier run)")
+    for u in result.units:
+        if u["path"] == "failed":
+            print(f"  {u['unit']}: failed: {u['error']}")
+    print("written: " + ", ".join(result.files.values()))
+    return 100 + min(result.failed, 155) if result.failed else 0
+
+
 def cmd_export(args) -> int:
     from .api import export
 
@@ -470,6 +486,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--joblib-backend", default="loky", choices=["loky", "multiprocessing", "sequential", "dask"],
                    help="where the work goes with --n-jobs > 1 (default %(default)s)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="a running dask scheduler, with dask")
+    model_options(p)
+
+    p = command("fleet", cmd_fleet, "many units, one grid event: each unit's record on file played back and judged "
+                "against the tolerance bands, the units whose record fails identified, on a dask cluster; the fleet's "
+                "page, table and records (exit status 100 + the number of units that failed, 0 if none)")
+    p.add_argument("fleet", help="the fleet file (fleet.toml), or its folder")
+    p.add_argument("--results", default="results/fleet", help="results folder (default %(default)s); a rerun there "
+                   "keeps every unit whose inputs have not changed")
+    p.add_argument("--workers", type=int, default=2, help="local worker processes (default %(default)s)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="a running dask scheduler instead of local workers")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--pdf", action="store_true", help="each identified unit's report as PDF too (headless Chromium)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     model_options(p)
 
     p = command("export", cmd_export, "write a calibration of TGOV1, IEEEG1, GGOV1 or HYGOV as a PSS/E .dyr or "

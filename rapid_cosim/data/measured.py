@@ -221,7 +221,8 @@ class MeasuredData:
         for g in gaps:
             total[g.column] = total.get(g.column, 0) + g.n_samples
         head = ", ".join(f"{n} in '{c}'" for c, n in total.items())
-        lines = [f"{self.source}: masked samples ({head}) are left out of fits, not interpolated:"]
+        lines = [f"{self.source}: masked samples ({head}) are left out of fits (in a model's input they are "
+                 "bridged as its experiment allows, and said):"]
         lines += [f"  {g}" for g in gaps]
         return "\n".join(lines)
 

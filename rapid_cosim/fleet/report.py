@@ -1,0 +1,133 @@
+"""The fleet's report: one row per unit, the failing ones first, as an HTML page (its
+columns sortable by a click), ``fleet.csv`` and ``fleet.json``; and every new record in
+one ``fleet.dyr`` (and ``fleet.dyd`` where every new record's unit states its MVA base),
+ready for the operator's case.
+
+A row says which path the unit took (its record on file passes; identified; failed),
+the record on file's verdict per recording and its RMSE over the noise, the recommended
+record with its key parameters and what changed from the one on file, the flags
+(unexplained, a tie, estimates on a bound, a record that fails its own bands), and a link
+to the unit's validation report.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+from ..report.htmlkit import STYLE, e, mark
+from .spec import FleetSpec
+from .unit_job import FAILED, IDENTIFIED, PASSED
+
+ORDER = {FAILED: 0, IDENTIFIED: 1, PASSED: 2}
+SORTER = """
+document.querySelectorAll('th').forEach((th, k) => th.addEventListener('click', () => {
+  const body = th.closest('table').tBodies[0], rows = [...body.rows];
+  const up = th.dataset.up !== '1'; th.dataset.up = up ? '1' : '0';
+  const key = r => { const c = r.cells[k]; return c.dataset.key ?? c.textContent; };
+  rows.sort((a, b) => { const x = key(a), y = key(b), nx = Number(x), ny = Number(y);
+    const d = isNaN(nx) || isNaN(ny) || x === '' || y === '' ? x.localeCompare(y) : nx - ny;
+    return up ? d : -d; });
+  rows.forEach(r => body.appendChild(r));
+}));
+"""
+
+
+def rank(row: dict) -> tuple:
+    """Failing units first: failed, then identified with flags, identified, passing."""
+    return ORDER.get(row["path"], 0), 0 if row.get("flags") else 1, row["unit"]
+
+
+def write_report(spec: FleetSpec, result, folder: Path) -> dict[str, str]:
+    rows = sorted(result.units, key=rank)
+    folder = Path(folder)
+    files = {"json": folder / "fleet.json", "csv": folder / "fleet.csv", "html": folder / "fleet.html"}
+    files["json"].write_text(json.dumps({"name": spec.name, "fleet": str(spec.path), "seconds": result.seconds,
+                                         "workers": result.workers, "failed": result.failed, "units": rows},
+                                        indent=1, default=float) + "\n")
+    with open(files["csv"], "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["unit", "path", "record on file", "on file passes", "failing recordings", "recommended",
+                    "key parameters", "changes", "flags", "error", "seconds", "report"])
+        for r in rows:
+            w.writerow([r["unit"], r["path"], (r.get("on_file") or {}).get("model", ""), _on_file_pass(r),
+                        ";".join(_failing(r)), (r.get("recommended") or {}).get("fit", ""), _key(r), _changes(r),
+                        ";".join(r.get("flags", [])), r.get("error", ""), f"{r.get('seconds', 0):.1f}",
+                        r.get("files", {}).get("report", "")])
+    files["html"].write_text(_page(spec, result, rows, folder))
+    files.update(_records(rows, folder))
+    return {k: str(v) for k, v in files.items()}
+
+
+def _on_file_pass(r: dict) -> str:
+    on = r.get("on_file")
+    return "" if on is None else "yes" if on["passed"] else "no"
+
+
+def _failing(r: dict) -> list[str]:
+    on = r.get("on_file") or {}
+    return [f"{t}: {', '.join(v['failing']) or 'fails'}" for t, v in on.get("tests", {}).items() if not v["passed"]]
+
+
+def _key(r: dict) -> str:
+    rec = r.get("recommended") or {}
+    return ", ".join(f"{k} {v:.4g}" for k, v in rec.get("key", {}).items())
+
+
+def _changes(r: dict) -> str:
+    c = r.get("changes") or {}
+    return ", ".join(f"{k} {v:+.1%}" if isinstance(v, float) else f"{k}: {v}" for k, v in c.items())
+
+
+def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
+    n_pass = sum(r["path"] == PASSED for r in rows)
+    n_ident = sum(r["path"] == IDENTIFIED for r in rows)
+    body = [f"<h1>Fleet {e(spec.name)}</h1>",
+            f"<p id=overall>{len(rows)} units: {n_pass} records on file pass their bands, {n_ident} identified, "
+            f"{result.failed} failed ({result.seconds:.0f} s, {len(result.ran)} run now, {len(result.kept)} kept "
+            f"from an earlier run; {result.workers} worker(s)).</p>",
+            "<p class=note>Failing units first; click a column heading to sort by it. A record on file is played "
+            "back on the unit's recordings and judged against the tolerance bands; a unit whose record fails, or "
+            "has none, is identified as <code>rapid-cosim identify</code> identifies it.</p>",
+            "<table id=fleet><thead><tr><th>unit</th><th class=text>path</th><th class=text>record on file</th>"
+            "<th>on file passes</th><th class=text>failing recordings</th><th>RMSE/noise on file</th>"
+            "<th class=text>recommended</th><th class=text>key parameters</th><th class=text>changes</th>"
+            "<th class=text>flags</th><th>report</th></tr></thead><tbody>"]
+    for r in rows:
+        on = r.get("on_file")
+        rmse = max((v["rmse_over_noise"] for v in (on or {}).get("tests", {}).values()), default=None)
+        report = r.get("files", {}).get("report")  # relative to the results folder, as this page
+        link = f"<a href='{e(report)}'>page</a>" if report else ""
+        flags = r.get("flags", [])
+        if r["path"] == FAILED:
+            flags = [f"error: {r.get('error', '')}"]
+        body.append(f"<tr class={r['path'].split()[0]}><td>{e(r['unit'])}</td>"
+                    f"<td class=text data-key='{rank(r)[0]}'>{e(r['path'])}</td>"
+                    f"<td class=text>{e((on or {}).get('model', 'none'))}</td>"
+                    f"<td data-key='{_on_file_pass(r)}'>{mark(None if on is None else on['passed'])}</td>"
+                    f"<td class=text>{e('; '.join(_failing(r)))}</td>"
+                    f"<td>{'' if rmse is None else f'{rmse:.2f}'}</td>"
+                    f"<td class=text>{e((r.get('recommended') or {}).get('fit', ''))}</td>"
+                    f"<td class=text>{e(_key(r))}</td><td class=text>{e(_changes(r))}</td>"
+                    f"<td class=text>{e('; '.join(flags))}</td><td>{link}</td></tr>")
+    body.append("</tbody></table>")
+    return ("<!DOCTYPE html>\n<html lang=en>\n<head><meta charset=utf-8>"
+            f"<title>rapid-cosim fleet: {e(spec.name)}</title><style>{STYLE} th {{ cursor: pointer; }}"
+            " tr.failed td { background: #fbeaea; }</style></head>\n<body>\n" + "\n".join(body)
+            + f"\n<script>{SORTER}</script>\n</body>\n</html>\n")
+
+
+def _records(rows: list[dict], folder: Path) -> dict[str, Path]:
+    """Every new record in one file per format (a .dyd only where every unit states its MVA)."""
+    new = [r for r in rows if r["path"] == IDENTIFIED and r.get("files", {}).get("dyr")]
+    out = {}
+    if not new:
+        return out
+    out["dyr"] = folder / "fleet.dyr"
+    out["dyr"].write_text("".join((folder / r["files"]["dyr"]).read_text() for r in new))
+    if all(r["files"].get("dyd") for r in new):
+        out["dyd"] = folder / "fleet.dyd"
+        out["dyd"].write_text("".join((folder / r["files"]["dyd"]).read_text() for r in new))
+    return out
+

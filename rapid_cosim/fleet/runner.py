@@ -1,0 +1,166 @@
+"""A fleet run: every unit of a fleet file on a dask cluster, one unit per task, each
+result written as it finishes, so that a run stopped anywhere resumes where it stopped.
+
+Why by units: a unit's work (its record played back, and where needed its whole
+identification) is hundreds of simulations in one process; spread over workers it
+would be no faster and its numbers would depend on where each batch ran. A task is one
+unit, whole (:func:`.unit_job.run_unit`); dask runs the tasks of a lost worker again on
+another, and the unit's result is the same bit for bit.
+
+Resume: a unit's result file records a digest of everything it was made from (the
+unit's folder, its configs' data files, its record on file, the options); a result
+whose digest still matches is kept, any other unit is run.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+import tomllib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from ..errors import ConfigError
+from .spec import FleetSpec, UnitEntry, load_fleet
+from .unit_job import FAILED, FleetOptions, run_unit
+
+
+@dataclass
+class FleetResult:
+    """Every unit's result (as :class:`.unit_job.UnitResult` dicts), how many failed,
+    what was run now and what was kept, and the files written."""
+
+    name: str
+    units: list[dict]
+    ran: list[str]
+    kept: list[str]
+    seconds: float
+    workers: int
+    files: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def failed(self) -> int:
+        return sum(u["path"] == FAILED for u in self.units)
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
+    """A digest of what a unit's result is made from (module docstring)."""
+    h = hashlib.blake2b(digest_size=16)
+    files = sorted(p for p in entry.folder.rglob("*") if p.is_file())
+    for config in entry.folder.rglob("config.toml"):  # recordings a config reads from outside the folder
+        try:
+            raw = tomllib.loads(config.read_text())
+        except (OSError, tomllib.TOMLDecodeError):
+            continue
+        named = [raw.get("data", {}).get("file")] + [v.get("file") for v in raw.get("inputs", {}).values()
+                                                     if isinstance(v, dict)]
+        files += [(config.parent / n.split(":")[0]).resolve() for n in named if isinstance(n, str)]
+    if entry.record is not None:
+        files.append(entry.record)
+    for path in dict.fromkeys(files):
+        if path.is_file():
+            h.update(str(path.name).encode())
+            h.update(path.read_bytes())
+    h.update(json.dumps({k: v for k, v in asdict(options).items() if k != "results"}, sort_keys=True).encode())
+    return h.hexdigest()
+
+
+def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, scheduler: str | None = None,
+              seed: int = 1, package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus", pdf: bool = False,
+              progress: bool = True, log: Callable[[str], None] = print) -> FleetResult:
+    """Run (or resume) the fleet of ``fleet`` into ``results``: each unit's result in
+    ``results/units/<unit>.json`` as it finishes, then the fleet's report
+    (:mod:`.report`). ``scheduler``: a dask scheduler's address; else a LocalCluster of
+    ``workers`` processes on this machine."""
+    from .report import write_report
+
+    spec = load_fleet(fleet)
+    if workers < 1:
+        raise ConfigError(f"workers must be at least 1, got {workers}")
+    results = Path(results)
+    folder = results / "units"
+    folder.mkdir(parents=True, exist_ok=True)
+    options = FleetOptions(str(results.resolve()), seed, str(Path(package).resolve()), str(Path(fmu_dir).resolve()),
+                           pdf, str(spec.tolerances) if spec.tolerances else None)
+    t0 = time.perf_counter()
+    done, todo = {}, []
+    for entry in spec.units:
+        digest = unit_digest(entry, options)
+        kept = _read(folder / f"{entry.name}.json")
+        if kept is not None and kept.get("digest") == digest:
+            done[entry.name] = kept
+        else:
+            todo.append((entry, digest))
+    log(f"fleet {spec.name}: {len(spec.units)} units, {len(done)} already done, {len(todo)} to run on "
+        + (f"the cluster at {scheduler}" if scheduler else f"{workers} local worker(s)"))
+    if todo:
+        _build_benches(spec, package, fmu_dir, log)
+        done.update(_distribute(todo, options, folder, workers, scheduler, progress))
+    units = [done[e.name] for e in spec.units]
+    result = FleetResult(spec.name, units, [e.name for e, _ in todo], [n for n in done if n not in
+                                                                        {e.name for e, _ in todo}],
+                         time.perf_counter() - t0, workers)
+    result.files = write_report(spec, result, results)
+    return result
+
+
+def _distribute(todo, options: FleetOptions, folder: Path, workers: int, scheduler: str | None,
+                progress: bool) -> dict[str, dict]:
+    from distributed import Client, LocalCluster, as_completed
+    from tqdm import tqdm
+
+    cluster = None if scheduler else LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                                  dashboard_address=None)
+    out = {}
+    try:
+        with Client(scheduler or cluster) as client:
+            futures = {client.submit(run_unit, entry, options, key=f"unit-{entry.name}-{digest[:12]}", retries=3):
+                       (entry, digest) for entry, digest in todo}
+            bar = tqdm(total=len(todo), unit="unit", disable=not progress, desc="units")
+            for future in as_completed(futures):
+                entry, digest = futures[future]
+                row = {**future.result(), "digest": digest}
+                _write(folder / f"{entry.name}.json", row)  # kept as it finishes: a rerun skips it
+                out[entry.name] = row
+                bar.update(1)
+            bar.close()
+    finally:
+        if cluster is not None:
+            cluster.close()
+    return out
+
+
+def _build_benches(spec: FleetSpec, package, fmu_dir, log) -> None:
+    """Every bench the units name, built once here rather than raced by the workers."""
+    from ..compiler import build_models
+    from ..experiment import load_experiment
+    from ..identify import Unit
+
+    models = set()
+    for entry in spec.units:
+        try:
+            unit = Unit.load(entry.folder)
+            models.update(m for m in (load_experiment(c).model for c in unit.configs) if m.startswith("iGrGen."))
+        except Exception:  # a bad unit is reported by its own task
+            continue
+    structures = [f"iGrGen.TestBenches.FrequencyInput{s}" for s in ("", "TGOV1", "IEEEG1", "GGOV1", "HYGOV")]
+    build_models(sorted(models | set(structures)), package=package, fmu_dir=fmu_dir, log=lambda *_: None)
+
+
+def _read(path: Path) -> dict | None:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _write(path: Path, data: dict) -> None:
+    tmp = path.with_suffix(".json.part")
+    tmp.write_text(json.dumps(data, indent=1, default=float) + "\n")
+    os.replace(tmp, path)  # a result file is whole or absent

@@ -1,0 +1,212 @@
+"""A synthetic fleet for the tests and the benchmark: units of the four standard structures
+and TG Type I, one grid event driving them all, each with a record on file that is right
+for half of them and wrong for the other half.
+
+What is invented here, and how:
+
+- **The event.** One committed ANDES event's noise-free frequency
+  (``experiments/electrical/tgov1_on``: 200 MW switched on in the Kundur grid, 60 Hz, 30
+  frames/s, 60 s): every unit sees the same grid frequency, through its own PMU's noise
+  (1 mHz, correlated over 0.3 s, :func:`rapid_cosim.synthetic.pmu_noise`).
+- **The plants** (structure ``k % 5``): parameters drawn across the structure files'
+  ranges where real units sit (droop 4-7 %, lags and water columns in their usual
+  spans), the documented constants the unit's structure file gives. A TG Type I plant is
+  run as the IEEEG1 it equals between its limits (IEEEG1's T1 = Tc, T2 = T3, T3 = Ts,
+  K1 = T4 / T5, a 1 ms steam chest), its structure file documenting that lead-lag. A
+  quarter of the units (IEEEG1, GGOV1 and TG Type I units, each with probability 25/60)
+  has a valve opening rate that binds in the event (IEEEG1's Uo, GGOV1's Ropen), which its
+  record on file may not carry.
+- **The recorders.** Even units record P_e (H 3-8 s documented), odd ones P_m; in MW on
+  a rating of 100-900 MVA; white noise of 0.05-0.1 % of the rating plus a slow
+  Ornstein-Uhlenbeck part of 0.3-1 times that (correlation time 0.3-1 s), a meter offset.
+- **The record on file**: the plant's own record for units ``k // 5`` even, else wrong in
+  one way drawn per unit: its droop (R or 1/K) 30 % off, its main lag twice as long, or
+  (for a unit with a binding rate) the rate limit left out.
+
+Each unit is a folder: ``data.csv`` (time, FREQ, P), ``config.toml`` (the event, on TG
+Type I's bench with its documented constants: the explanation's base), ``unit.toml``,
+``structures/`` (the four standard structure files), ``record.dyr`` and ``truth.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+EVENT = ROOT / "experiments" / "electrical" / "tgov1_on"
+STRUCTURES = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV", "TGTypeI")
+F_NOM = 60.0
+TGTYPEI_DOC = {"Tc": 0.4, "T3": 0.2, "T4": 1.5, "T5": 6.0}
+
+
+@dataclass
+class UnitPlan:
+    name: str
+    structure: str  # the plant's
+    record_model: str  # the standard model of its record (TG Type I: IEEEG1)
+    plant: dict[str, float]  # the record model's values (iGrGen names, no gov.)
+    electrical: bool
+    rating: float
+    h: float
+    p_ref: float
+    hidden_rate: bool
+    record_right: bool
+    wrong: str = ""
+    record: dict[str, float] = field(default_factory=dict)
+
+
+def draw_unit(k: int, seed: int) -> UnitPlan:
+    g = np.random.default_rng([seed, k])
+    structure = STRUCTURES[k % len(STRUCTURES)]
+    hidden = structure in ("IEEEG1", "GGOV1", "TGTypeI") and g.uniform() < 25 / 60  # a quarter of the fleet
+    if structure == "TGOV1":
+        plant, model = {"R": g.uniform(0.04, 0.07), "T1": g.uniform(0.2, 1.5), "T2": g.uniform(0.5, 3.0),
+                        "T3": g.uniform(4.0, 10.0)}, "TGOV1"
+    elif structure == "IEEEG1":
+        plant, model = {"K": g.uniform(15.0, 25.0), "T3": g.uniform(0.1, 0.8), "T4": g.uniform(0.1, 0.5),
+                        "T5": g.uniform(4.0, 10.0), "K1": g.uniform(0.2, 0.4)}, "IEEEG1"
+    elif structure == "GGOV1":
+        plant, model = {"R": g.uniform(0.04, 0.07), "Kpgov": g.uniform(5.0, 20.0), "Kigov": g.uniform(1.0, 5.0),
+                        "Tb": g.uniform(0.3, 1.0), "Ropen": g.uniform(0.1, 0.2), "Rclose": -g.uniform(0.1, 0.2)}, "GGOV1"
+    elif structure == "HYGOV":
+        plant, model = {"R": g.uniform(0.04, 0.07), "r": g.uniform(0.2, 0.6), "Tr": g.uniform(2.0, 8.0),
+                        "TW": g.uniform(0.5, 2.0)}, "HYGOV"
+    else:  # TG Type I as the IEEEG1 it equals
+        r, ts = g.uniform(0.04, 0.07), g.uniform(0.3, 1.5)
+        plant, model = {"K": 1.0 / r, "T3": ts, "T4": 0.001, "T5": TGTYPEI_DOC["T5"],
+                        "K1": TGTYPEI_DOC["T4"] / TGTYPEI_DOC["T5"]}, "IEEEG1"
+    if hidden and model == "IEEEG1":
+        plant.update({"Uo": g.uniform(0.004, 0.008), "Uc": -1.0})
+    elif hidden:
+        plant["Ropen"] = g.uniform(0.004, 0.008)
+    right = (k // len(STRUCTURES)) % 2 == 0
+    plan = UnitPlan(f"unit{k:03d}", structure, model, plant, k % 2 == 0, float(g.uniform(100.0, 900.0)),
+                    float(g.uniform(3.0, 8.0)), float(g.uniform(0.55, 0.8)), hidden, right)
+    plan.record = dict(plant)
+    if not right:
+        ways = ["droop", "lag"] + (["rate"] if hidden else [])
+        plan.wrong = ways[int(g.integers(len(ways)))]
+        droop = "K" if model == "IEEEG1" else "R"
+        lag = {"TGOV1": "T3", "IEEEG1": "T5", "GGOV1": "Tb", "HYGOV": "TW"}[model]
+        if plan.wrong == "droop":
+            plan.record[droop] *= 1.3
+        elif plan.wrong == "lag":
+            plan.record[lag] *= 2.0
+        else:
+            plan.record.pop("Uo", None)
+            plan.record.pop("Uc", None)
+            plan.record.pop("Ropen", None)
+    return plan
+
+
+def structure_files(plan: UnitPlan, folder: Path) -> list[Path]:
+    """The four standard structure files, IEEEG1's documenting TG Type I's lead-lag for a
+    TG Type I unit (its record is that IEEEG1)."""
+    out = []
+    for name in ("TGOV1", "IEEEG1", "GGOV1", "HYGOV"):
+        text = (ROOT / "experiments" / "structures" / f"{name}.toml").read_text()
+        if name == "IEEEG1" and plan.structure == "TGTypeI":
+            text = text.replace('"gov.T1" = 0.001', f'"gov.T1" = {TGTYPEI_DOC["Tc"]}').replace(
+                '"gov.T2" = 0.0', f'"gov.T2" = {TGTYPEI_DOC["T3"]}').replace(
+                '"gov.T4" = { min = 0.05,', '"gov.T4" = { min = 0.001,')
+        path = folder / "structures" / f"{name}.toml"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        out.append(path)
+    return out
+
+
+def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: np.ndarray, fmu_dir) -> np.ndarray:
+    """The plant's P (pu) on the event: its record model's bench, driven by the true
+    frequency (the recorded one is that plus the PMU's noise)."""
+    from ..compiler import ensure_fmu
+    from ..diagnose.structures import Structure
+    from ..simulator import get_simulator
+
+    structure = next(Structure.load(p) for p in structures if Structure.load(p).name == plan.record_model)
+    values = {**structure.fixed, **{f"gov.{k}": v for k, v in plan.plant.items()}, "gov.p_ref": plan.p_ref,
+              "f_nom": F_NOM, "mach.H": plan.h}
+    sim = get_simulator(ensure_fmu(structure.input_bench, fmu_dir=fmu_dir))
+    out = "pe" if plan.electrical else "pm"
+    return sim.simulate({k: v for k, v in values.items() if k in sim.parameters}, output_times=t, input_time=t,
+                        inputs={"f_dev": f_dev}, outputs=[out])[out]
+
+
+def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir) -> Path:
+    from ..exchange import FORMATS
+    from ..experiment import render_config
+    from ..synthetic import NoiseModel, pmu_noise
+
+    folder.mkdir(parents=True, exist_ok=True)
+    clean = np.genfromtxt(EVENT / "clean.csv", delimiter=",", names=True)
+    t, f = clean["time"], clean["FREQ"]
+    structures = structure_files(plan, folder)
+    p = simulate_unit(plan, structures, t, f - F_NOM, fmu_dir)
+    g = np.random.default_rng([seed, 10_000 + int(plan.name[4:])])
+    white = g.uniform(0.0005, 0.001)
+    noise = NoiseModel(white_sigma=white, ar1_sigma=white * g.uniform(0.3, 1.0), tau=g.uniform(0.3, 1.0),
+                       offset=g.uniform(-0.002, 0.002))
+    recorded_p = plan.rating * (p + noise.sample(t.size, g, times=t))
+    recorded_f = f + pmu_noise(t.size, rate=30.0, sigma=1e-3, window=0.3, rng=g)
+    with open(folder / "data.csv", "w") as fh:
+        fh.write("time,FREQ,P\n")
+        fh.writelines(f"{a:.4f},{b:.6f},{c:.3f}\n" for a, b, c in zip(t, recorded_f, recorded_p))
+    out = "pe" if plan.electrical else "pm"
+    fixed = {"f_nom": F_NOM, "gov.p_ref": round(plan.p_ref, 6), **{f"gov.{k}": v for k, v in TGTYPEI_DOC.items()
+                                                                   if k != "T5"}, "gov.pmax": 1.2, "gov.pmin": 0.0}
+    if plan.electrical:
+        fixed["mach.H"] = round(plan.h, 3)
+    config = {"experiment": {"name": plan.name, "model": "iGrGen.TestBenches.FrequencyInput",
+                             "description": f"synthetic fleet: {plan.structure} unit on ANDES's tgov1_on frequency"},
+              "data": {"file": "data.csv", "time": "time",
+                       "outputs": {out: {"column": "P", "unit": "MW", "rating": round(plan.rating, 3)}}},
+              "inputs": {"f_dev": {"column": "FREQ", "unit": "Hz", "convert": "deviation", "nominal": F_NOM,
+                                   "baseline": "pre-event"}},
+              "fixed": fixed,
+              "estimate": {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"},
+                           "gov.Ts": {"min": 0.1, "max": 5.0, "label": "Ts"},
+                           "gov.T5": {"min": 1.0, "max": 20.0, "label": "T5"}},
+              "fitness": {"offset": True, "noise": "pre-step", "pre_step_end": 10.0},
+              "simulation": {"output_interval": 0.02, "timeout": 10.0}}
+    (folder / "event").mkdir(exist_ok=True)
+    shutil.move(str(folder / "data.csv"), folder / "event" / "data.csv")
+    (folder / "event" / "config.toml").write_text(render_config(config))
+    (folder / "unit.toml").write_text(f'[unit]\nname = "{plan.name} ({plan.structure})"\nmva = {plan.rating:.3f}\n'
+                                      f'bus = {100 + int(plan.name[4:])}\nmachine_id = "1"\n\n'
+                                      '[tests]\nconfigs = ["event"]\n\n[structures]\nfiles = ['
+                                      + ", ".join(f'"structures/{p.name}"' for p in structures) + "]\n")
+    FORMATS["dyr"].write_record(folder / "record.dyr", plan.record_model, _record_values(plan, structures),
+                                bus=100 + int(plan.name[4:]), machine_id="1")
+    truth = {"structure": plan.structure, "plant": plan.plant, "record_right": plan.record_right, "wrong": plan.wrong,
+             "hidden_rate": plan.hidden_rate, "electrical": plan.electrical, "H": plan.h, "rating": plan.rating}
+    (folder / "truth.json").write_text(json.dumps(truth, indent=1) + "\n")
+    return folder
+
+
+def _record_values(plan: UnitPlan, structures: list[Path]) -> dict[str, float]:
+    """The record on file's values: the structure file's documented constants and the
+    record's own (wrong or right) values."""
+    from ..diagnose.structures import Structure
+
+    structure = next(Structure.load(p) for p in structures if Structure.load(p).name == plan.record_model)
+    fixed = {k.removeprefix("gov."): v for k, v in structure.fixed.items()}
+    return {**fixed, **plan.record}
+
+
+def make_fleet(folder: str | Path, units: int | list[int], *, seed: int = 1, fmu_dir: str | Path = "fmus",
+               name: str | None = None) -> Path:
+    """Units ``0 .. units - 1`` (or those of a list) under ``folder/units`` and
+    ``folder/fleet.toml``."""
+    folder = Path(folder)
+    indices = list(range(units)) if isinstance(units, int) else list(units)
+    for k in indices:
+        write_unit(draw_unit(k, seed), folder / "units" / f"unit{k:03d}", seed, fmu_dir)
+    title = name or f"synthetic fleet of {len(indices)} units"
+    (folder / "fleet.toml").write_text(f'[fleet]\nname = "{title}"\nunits = ["units/*"]\n')
+    return folder / "fleet.toml"
+

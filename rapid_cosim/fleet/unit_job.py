@@ -1,0 +1,148 @@
+"""One unit's work in a fleet, whole on one worker: its record on file played back and
+judged, and, where it fails or there is none, the unit identified as ``rapid-cosim
+identify`` identifies it (the same function), its recommended record played back too.
+
+Why one worker, from scratch: a unit's result must not depend on where it ran or on a
+worker lost half-way. The work folder is cleared first (a killed run's half-written
+archives are never resumed by another), the identification runs in one process
+(``n_jobs = 1``, seeded), so a unit redone elsewhere gives the same numbers bit for bit.
+A unit that fails gets a result with its error in its own words; nothing is raised.
+"""
+
+from __future__ import annotations
+
+import shutil
+import time
+import traceback
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from ..errors import RapidCosimError
+from ..exchange import read_record
+from ..experiment import load_experiment
+from ..identify import Unit
+from ..noise import campaign_noise
+from ..report.tolerances import Tolerances
+from .playback import play_back
+from .spec import UnitEntry
+
+PASSED = "record on file passes"
+IDENTIFIED = "identified"
+FAILED = "failed"
+KEY = {"TGOV1": ("R", "T1", "T3"), "IEEEG1": ("K", "T3", "T4", "T5", "K1", "Uo", "Uc"),
+       "GGOV1": ("R", "Kpgov", "Kigov", "Tb", "Ropen", "Rclose"), "HYGOV": ("R", "r", "Tr", "TW")}
+
+
+@dataclass(frozen=True)
+class FleetOptions:
+    """What every unit of a fleet is run with (part of each unit's result key)."""
+
+    results: str
+    seed: int = 1
+    package: str = "modelica/iGrGen"
+    fmu_dir: str = "fmus"
+    pdf: bool = False
+    tolerances: str | None = None
+
+
+@dataclass
+class UnitResult:
+    unit: str
+    folder: str
+    path: str  # PASSED, IDENTIFIED or FAILED
+    error: str = ""
+    on_file: dict | None = None  # the record on file's playback
+    recommended: dict | None = None  # the identification's record: model, fit, parameters, its playback
+    explanation: str = ""
+    flags: list[str] = field(default_factory=list)
+    changes: dict = field(default_factory=dict)
+    files: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+def run_unit(entry: UnitEntry, options: FleetOptions) -> dict:
+    """The unit's result as a JSON-able dict (module docstring)."""
+    t0 = time.perf_counter()
+    result = UnitResult(entry.name, str(entry.folder), FAILED)
+    work = Path(options.results) / "units" / entry.name
+    try:
+        if work.exists():
+            shutil.rmtree(work)
+        work.mkdir(parents=True)
+        _run(entry, options, result, work)
+    except RapidCosimError as e:
+        result.path, result.error = FAILED, str(e)
+    except Exception as e:  # a crash is one unit's row, not the fleet's end
+        result.path, result.error = FAILED, f"{type(e).__name__}: {e}"
+        (work / "traceback.txt").write_text(traceback.format_exc())
+    result.seconds = time.perf_counter() - t0
+    return result.to_json()
+
+
+def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path) -> None:
+    from ..api import identify  # the same function as rapid-cosim identify
+
+    unit = Unit.load(entry.folder)
+    tolerances = _tolerances(options)
+    experiments = [load_experiment(c) for c in unit.configs]
+    noise = campaign_noise(experiments)
+    common = dict(package=options.package, fmu_dir=options.fmu_dir, noise_fits=noise)
+    on_file = None
+    if entry.record is not None:
+        record = read_record(entry.record, bus=unit.bus, machine_id=unit.machine_id, mva=unit.mva)
+        on_file = play_back(record, experiments, list(unit.structures), tolerances, **common)
+        result.on_file = on_file.to_json()
+        if on_file.passed:
+            result.path = PASSED
+            return
+    ident = identify(entry.folder, workdir=work, seed=options.seed, n_jobs=1, package=options.package,
+                     fmu_dir=options.fmu_dir, report=True, pdf=options.pdf, log=lambda *_: None)
+    result.path = IDENTIFIED
+    result.explanation = ident.explanation["verdict"]
+    root = Path(options.results)
+    result.files = {k: str(Path(v).resolve().relative_to(root.resolve())) for k, v in ident.files.items()}
+    if "unexplained" in result.explanation:
+        result.flags.append("unexplained")
+    if ident.recommended is None:
+        result.flags.append("no record recommended")
+        return
+    rec = ident.record(ident.recommended)
+    if "ties with" in ident.reason:
+        result.flags.append("tie: " + ident.reason.split(";")[0])
+    if rec.at_bounds:
+        result.flags.append("at bounds: " + ", ".join(rec.at_bounds))
+    if not rec.adequate:
+        result.flags.append("not within the noise")
+    written = read_record(ident.files["dyr"], bus=unit.bus, machine_id=unit.machine_id)
+    check = play_back(written, experiments, list(unit.structures), tolerances, **common)
+    check.source = result.files["dyr"]  # relative to the results: the same wherever the fleet ran
+    result.recommended = {"model": rec.model, "fit": rec.fit, "parameters": written.values,
+                          "key": {k: written.values[k] for k in KEY.get(rec.model, ()) if k in written.values},
+                          "reason": ident.reason, "playback": check.to_json()}
+    if not check.passed:
+        result.flags.append("recommended record fails its bands on " + ", ".join(check.failing))
+    result.changes = changes(on_file.values if on_file else None, on_file.model if on_file else None,
+                             rec.model, written.values)
+
+
+def changes(old: dict | None, old_model: str | None, model: str, new: dict) -> dict:
+    """What the new record changes from the one on file: the model, or each key value's
+    relative change."""
+    if old is None:
+        return {"from": "no record on file"}
+    if old_model != model:
+        return {"model": f"{old_model} -> {model}"}
+    out = {}
+    for k in KEY.get(model, ()):
+        if k in old and k in new and old[k] != 0 and abs(new[k] / old[k] - 1) > 1e-3:
+            out[k] = new[k] / old[k] - 1
+    return out
+
+
+def _tolerances(options: FleetOptions) -> Tolerances:
+    from ..report.tolerances import load_tolerances
+
+    return load_tolerances(options.tolerances) if options.tolerances else Tolerances()

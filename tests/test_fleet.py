@@ -1,0 +1,179 @@
+"""A fleet (issue 34) at a small size: a right record on file passes and is kept, a wrong
+one is flagged and the unit identified (by rapid-cosim identify's own function), bad
+units get rows with their errors and the rest complete, a rerun keeps every finished
+unit, the page sorts in headless Chromium, and a worker killed mid-fleet on a real dask
+cluster leaves every unit's result bit for bit. ``make bench-fleet`` runs 100 units."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+from rapid_cosim.errors import ConfigError
+from rapid_cosim.fleet import load_fleet, run_fleet
+from rapid_cosim.fleet.synthetic import draw_unit, make_fleet
+
+from test_dask_cluster import Cluster
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+UNITS = [0, 5]  # a TGOV1 unit whose record is right (P_e), a TGOV1 unit whose record's T3 is twice the plant's
+
+
+def _bad_units(folder: Path) -> None:
+    """A unit whose config names a column its data lacks, one whose data file is not
+    numbers, one whose record on file is not a record."""
+    for name, edit in (("bad_config", lambda u: _replace(u / "event" / "config.toml", 'column = "P"',
+                                                         'column = "POWER"')),
+                       ("bad_data", lambda u: (u / "event" / "data.csv").write_text("time,FREQ,P\n0,x,1\n")),
+                       ("bad_record", lambda u: (u / "record.dyr").write_text("1 'IEEEG1' 1 oops /\n"))):
+        unit = folder / "units" / name
+        shutil.copytree(folder / "units" / "unit000", unit)
+        edit(unit)
+
+
+def _replace(path: Path, old: str, new: str) -> None:
+    path.write_text(path.read_text().replace(old, new))
+
+
+@pytest.fixture(scope="module")
+def fleet(fmus, repo, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fleet")
+    spec = make_fleet(folder, UNITS, seed=1, fmu_dir=repo / "fmus")
+    _bad_units(folder)
+    t0 = time.perf_counter()
+    result = run_fleet(spec, results=folder / "results", workers=2, progress=False, log=lambda *_: None,
+                       package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus")
+    return folder, spec, result, time.perf_counter() - t0
+
+
+def test_right_records_pass_wrong_ones_are_identified_and_bad_units_fail_alone(fleet):
+    folder, spec, result, _ = fleet
+    rows = {u["unit"]: u for u in result.units}
+    assert draw_unit(0, 1).record_right and not draw_unit(5, 1).record_right and draw_unit(5, 1).wrong == "lag"
+    assert rows["unit000"]["path"] == "record on file passes" and rows["unit000"]["on_file"]["passed"]
+    wrong = rows["unit005"]
+    assert wrong["path"] == "identified" and not wrong["on_file"]["passed"]
+    assert wrong["recommended"]["playback"]["passed"], wrong["flags"]  # the new record passes its bands
+    results = folder / "results"
+    assert (results / wrong["files"]["dyr"]).is_file() and (results / wrong["files"]["report"]).is_file()
+    assert rows["bad_config"]["path"] == "failed" and "no column 'POWER'" in rows["bad_config"]["error"]
+    assert rows["bad_data"]["path"] == "failed" and "'x' is not a number" in rows["bad_data"]["error"]
+    assert rows["bad_record"]["path"] == "failed" and "record.dyr" in rows["bad_record"]["error"]
+    assert result.failed == 3
+
+
+def test_the_fleet_report_lists_failing_units_first_and_holds_every_new_record(fleet):
+    folder, spec, result, _ = fleet
+    table = (folder / "results" / "fleet.csv").read_text().splitlines()
+    order = [line.split(",")[0] for line in table[1:]]
+    assert order[:3] == ["bad_config", "bad_data", "bad_record"] and order[-1] == "unit000"
+    data = json.loads((folder / "results" / "fleet.json").read_text())
+    assert data["failed"] == 3 and len(data["units"]) == 5
+    records = (folder / "results" / "fleet.dyr").read_text()
+    assert records.count("'TGOV1'") + records.count("'IEEEG1'") == 1 and " 105 " in f" {records}"
+
+
+def test_a_rerun_keeps_every_finished_unit_and_redoes_a_changed_one(fleet, tmp_path):
+    folder, spec, result, first = fleet
+    t0 = time.perf_counter()
+    again = run_fleet(spec, results=folder / "results", workers=1, progress=False, log=lambda *_: None)
+    assert not again.ran and sorted(again.kept) == sorted(u["unit"] for u in result.units)
+    assert [u for u in again.units] == [u for u in result.units]
+    assert time.perf_counter() - t0 < first  # no unit was run again
+    _replace(folder / "units" / "bad_config" / "event" / "config.toml", 'column = "POWER"', 'column = "P"')
+    fixed = run_fleet(spec, results=folder / "results", workers=1, progress=False, log=lambda *_: None)
+    assert fixed.ran == ["bad_config"] and fixed.failed == 2
+
+
+def test_the_cli_exit_status_says_how_many_units_failed(fleet):
+    folder, spec, result, _ = fleet
+    proc = subprocess.run([sys.executable, "-m", "rapid_cosim.cli", "fleet", str(spec), "--results",
+                           str(folder / "results"), "--quiet"], capture_output=True, text=True, timeout=600,
+                          cwd=Path(__file__).resolve().parents[1])
+    failed = json.loads((folder / "results" / "fleet.json").read_text())["failed"]
+    assert proc.returncode == (100 + failed if failed else 0), proc.stderr
+    assert "records on file pass" in proc.stdout and "fleet.html" in proc.stdout
+
+
+def _busiest(workers):
+    import psutil
+
+    before = [sum(psutil.Process(w.pid).cpu_times()[:2]) for w in workers]
+    time.sleep(1.0)
+    used = [sum(psutil.Process(w.pid).cpu_times()[:2]) - b for w, b in zip(workers, before)]
+    return workers[used.index(max(used))]
+
+
+def test_bad_fleet_files_are_named(tmp_path):
+    (tmp_path / "a.toml").write_text("[fleet]\nunits = []\n")
+    with pytest.raises(ConfigError, match=r"fleet.units.*a list of unit folders"):
+        load_fleet(tmp_path / "a.toml")
+    (tmp_path / "b.toml").write_text('[fleet]\nunits = ["nowhere/*"]\n')
+    with pytest.raises(ConfigError, match=r"'nowhere/\*' names no unit folder"):
+        load_fleet(tmp_path / "b.toml")
+    (tmp_path / "c.toml").write_text('[fleet]\nunit = ["x"]\n')
+    with pytest.raises(ConfigError, match=r"unknown key\(s\) unit"):
+        load_fleet(tmp_path / "c.toml")
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Chromium (Debian package 'chromium'; .ci/run installs it)")
+def test_the_page_sorts_in_headless_chromium(fleet):
+    from rapid_cosim.report.pdf import QUIET
+
+    folder, *_ = fleet
+    page = folder / "results" / "fleet.html"
+    probe = page.with_name("probe.html")
+    check = ("<script>const h = document.querySelectorAll('#fleet th'); h[0].click(); h[1].click();"
+             "const names = [...document.querySelectorAll('#fleet tbody tr')].map(r => r.cells[0].textContent);"
+             "const p = document.createElement('p'); p.id = 'so' + 'rted'; p.textContent = names.join(',');"
+             "document.body.appendChild(p);</script>")
+    probe.write_text(page.read_text().replace("</body>", check + "\n</body>"))
+    with tempfile.TemporaryDirectory() as profile:
+        dom = subprocess.run([CHROMIUM, *QUIET, f"--user-data-dir={profile}", "--virtual-time-budget=5000",
+                              "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    order = re.search(r'<p id="sorted">([^<]*)</p>', dom)
+    assert order, dom[-1500:]
+    shown = order.group(1).split(",")
+    # by name, then by path (a stable sort): the failing units first, then the identified, then the passing
+    rows = json.loads((folder / "results" / "fleet.json").read_text())["units"]
+    order = {"failed": 0, "identified": 1, "record on file passes": 2}
+    assert shown == [r["unit"] for r in sorted(rows, key=lambda r: (order[r["path"]], r["unit"]))], shown
+    assert shown[0].startswith("bad_") and shown[-1].startswith(("unit000", "bad_config"))
+
+
+def test_a_killed_worker_leaves_every_units_result_bit_for_bit(fleet, tmp_path, repo):
+    """On a real cluster (scheduler and two workers), a worker SIGKILLed while it
+    identifies a unit: the fleet finishes, and every unit's result is the local run's."""
+    folder, spec, result, _ = fleet
+    cluster = Cluster(tmp_path)
+    try:
+        out = tmp_path / "results"
+        proc = subprocess.Popen([sys.executable, "-m", "rapid_cosim.cli", "fleet", str(spec), "--results", str(out),
+                                 "--scheduler", cluster.address, "--quiet"], cwd=repo, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        deadline = time.time() + 300
+        while time.time() < deadline and not (out / "units" / "unit005" / "records").exists():
+            time.sleep(0.2)  # the wrong record's unit is being identified
+        time.sleep(3.0)
+        os.kill(_busiest(cluster.workers).pid, signal.SIGKILL)  # the worker identifying it
+        stdout, stderr = proc.communicate(timeout=900)
+    finally:
+        cluster.close()
+    failed = json.loads((out / "fleet.json").read_text())["failed"]
+    assert proc.returncode == 100 + failed and failed >= 2, stderr
+    for path in sorted((folder / "results" / "units").glob("*.json")):  # the local run's, as the fleet stands
+        local = json.loads(path.read_text())
+        again = json.loads((out / "units" / path.name).read_text())
+        mine = {k: v for k, v in local.items() if k != "seconds"}
+        theirs = {k: v for k, v in again.items() if k != "seconds"}
+        assert theirs == mine, path.stem
