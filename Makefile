@@ -18,7 +18,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-png bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -109,6 +109,13 @@ bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthet
 bench-electrical: fmus  ## fourteen ANDES events, TGOV1, IEEEG1, TG Type I (generate.py --study, needs andes: the test extra): errors, structures and effects, P_e vs P_m; five more with a hidden valve rate; 100 noise draws per event; the true governor on 30 more per event (false alarms, interval coverage)
 	$(PY) benchmarks/electrical_study.py --study $(RESULTS)/electrical --structures --draws 100 --calibration 30 \
 		--json $(RESULTS)/electrical/study.json
+
+fleet: fmus  ## one grid event, every unit: the five synthetic units of experiments/fleet (records on file checked, the failing ones identified) on 2 local workers; results/fleet/fleet.html
+	$(RC) fleet experiments/fleet/fleet.toml --results $(RESULTS)/fleet --workers $(N_JOBS); \
+		status=$$?; echo "make fleet: $$(( $$(date +%s) - $(T0) )) s wall time (exit status $$status)"
+
+bench-fleet: fmus  ## 100 synthetic units on 2 workers (a 1- and 2-worker timing on 10 first): wrong records flagged, right ones passed, new records within their bands
+	$(PY) benchmarks/fleet_study.py --units $(or $(UNITS),100) --scaling 10 --work $(RESULTS)/bench-fleet
 
 bench-timebase: fmus  ## the committed ANDES events with only their time base changed (jitter, dropped frames, repeats, a gap, STAT flags): verdicts, estimates in SE, variance ratios, simulation cost; the electrical unit on untidy stamps
 	$(PY) benchmarks/timebase_study.py --work $(RESULTS)/bench-timebase --unit

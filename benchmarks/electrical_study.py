@@ -345,7 +345,7 @@ def candidate_structures():
                    {k: {"min": lo, "max": hi} for k, (lo, hi, _) in ESTIMATE["TGTypeI"].items()}, "study")
     tgov1 = Structure("TGOV1", f"{bench}TGOV1", f"{bench}TGOV1", {f"gov.{k}": v for k, v in TGOV1_FIXED.items()},
                       {"gov.R": {"min": 0.02, "max": 0.12}, "gov.T1": {"min": 0.05, "max": 3.0},
-                       "gov.T2": {"min": 0.0, "max": 10.0}, "gov.T3": {"min": 1.0, "max": 20.0}}, "study")
+                       "gov.T2": {"min": 0.0, "max": 10.0}, "gov.T3": {"min": 3.0, "max": 20.0}}, "study")
     fixed = {**{f"gov.{k}": v for k, v in IEEEG1_FIXED.items()}, "gov.K3_rest": 1.0}
     ieeeg1 = Structure("IEEEG1", f"{bench}IEEEG1", f"{bench}IEEEG1", fixed,
                        {"gov.K": {"min": 5.0, "max": 50.0}, "gov.T4": {"min": 0.05, "max": 2.0},

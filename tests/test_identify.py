@@ -211,3 +211,7 @@ def test_the_recommendation_follows_the_criterion():
     assert model == "TGOV1" and "it ties with IEEEG1, the first by BIC (6.0 behind, within 10)" in why
     model, why = _recommend([_record("TGOV1", 30.0, 4), _record("IEEEG1", 0.0, 7, adequate=False)])
     assert model == "IEEEG1" and "NOT within the noise (not within the noise on test1" in why
+    short = _record("TGOV1", 7.3, 4)
+    short.cannot_carry = ["rate_limit"]  # the explanation found a rate limit TGOV1 has no part for
+    model, why = _recommend([short, _record("IEEEG1", 0.0, 7)])
+    assert model == "IEEEG1" and "TGOV1 ties with it but cannot carry rate_limit" in why

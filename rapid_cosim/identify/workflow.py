@@ -157,11 +157,18 @@ def _recommend(records: list[StandardRecord]) -> tuple[str | None, str]:
     first = ranked[0]
     ties = sorted((r for r in ranked[1:] if r.bic - first.bic < THRESHOLD and r.n_estimated < first.n_estimated),
                   key=lambda r: (r.n_estimated, r.bic))
+    # a simpler record that cannot carry what the explanation found (a rate limit) is not
+    # as good a record, however close its fit to these tests: on a larger event it is wrong
+    short = [r for r in ties if r.cannot_carry and not first.cannot_carry]
+    ties = [r for r in ties if r not in short]
     chosen = ties[0] if ties else first
     if chosen is first:
         runner = ranked[1] if len(ranked) > 1 else None
         reason = (f"first by BIC ({first.fit}, {first.n_estimated} estimated parameters"
                   + (f"; {runner.bic - first.bic:.1f} ahead of {runner.fit}" if runner else "") + ")")
+        if short:
+            reason += (f"; {', '.join(r.fit for r in short)} ties with it but cannot carry "
+                       f"{', '.join(short[0].cannot_carry)}")
     else:
         reason = (f"it ties with {first.fit}, the first by BIC ({chosen.bic - first.bic:.1f} behind, within "
                   f"{THRESHOLD:g}), with fewer estimated parameters ({chosen.n_estimated} against "

@@ -1,0 +1,114 @@
+"""The fleet at the benchmark's size (``make bench-fleet``): 100 synthetic units
+(:mod:`rapid_cosim.fleet.synthetic`: the four standard structures and TG Type I on one
+ANDES event's frequency, a quarter with a binding valve rate, half of the records on file
+wrong), run with 1 and with 2 workers on a subset to measure the scaling, and all of them
+with 2 workers.
+
+    python benchmarks/fleet_study.py --units 100 --scaling 10 --work results/bench-fleet
+
+Prints: the time per unit and in all, the scaling ratio, memory per worker, and against
+each unit's truth: wrong records on file flagged, right ones passed (each false alarm
+named), every identified unit's new record passing its bands, failures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run(folder: Path, units: int | list[int], workers: int, results: Path) -> tuple[dict, float]:
+    from rapid_cosim.fleet import run_fleet
+    from rapid_cosim.fleet.synthetic import make_fleet
+
+    spec = make_fleet(folder, units, seed=1, fmu_dir=ROOT / "fmus")
+    if results.exists():
+        shutil.rmtree(results)
+    t0 = time.perf_counter()
+    result = run_fleet(spec, results=results, workers=workers, package=ROOT / "modelica" / "iGrGen",
+                       fmu_dir=ROOT / "fmus", log=lambda *_: None)
+    return result, time.perf_counter() - t0
+
+
+def judge(folder: Path, result) -> dict:
+    rows = {u["unit"]: u for u in result.units}
+    out = {"wrong_flagged": 0, "wrong": 0, "right_passed": 0, "right": 0, "false_alarms": [], "missed": [],
+           "new_records_pass": 0, "identified": 0, "new_records_failing": [], "failed": []}
+    for name, r in rows.items():
+        truth = json.loads((folder / "units" / name / "truth.json").read_text())
+        flagged = r["path"] != "record on file passes"
+        if r["path"] == "failed":
+            out["failed"].append(f"{name}: {r['error']}")
+            continue
+        if truth["record_right"]:
+            out["right"] += 1
+            out["right_passed"] += not flagged
+            if flagged:
+                fails = [f"{t}: {', '.join(v['failing'])}" for t, v in r["on_file"]["tests"].items() if not v["passed"]]
+                out["false_alarms"].append(f"{name} ({truth['structure']}{', hidden rate' if truth['hidden_rate'] else ''}"
+                                           f"): {'; '.join(fails)}")
+        else:
+            out["wrong"] += 1
+            out["wrong_flagged"] += flagged
+            if not flagged:
+                out["missed"].append(f"{name} ({truth['structure']}, {truth['wrong']})")
+        if r["path"] == "identified":
+            out["identified"] += 1
+            ok = bool(r.get("recommended") and r["recommended"]["playback"]["passed"])
+            out["new_records_pass"] += ok
+            if not ok:
+                out["new_records_failing"].append(f"{name} ({truth['structure']}): {r.get('flags')}")
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--units", type=int, default=100)
+    parser.add_argument("--scaling", type=int, default=10, help="units of the 1-worker / 2-worker timing")
+    parser.add_argument("--work", type=Path, default=ROOT / "results" / "bench-fleet")
+    args = parser.parse_args(argv)
+    work = args.work
+    figures = {}
+    if args.scaling:
+        subset = list(range(args.scaling))
+        one, t1 = run(work / "scaling", subset, 1, work / "scaling" / "results1")
+        two, t2 = run(work / "scaling", subset, 2, work / "scaling" / "results2")
+        same = all({k: v for k, v in a.items() if k != "seconds"} == {k: v for k, v in b.items() if k != "seconds"}
+                   for a, b in zip(one.units, two.units))
+        figures["scaling"] = {"units": len(subset), "one_worker_s": t1, "two_workers_s": t2, "ratio": t1 / t2,
+                              "identical": same}
+        print(f"{len(subset)} units: 1 worker {t1:.0f} s, 2 workers {t2:.0f} s: {t1 / t2:.2f} times faster; "
+              f"results identical: {same}")
+    result, seconds = run(work / "fleet", args.units, 2, work / "fleet" / "results")
+    j = judge(work / "fleet", result)
+    per_unit = [u["seconds"] for u in result.units]
+    passed = [u["seconds"] for u in result.units if u["path"] == "record on file passes"]
+    ident = [u["seconds"] for u in result.units if u["path"] == "identified"]
+    figures["fleet"] = {"units": args.units, "seconds": seconds, **j,
+                        "unit_seconds": {"passing_median": sorted(passed)[len(passed) // 2] if passed else None,
+                                         "identified_median": sorted(ident)[len(ident) // 2] if ident else None,
+                                         "sum": sum(per_unit)}}
+    print(f"{args.units} units on 2 workers: {seconds:.0f} s ({seconds / 60:.1f} min); per unit: a record played back "
+          f"{figures['fleet']['unit_seconds']['passing_median'] or 0:.1f} s, an identification "
+          f"{figures['fleet']['unit_seconds']['identified_median'] or 0:.0f} s (medians, one worker each)")
+    print(f"wrong records flagged: {j['wrong_flagged']}/{j['wrong']}" + (f" (missed: {'; '.join(j['missed'])})"
+                                                                       if j["missed"] else ""))
+    print(f"right records passed: {j['right_passed']}/{j['right']}")
+    for line in j["false_alarms"]:
+        print(f"  flagged although right: {line}")
+    print(f"identified units whose new record passes its bands: {j['new_records_pass']}/{j['identified']}")
+    for line in j["new_records_failing"]:
+        print(f"  fails: {line}")
+    print(f"failed units: {len(j['failed'])}" + "".join(f"\n  {f}" for f in j["failed"]))
+    (work / "study.json").write_text(json.dumps(figures, indent=1, default=float) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
