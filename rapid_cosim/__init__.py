@@ -24,7 +24,7 @@ The package follows the way data flows, each module knowing only those before it
 ``errors`` and ``search`` (the search space and the scores of a batch) are leaves.
 """
 
-__version__ = "0.2.0"
+from .version import __version__  # noqa: E402
 
 # The subpackages named as API functions are imported first: importing a subpackage for
 # the first time binds its name here, and done later (inside rc.identify) it replaced the
@@ -34,9 +34,9 @@ __version__ = "0.2.0"
 from . import diagnose as _diagnose, fleet as _fleet, identify as _identify  # noqa: E402, F401
 from .api import Calibration, calibrate, diagnose, export, identify, load, rerun, resume, simulate  # noqa: E402
 from .fleet import run_fleet as fleet  # noqa: E402
-from .experiment import Experiment  # noqa: E402
+from .experiment import Experiment, experiment_from_arrays, experiment_from_frame, load_experiment  # noqa: E402
 from .simulator import Trajectory  # noqa: E402
 
-__all__ = ["Calibration", "Experiment", "Trajectory", "calibrate", "diagnose", "export", "fleet", "identify", "load",
+__all__ = ["Calibration", "Experiment", "Trajectory", "experiment_from_arrays", "experiment_from_frame", "load_experiment", "calibrate", "diagnose", "export", "fleet", "identify", "load",
            "rerun",
            "resume", "simulate", "__version__"]

@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from . import __version__
+from .version import __version__
 from .errors import RapidCosimError, RunInterrupted
 
 

@@ -11,13 +11,13 @@ DOC = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
 
 # top-level module or subpackage -> layer (a module may import from lower layers)
 LAYERS = {
-    "errors": 0, "search": 0, "compiler": 1, "simulator": 2, "data": 3, "noise": 3.5, "exchange": 3.7, "experiment": 4,
+    "errors": 0, "version": 0, "search": 0, "compiler": 1, "simulator": 2, "data": 3, "noise": 3.5, "exchange": 3.7, "experiment": 4,
     "synthetic": 4.5,
     "problem": 5, "fitness": 6, "engine": 7, "objective": 7.5, "estimators": 8, "archive": 9,
     "calibration": 10, "staged": 11, "diagnose": 11, "identify": 11.5, "report": 12, "api": 13, "campaign": 13, "fleet": 13.5,
     "cli": 14,
 }
-LEAVES = {"errors", "search"}
+LEAVES = {"errors", "search", "version"}
 
 
 def _modules():

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rapid_cosim.errors import ConfigError
-from rapid_cosim.experiment import Experiment
+from rapid_cosim.experiment import experiment_from_arrays
 from rapid_cosim.fitness import batch_residuals, batch_rssd, combination_weights, experiment_fitness
 from rapid_cosim.noise import NoiseFit, QuietStretch, RecorderNoise, fit_noise, quiet_windows
 from rapid_cosim.noise.estimate import DRAW_FACTOR
@@ -120,7 +120,7 @@ def _staged(noise: dict | None = None, t_return=60.0, n=1101):
     t = np.arange(n) * 0.1
     pm = 0.6 + 0.08 * (t >= 10) * (t < t_return) + 0.001 * np.random.default_rng(7).standard_normal(n)
     fixed = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 10.0, "src.t_return": t_return}
-    exp = Experiment.from_arrays("s", "iGrGen.TestBenches.StagedTest", t, {"pm": pm}, fixed=fixed,
+    exp = experiment_from_arrays("s", "iGrGen.TestBenches.StagedTest", t, {"pm": pm}, fixed=fixed,
                                  estimate={"gov.R": (0.02, 0.12)}, fitness={"offset": True, "pre_step_end": 10.0})
     if noise is None:
         return exp

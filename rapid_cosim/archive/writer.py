@@ -18,7 +18,7 @@ from typing import Any, Mapping
 import h5py
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..errors import ArchiveDamaged, ArchiveError, ArchiveFull
 from ..estimators.base import EstimationResult, Iteration
 from . import format as fmt

@@ -20,7 +20,7 @@ from typing import Callable
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..archive import ArchiveWriter, RunArchive, data_sha256
 from ..errors import ArchiveDamaged, ArchiveError, ConfigError, EngineLost, RunInterrupted
 from ..estimators import parse_method, run_chain

@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
-from .. import __version__
+from ..version import __version__
 from ..errors import BuildError
 from .embedded import c_compiler, cache_dir
 from .modelica_source import PackageSource, class_index, load_package, model_sha256

@@ -1,9 +1,10 @@
 """An experiment: one test's measurements, its model and what is estimated from it.
 
-An :class:`Experiment` is made from a TOML config file (:meth:`Experiment.from_toml`,
-schema in :mod:`rapid_cosim.experiment.config`) or in code from arrays or a pandas
-DataFrame (:meth:`Experiment.from_arrays`, :meth:`Experiment.from_frame`). Either way it
-carries the text of its config, so that an archive can keep it and re-run it alone.
+An :class:`Experiment` is made from a TOML config file
+(:func:`~rapid_cosim.experiment.config.load_experiment`) or in code from arrays or a
+pandas DataFrame (:mod:`rapid_cosim.experiment.construct`). Either way it carries the
+text of its config, so that an archive can keep it and re-run it alone. The makers live
+with the loader; this module, the dataclasses, imports neither.
 """
 
 from __future__ import annotations
@@ -11,7 +12,6 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
 
 import numpy as np
 
@@ -170,58 +170,3 @@ class Experiment:
             measured=np.column_stack([v[window] for v, _ in pairs]),
             valid=np.column_stack([ok[window] for _, ok in pairs]),
             weights=np.array([self.weights[o] for o in outputs]))
-
-    # ---- ways to make one
-
-    @classmethod
-    def from_toml(cls, path: str | Path) -> "Experiment":
-        """Read ``config.toml`` (or a folder holding one) and the data it names."""
-        from .config import load_experiment
-
-        return load_experiment(path)
-
-    @classmethod
-    def from_arrays(cls, name: str, model: str, time, outputs: Mapping[str, Any], *,
-                    fixed: Mapping[str, float] | None = None,
-                    estimate: Mapping[str, Any] | None = None, description: str = "",
-                    fitness: Mapping[str, Any] | None = None,
-                    simulation: Mapping[str, Any] | None = None) -> "Experiment":
-        """An experiment built in code: ``outputs`` maps each model output to its measured
-        values on ``time`` (NaN where missing). ``estimate`` maps parameters to
-        ``(min, max)`` or to a table as in a config (``{"min": 0.02, "max": 0.12,
-        "label": "R"}``); ``fitness`` and ``simulation`` take the keys of those config
-        sections (``{"offset": True, "noise": "pre-step", "pre_step_end": 10.0}``).
-
-        It is checked exactly as a config file is, and carries the config text it
-        stands for, so archives of its runs re-run from the archive alone.
-        """
-        from .config import parse_experiment
-        from .toml_writer import render_config
-
-        data = MeasuredData.from_arrays(time, {out: np.asarray(v, dtype=float) for out, v in outputs.items()},
-                                        source=f"{name} (arrays)")
-        specs = {p: ({"min": float(v[0]), "max": float(v[1])} if isinstance(v, (tuple, list)) else dict(v))
-                 for p, v in (estimate or {}).items()}
-        sections: dict[str, Any] = {
-            "experiment": {"name": name, "model": model, "description": description},
-            "data": {"file": IN_MEMORY, "time": "time", "outputs": {out: out for out in outputs}},
-            "fixed": dict(fixed or {}), "estimate": specs, "fitness": dict(fitness or {}),
-            "simulation": dict(simulation or {})}
-        text = render_config({k: v for k, v in sections.items() if v or k in ("experiment", "data")})
-        return parse_experiment(text, Path(IN_MEMORY) / name / CONFIG_NAME, data=data)
-
-    @classmethod
-    def from_frame(cls, name: str, model: str, frame, *, time: str = "time",
-                   outputs: Mapping[str, str] | None = None, **kwargs) -> "Experiment":
-        """As :meth:`from_arrays`, from a pandas DataFrame: ``time`` names its time column
-        and ``outputs`` maps model outputs to columns (default: every other column, by
-        its own name)."""
-        if time not in frame.columns:
-            raise ValueError(f"the frame has no time column {time!r}; columns: {', '.join(map(str, frame.columns))}")
-        outputs = dict(outputs) if outputs is not None else {str(c): str(c) for c in frame.columns if c != time}
-        missing = [c for c in outputs.values() if c not in frame.columns]
-        if missing:
-            raise ValueError(f"the frame has no column(s) {', '.join(missing)}; columns: "
-                             f"{', '.join(map(str, frame.columns))}")
-        return cls.from_arrays(name, model, frame[time].to_numpy(dtype=float),
-                               {out: frame[col].to_numpy(dtype=float) for out, col in outputs.items()}, **kwargs)

@@ -9,7 +9,8 @@ uncertainty, and picks the family by BIC.
 """
 
 from .estimate import NoiseFit, campaign_noise, fit_noise, model_acf, noise_models, pooled_acf
-from .model import FAMILIES, RecorderNoise, Whitener, runs, sample_draws
+from .model import FAMILIES, RecorderNoise, Whitener, sample_draws
+from .runs import runs
 from .quiet import QuietStretch, quiet_stretches, quiet_windows, recorder_groups
 
 __all__ = ["FAMILIES", "NoiseFit", "QuietStretch", "RecorderNoise", "Whitener", "campaign_noise", "fit_noise",

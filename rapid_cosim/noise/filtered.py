@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import signal
 
-from .model import RunWhitening
+from .runs import RunWhitening
 
 if TYPE_CHECKING:
     from .model import RecorderNoise

@@ -19,7 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..calibration import inputs_from_experiments
 from ..errors import ConfigError, RapidCosimError
 from ..estimators.uncertainty import Uncertainty
