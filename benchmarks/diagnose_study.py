@@ -60,7 +60,7 @@ def _reached_from_truth(result) -> float | None:
     from rapid_cosim.archive import RunArchive
     from rapid_cosim.estimators.base import Tracker
     from rapid_cosim.estimators.lm import LMOptions, levenberg_marquardt
-    from rapid_cosim.objective import ProblemObjective
+    from rapid_cosim.fitting.objective import ProblemObjective
 
     archive = result.diagnosis.archives.get("rate_limit")
     if archive is None:

@@ -16,9 +16,9 @@ P_e modelled with H fixed at the documented 6.5 s, P_e modelled with H estimated
 estimate's error against the governor ANDES ran, in %: the droop (R, or IEEEG1's K), the
 fast lag (TGOV1's T1, IEEEG1's T4, TG Type I's Ts), the slow one (T3, T5) and H.
 
-``--structures``: structure selection (:func:`rapid_cosim.diagnose.structures.select_structure`,
+``--structures``: structure selection (:func:`rapid_cosim.structures.select.select_structure`,
 TG Type I, TGOV1 and IEEEG1) on each event's P_e and on its P_m, which should name the same,
-and the effect catalogue (:func:`~rapid_cosim.diagnose.structures.effects_on`) with the
+and the effect catalogue (:func:`~rapid_cosim.structures.select.effects_on`) with the
 true governor on P_e and on P_m, where no effect is hidden: it should name none. Its
 verdict "ambiguous" names none either: no effect improves the criterion decisively, but the
 data cannot exclude some at a material size (a recorded event is a weaker test than a
@@ -220,7 +220,7 @@ def structures(folders: list[Path], workdir: Path) -> dict:
     the governor ANDES ran, where no effect is hidden."""
     from rapid_cosim.calibration import RunOptions
     from rapid_cosim.diagnose import DiagnoseOptions
-    from rapid_cosim.diagnose.structures import effects_on, select_structure
+    from rapid_cosim.structures.select import effects_on, select_structure
 
     candidates = candidate_structures()
     out = {}
@@ -264,7 +264,7 @@ def hidden_effects(folders: list[Path], workdir: Path, fmu_dir: Path = ROOT / "f
     noise, and the first-ranked fit's errors against the plant (rate, droop, time
     constants), in %."""
     from rapid_cosim.diagnose import DiagnoseOptions
-    from rapid_cosim.diagnose.structures import effects_on
+    from rapid_cosim.structures.select import effects_on
 
     tg = candidate_structures()[0]
     out = {}
@@ -300,7 +300,7 @@ def _optional_rates(folder: Path, kind: str, workdir: Path, fmu_dir: Path) -> di
     structure's optional parts), in :func:`effects_on`'s terms: ``rate_limit`` when the
     rates win by the threshold, else the verdict."""
     from rapid_cosim.calibration import RunOptions
-    from rapid_cosim.diagnose.structures import select_structure
+    from rapid_cosim.structures.select import select_structure
 
     plain = candidate_structures()[2]
     rates = {"gov.Uo": {"min": 0.001, "max": 1.0, "scale": "log"}, "gov.Uc": {"min": -1.0, "max": -0.001}}
@@ -338,7 +338,7 @@ def candidate_structures():
     the shaft, 1 - K1 (K3_rest: the stages sum to one, as every event's plant's do)."""
     from generate import ESTIMATE, IEEEG1_FIXED, TGOV1_FIXED, TGTYPEI_FIXED
 
-    from rapid_cosim.diagnose.structures import Structure
+    from rapid_cosim.structures.select import Structure
 
     bench = "iGrGen.TestBenches.FrequencyInput"
     tg = Structure("TGTypeI", "iGrGen.TestBenches.StagedTest", bench, {f"gov.{k}": v for k, v in TGTYPEI_FIXED.items()},

@@ -176,7 +176,7 @@ def bench_input() -> None:
 
 def bench_recorded_pmu(sim) -> None:
     """The exponential runner's case: a PMU's record, irregular and noisy."""
-    from rapid_cosim.synthetic import jittered_times, pmu_noise, under_frequency_event
+    from rapid_cosim.experiment.synthetic import jittered_times, pmu_noise, under_frequency_event
 
     rng = np.random.default_rng(0)
     t = jittered_times(120.0, 50.0, 0.003, rng)
@@ -198,7 +198,7 @@ def bench_api() -> None:
 
     import rapid_cosim as rc
     from rapid_cosim.simulator import Simulator
-    from rapid_cosim.synthetic import jittered_times, pmu_noise, under_frequency_event
+    from rapid_cosim.experiment.synthetic import jittered_times, pmu_noise, under_frequency_event
 
     exp = _test1()
     staged = str(_fmu(exp.model))
@@ -227,9 +227,9 @@ def bench_api() -> None:
 
 def bench_pf() -> None:
     from rapid_cosim.estimators import PFOptions, particle_filter
-    from rapid_cosim.engine import make_engine
-    from rapid_cosim.objective import ProblemObjective
-    from rapid_cosim.problem import build_problem
+    from rapid_cosim.fitting.engine import make_engine
+    from rapid_cosim.fitting.objective import ProblemObjective
+    from rapid_cosim.fitting.problem import build_problem
     from rapid_cosim.simulator import FmuRef
 
     exp = _test1()

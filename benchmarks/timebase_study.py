@@ -183,7 +183,7 @@ def judge(folder: Path, kind: str, work: Path) -> dict:
 
     import rapid_cosim as rc
     from rapid_cosim.calibration import RunOptions
-    from rapid_cosim.diagnose.structures import select_structure
+    from rapid_cosim.structures.select import select_structure
 
     exp = variant(folder, KINDS[kind])
     scratch = work / "runs" / folder.parent.name / folder.name / kind

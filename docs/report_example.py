@@ -20,7 +20,7 @@ import numpy as np
 from rapid_cosim.cli import main as rapid_cosim
 from rapid_cosim.compiler import ensure_fmu
 from rapid_cosim.report.pdf import screenshot
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
 BENCH = "iGrGen.TestBenches.StagedTestTGOV1"
 FIXED = {"gov.p_ref": 0.6, "src.t_step": 5.0, "gov.VMAX": 0.95, "gov.T3": 6.0}

@@ -17,11 +17,11 @@ writes a calibration of a standard governor as a PSS/E ``.dyr`` or PSLF ``.dyd``
 The package follows the way data flows, each module knowing only those before it
 (``docs/architecture.md`` draws it; a test checks the imports)::
 
-    modelica/iGrGen -> compiler -> simulator -> data -> experiment -> problem -> fitness
-        -> objective (+ engine) -> estimators -> archive -> calibration
-        -> staged, diagnose -> report -> api -> cli
+    modelica/iGrGen -> compiler -> simulator -> data -> noise -> experiment -> fitting
+        -> estimators -> archive -> calibration -> diagnose -> structures -> identify
+        -> report -> api -> fleet -> cli
 
-``errors`` and ``search`` (the search space and the scores of a batch) are leaves.
+``errors`` and ``version`` are leaves; nothing inside imports this face.
 """
 
 from .version import __version__  # noqa: E402

@@ -53,8 +53,25 @@ def study(repo, tmp_path_factory):
 # seconds, so that a run in a subprocess lasts long enough to be interrupted or killed in
 # the middle on any machine, however loaded; the results are those of an unslowed run.
 def slow_objective(delay: float) -> str:
-    return (f"import time\nfrom rapid_cosim.objective import ProblemObjective\n_call = ProblemObjective.__call__\n"
+    return (f"import time\nfrom rapid_cosim.fitting.objective import ProblemObjective\n_call = ProblemObjective.__call__\n"
             f"ProblemObjective.__call__ = lambda self, X: (time.sleep({delay!r}), _call(self, X))[1]\n")
+
+
+def gated_objective(gate, open_calls: int) -> str:
+    """Code that holds ProblemObjective at its call ``open_calls + 1`` while the file
+    ``gate`` exists (300 s at most): a run in a subprocess then stays in the middle until
+    the test has done what it waits to do (send a signal, read the live archive), however
+    loaded the machine. A fixed delay per call raced: on a busy machine the archive was
+    first read once the run had finished, and the signal met an exit with status 0."""
+    return (f"import os, time\nfrom rapid_cosim.fitting.objective import ProblemObjective\n"
+            f"_call, _n = ProblemObjective.__call__, [0]\n"
+            f"def _gated(self, X):\n"
+            f"    _n[0] += 1\n"
+            f"    deadline = time.time() + 300\n"
+            f"    while _n[0] > {open_calls} and os.path.exists({str(gate)!r}) and time.time() < deadline:\n"
+            f"        time.sleep(0.02)\n"
+            f"    return _call(self, X)\n"
+            f"ProblemObjective.__call__ = _gated\n")
 
 
 # A quick synthetic staged test (R 0.06, Ts 4 s, 25 s) for the run, fault and cluster tests.
@@ -66,7 +83,7 @@ SYNTH_ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"},
 def synthetic_config(fmu, folder: Path, seed: int, duration: float = 25.0) -> Path:
     import numpy as np
 
-    from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+    from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
     t, y = synthesize(fmu, {**SYNTH_FIXED, "gov.R": 0.06, "gov.Ts": 4.0}, duration=duration,
                       noise=NoiseModel(white_sigma=0.0008, offset=0.001), rng=np.random.default_rng(seed))

@@ -12,7 +12,7 @@ from rapid_cosim.diagnose.candidates import ExperimentResiduals
 from rapid_cosim.diagnose.adequacy import adequacy
 from rapid_cosim.diagnose.null import NoiseReplicates, ScoredTest, combined_p, holm, ljung_box_q
 from rapid_cosim.diagnose.selection import NoiseFloor
-from rapid_cosim.fitness import Whitening
+from rapid_cosim.fitting.fitness import Whitening
 from rapid_cosim.noise import NoiseFit, RecorderNoise
 
 MODEL = RecorderNoise(0.0012, ((0.0008, 0.9),), 0.1)

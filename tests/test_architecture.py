@@ -9,15 +9,18 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "rapid_cosim"
 DOC = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
 
-# top-level module or subpackage -> layer (a module may import from lower layers)
+# top-level module or subpackage (a room) -> layer (a room may import from lower layers)
 LAYERS = {
-    "errors": 0, "version": 0, "search": 0, "compiler": 1, "simulator": 2, "data": 3, "noise": 3.5, "exchange": 3.7, "experiment": 4,
-    "synthetic": 4.5,
-    "problem": 5, "fitness": 6, "engine": 7, "objective": 7.5, "estimators": 8, "archive": 9,
-    "calibration": 10, "staged": 11, "diagnose": 11, "identify": 11.5, "report": 12, "api": 13, "campaign": 13, "fleet": 13.5,
-    "cli": 14,
+    "errors": 0, "version": 0, "compiler": 1, "simulator": 2, "data": 3, "noise": 3.5, "exchange": 3.7,
+    "experiment": 4, "fitting": 5, "estimators": 8, "archive": 9, "calibration": 10, "diagnose": 11,
+    "structures": 11.3, "identify": 11.5, "report": 12, "api": 13, "fleet": 13.5, "cli": 14,
 }
-LEAVES = {"errors", "search", "version"}
+LEAVES = {"errors", "version"}
+# the modules that may sit at the package root: its face (__init__, api), errors, the version
+ROOT_MODULES = {"__init__", "api", "errors", "version"}
+
+
+FACE = "<the package's face>"  # rapid_cosim/__init__.py, which imports everything
 
 
 def _modules():
@@ -35,13 +38,14 @@ def _imported(path: Path, parts: tuple[str, ...]) -> set[str]:
             if node.level:
                 base = list(package[: len(package) - (node.level - 1)]) if node.level > 1 else list(package)
                 target = base + (node.module.split(".") if node.module else [])
-                if not target:  # "from . import x" at the top: x is a top-level module
-                    found.update(alias.name for alias in node.names)
+                if not target:  # "from . import x" at the top: x is a top-level module, or a name of the face
+                    found.update(alias.name if (PACKAGE / alias.name).is_dir() or (PACKAGE / f"{alias.name}.py").exists()
+                                 else FACE for alias in node.names)
                 else:
                     found.add(target[0])
             elif node.module and node.module.split(".")[0] == "rapid_cosim":
                 rest = node.module.split(".")[1:]
-                found.update([rest[0]] if rest else [a.name for a in node.names])
+                found.update([rest[0]] if rest else [a.name if (PACKAGE / a.name).is_dir() else FACE for a in node.names])
         elif isinstance(node, ast.Import):
             for alias in node.names:
                 names = alias.name.split(".")
@@ -62,10 +66,11 @@ def test_imports_follow_the_data_flow(path, parts):
     own = parts[0]
     bad = []
     for name in _imported(path, parts):
-        if name in ("__version__", own) or name in LEAVES:
+        if name == own or name in LEAVES:
             continue
-        if name not in LAYERS:
-            continue  # a name re-exported by the package top, checked where it is defined
+        if name == FACE:  # the face imports every room: importing it is importing upwards
+            bad.append("the package's face (rapid_cosim/__init__.py)")
+            continue
         if LAYERS[name] >= LAYERS[own]:
             bad.append(f"{name} (layer {LAYERS[name]})")
     assert not bad, f"{'/'.join(parts)} (layer {LAYERS[own]}) imports against the flow: {', '.join(bad)}"
@@ -74,7 +79,7 @@ def test_imports_follow_the_data_flow(path, parts):
 def test_leaves_import_nothing_from_the_package():
     for leaf in LEAVES:
         path = PACKAGE / f"{leaf}.py"
-        assert _imported(path, (leaf,)) <= {"__version__"}, leaf
+        assert not _imported(path, (leaf,)), leaf
 
 
 def test_the_map_names_every_module():
@@ -93,8 +98,99 @@ def test_the_map_names_every_module():
 def test_the_check_sees_relative_absolute_and_lazy_imports(tmp_path):
     module = tmp_path / "m.py"
     module.write_text("from ...report.fits import x\nfrom ..inputs import y\nimport rapid_cosim.cli\n"
-                      "def f():\n    from ...api import calibrate\n    from rapid_cosim import campaign\n")
-    assert _imported(module, ("simulator", "sub", "m")) == {"report", "simulator", "cli", "api", "campaign"}
+                      "def f():\n    from ...api import calibrate\n    from rapid_cosim import fleet\n")
+    assert _imported(module, ("simulator", "sub", "m")) == {"report", "simulator", "cli", "api", "fleet"}
+    face = tmp_path / "f.py"
+    face.write_text("from .. import __version__\n")
+    assert _imported(face, ("archive", "f")) == {FACE}  # the face, which imports every room
+
+
+def _module_graph() -> dict[str, set[str]]:
+    """Module -> the package's modules it imports (lazy ones too). Imports under ``if
+    TYPE_CHECKING:`` are annotations, not imports, and a module's import of its own
+    package's ``__init__`` (which imports it) is Python's way of reaching a sibling."""
+    names = {}
+    for path, parts in _modules():
+        names[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = (path, parts)
+    graph = {}
+    for name, (path, parts) in names.items():
+        package = list(parts[:-1])
+        tree = ast.parse(path.read_text())
+        skip = {id(n) for node in ast.walk(tree) if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+                for child in node.body for n in ast.walk(child)}
+        out = set()
+        for node in ast.walk(tree):
+            if id(node) in skip:
+                continue
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = package[: len(package) - (node.level - 1)]
+                    target = base + (node.module.split(".") if node.module else [])
+                elif (node.module or "").split(".")[0] == "rapid_cosim":
+                    target = node.module.split(".")[1:]
+                else:
+                    continue
+                for alias in node.names:
+                    sub = ".".join(target + [alias.name])
+                    out.add(sub if sub in names else ".".join(target))
+            elif isinstance(node, ast.Import):
+                out.update(".".join(a.name.split(".")[1:]) for a in node.names if a.name.startswith("rapid_cosim."))
+        graph[name] = {t for t in out if t in names and t != name and not name.startswith(t + ".") and t}
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in list(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_module_imports_itself_round_a_circle():
+    assert not _cycles(_module_graph())
+
+
+def test_the_circle_check_finds_a_circle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert not _cycles({"a": {"b"}, "b": set()})
+
+
+def test_only_the_face_errors_and_the_version_sit_at_the_root():
+    loose = {p.stem for p in PACKAGE.glob("*.py")} - ROOT_MODULES
+    assert not loose, f"modules at the package root that belong in a room: {sorted(loose)}"
+
+
+def test_the_version_is_the_projects():
+    import tomllib
+
+    from rapid_cosim.version import __version__
+
+    project = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["project"]
+    assert __version__ == project["version"]
 
 
 def test_the_api_functions_stay_functions_once_their_subpackages_are_imported():

@@ -14,7 +14,7 @@ from rapid_cosim.archive.verify import verify
 from rapid_cosim.calibration import RunOptions, inputs_from_configs, rerun, resume_run, start_run
 from rapid_cosim.cli import main
 from rapid_cosim.errors import ArchiveDamaged
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
 FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 3.0}
 ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12}, "gov.Ts": {"min": 0.1, "max": 20.0}}

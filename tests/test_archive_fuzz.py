@@ -15,7 +15,7 @@ from conftest import slow_objective
 
 from rapid_cosim.archive import RunArchive
 from rapid_cosim.calibration import RunOptions, inputs_from_configs, start_run
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
 FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 2.0}
 ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12}, "gov.Ts": {"min": 0.1, "max": 20.0}}

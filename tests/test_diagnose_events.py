@@ -23,7 +23,7 @@ from rapid_cosim.diagnose import DiagnoseOptions, diagnose
 from rapid_cosim.diagnose.catalogue import INPUT_BENCH, bench_name, write_bench
 from rapid_cosim.experiment import load_experiment
 from rapid_cosim.simulator import Simulator
-from rapid_cosim.synthetic import NoiseModel, synthesize_event
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize_event
 
 TRUTH = {"gov.R": 0.055, "gov.Ts": 1.6, "gov.p_ref": 0.6, "gov.Tc": 0.4, "gov.T3": 0.2, "gov.T4": 1.5,
          "gov.T5": 6.0, "gov.pmax": 1.0, "gov.pmin": 0.0, "f_nom": 50.0}

@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from rapid_cosim.engine import make_engine
-from rapid_cosim.objective import PENALTY, ProblemObjective, evaluate_in_detail
+from rapid_cosim.fitting.engine import make_engine
+from rapid_cosim.fitting.objective import PENALTY, ProblemObjective, evaluate_in_detail
 from rapid_cosim.experiment import load_experiment
-from rapid_cosim.problem import build_problem
+from rapid_cosim.fitting.problem import build_problem
 from rapid_cosim.simulator import FmuRef
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
 TRUTH = {"gov.R": 0.055, "gov.Ts": 3.0}
 FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}

@@ -282,7 +282,7 @@ TGOV1_FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0, "gov.VMAX": 
 def tgov1_run(fmus, tmp_path_factory):
     """A short calibration of a synthetic TGOV1 staged test (R and T1 estimated)."""
     import rapid_cosim as rc
-    from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+    from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
     work = tmp_path_factory.mktemp("export")
     t, y = synthesize(fmus["StagedTestTGOV1"], {**TGOV1_FIXED, "gov.R": 0.06, "gov.T1": 0.5}, duration=30.0,
@@ -323,7 +323,7 @@ def test_export_refuses_a_bench_without_a_standard_governor(fmus, tmp_path):
 
 
 def test_a_config_takes_its_documented_constants_from_a_record(tgov1_run, tmp_path):
-    from rapid_cosim.diagnose.structures import Structure
+    from rapid_cosim.structures.select import Structure
     from rapid_cosim.errors import ConfigError
     from rapid_cosim.experiment import load_experiment, parse_experiment
 

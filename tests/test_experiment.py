@@ -9,7 +9,7 @@ import pytest
 
 from rapid_cosim.errors import ConfigError, DataError
 from rapid_cosim.experiment import load_experiment
-from rapid_cosim.problem import build_problem
+from rapid_cosim.fitting.problem import build_problem
 from rapid_cosim.simulator import ParameterInfo
 
 GOOD = """\

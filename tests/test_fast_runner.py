@@ -19,7 +19,7 @@ from test_reference_standard import CASES as STANDARD_CASES
 from rapid_cosim.errors import SimulationError, SimulationTimeout
 from rapid_cosim.simulator import InputTable, Simulator
 from rapid_cosim.simulator.compiled import OK, TIMEOUT
-from rapid_cosim.synthetic import jittered_times, pmu_noise, under_frequency_event
+from rapid_cosim.experiment.synthetic import jittered_times, pmu_noise, under_frequency_event
 
 ACCURACY = 5e-5  # pu, against CVODE at rtol 1e-10
 TIGHT = 1e-10

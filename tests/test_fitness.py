@@ -1,4 +1,4 @@
-"""rapid_cosim.fitness: RSSD, ARSSD, experiment fitness and the Gaussian likelihood."""
+"""rapid_cosim.fitting.fitness: RSSD, ARSSD, experiment fitness and the Gaussian likelihood."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 from rapid_cosim.errors import ConfigError, SimulationError
 from rapid_cosim.experiment import load_experiment
-from rapid_cosim.fitness import (arssd, experiment_fitness, fit_outputs, gaussian_log_likelihood,
+from rapid_cosim.fitting.fitness import (arssd, experiment_fitness, fit_outputs, gaussian_log_likelihood,
                                  rssd)
 
 

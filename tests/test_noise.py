@@ -8,7 +8,7 @@ import pytest
 
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.experiment import experiment_from_arrays
-from rapid_cosim.fitness import batch_residuals, batch_rssd, combination_weights, experiment_fitness
+from rapid_cosim.fitting.fitness import batch_residuals, batch_rssd, combination_weights, experiment_fitness
 from rapid_cosim.noise import NoiseFit, QuietStretch, RecorderNoise, fit_noise, quiet_windows
 from rapid_cosim.noise.estimate import DRAW_FACTOR
 
@@ -171,3 +171,4 @@ def test_a_bad_noise_section_names_its_key(noise, key, message):
     with pytest.raises(ConfigError, match=message) as e:
         _staged(noise)
     assert e.value.key == key
+

@@ -102,7 +102,7 @@ def test_the_true_governor_on_an_andes_events_electrical_power_is_judged_white(r
     import sys
 
     from rapid_cosim.calibration import RunOptions
-    from rapid_cosim.diagnose.structures import select_structure
+    from rapid_cosim.structures.select import select_structure
 
     sys.path.insert(0, str(repo / "benchmarks"))
     from electrical_study import candidate_structures, variant

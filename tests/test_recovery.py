@@ -10,9 +10,9 @@ import pytest
 
 from rapid_cosim.calibration import inputs_from_configs, log_likelihood_for
 from rapid_cosim.estimators import PFOptions, PSOOptions, SMCOptions, run_chain
-from rapid_cosim.engine import make_engine
-from rapid_cosim.objective import ProblemObjective
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.fitting.engine import make_engine
+from rapid_cosim.fitting.objective import ProblemObjective
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
 TRUTH = np.array([0.055, 3.0])  # R, Ts
 FIXED = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0}

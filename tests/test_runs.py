@@ -50,7 +50,7 @@ def test_rerun_from_the_archive_alone_is_bit_identical(config, tmp_path):
 def test_rerun_detects_a_run_that_computes_something_else(config, tmp_path, monkeypatch):
     archive = tmp_path / "run.h5"
     start_run(inputs_from_configs([config]), RunOptions(method="pso:2", seed=5), archive, progress=False)
-    from rapid_cosim.objective import ProblemObjective
+    from rapid_cosim.fitting.objective import ProblemObjective
 
     real = ProblemObjective.__call__
 

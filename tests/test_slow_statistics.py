@@ -25,10 +25,10 @@ from rapid_cosim.compiler import build_models
 from rapid_cosim.diagnose.catalogue import BASE_BENCH, EFFECTS
 from rapid_cosim.diagnose.study import HIDDEN, confusion_text, draw_case, run_case
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
-from rapid_cosim.engine import make_engine
+from rapid_cosim.fitting.engine import make_engine
 from rapid_cosim.estimators import SMCOptions, run_chain
-from rapid_cosim.objective import ProblemObjective
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.fitting.objective import ProblemObjective
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
 pytestmark = pytest.mark.slow
 

@@ -12,9 +12,9 @@ from rapid_cosim.archive import RunArchive
 from rapid_cosim.cli import main
 from rapid_cosim.errors import RapidCosimError
 from rapid_cosim.estimators.laplace import hessian_from_stencil, hessian_stencil
-from rapid_cosim.staged import (METHODS, archive_path, archived_tests, ar1_inflation,
+from rapid_cosim.calibration.staged import (METHODS, archive_path, archived_tests, ar1_inflation,
                                 parse_tests, natural_key)
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
 ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"}, "gov.Ts": {"min": 0.1, "max": 20.0, "label": "Ts"}}
 FITNESS = {"offset": True, "noise": "pre-step", "pre_step_end": 5.0}
@@ -76,7 +76,7 @@ def test_an_interrupted_run_is_resumed_to_the_uninterrupted_result(experiments, 
                                                                   monkeypatch, capsys):
     _, folders = experiments
     res, _ = results
-    from rapid_cosim.objective import ProblemObjective
+    from rapid_cosim.fitting.objective import ProblemObjective
 
     calls = {"n": 0}
     real = ProblemObjective.__call__

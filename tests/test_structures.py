@@ -15,15 +15,15 @@ import pytest
 from rapid_cosim.calibration import RunOptions, inputs_from_experiments
 from rapid_cosim.cli import main
 from rapid_cosim.compiler import ensure_fmu
-from rapid_cosim.campaign import structures as campaign_structures
+from rapid_cosim.cli.campaign import structures as campaign_structures
 from rapid_cosim.diagnose.catalogue import bench_name, bench_source, composable, write_bench
-from rapid_cosim.diagnose.identifiability import best_separating_step, identifiability
+from rapid_cosim.structures.identifiability import best_separating_step, identifiability
 from rapid_cosim.diagnose.selection import noise_floors
-from rapid_cosim.diagnose.structures import Structure, StructureFit, _verdict, select_structure
+from rapid_cosim.structures.select import Structure, StructureFit, _verdict, select_structure
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.report.structures import markdown as structures_markdown
 from rapid_cosim.experiment import load_experiment
-from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
 STEPS = (-0.2, 0.1, 0.2)
 PLANT = {"gov.R": 0.05, "gov.T1": 0.5, "gov.T2": 2.5, "gov.T3": 7.5, "gov.p_ref": 0.6}
@@ -258,13 +258,13 @@ def test_an_exchange_is_a_swap_that_leaves_the_fit_and_nothing_else(monkeypatch)
     swap is inside its bounds; equal values are not a test."""
     from types import SimpleNamespace
 
-    from rapid_cosim.diagnose import identifiability as ident_module
-    from rapid_cosim.search import SearchSpace
+    from rapid_cosim.diagnose import exchanges as ident_module
+    from rapid_cosim.fitting.search import SearchSpace
 
     def whitened(inputs, x, noise):
         return np.array([x[0] * x[1] - 2.0, x[0] + x[1] - 3.0, 10 * (x[2] - 1.5), 1e-3 * x[0]])
 
-    monkeypatch.setattr(ident_module, "_whitened", whitened)
+    monkeypatch.setattr(ident_module, "whitened_residual", whitened)
     space = SearchSpace(("a", "b", "c"), np.array([0.1, 0.5, 0.1]), np.array([5.0, 5.0, 5.0]))
     inputs = SimpleNamespace(problem=SimpleNamespace(space=space))
     found = ident_module.exchanges(inputs, np.array([1.0, 2.0, 1.5]), None)

@@ -61,7 +61,7 @@ TGOV1_FIXED = {"gov.p_ref": 0.6, "src.t_step": 5.0, "gov.VMAX": 0.95, "gov.T3": 
 def tgov1_unit(repo, fmus, tmp_path_factory):
     """A TGOV1 unit (R 0.06, T1 0.5) calibrated on one staged test; held out: the same
     unit on a step the other way, and a test of another unit (R 0.04)."""
-    from rapid_cosim.synthetic import NoiseModel, synthesize, write_experiment
+    from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
     work = tmp_path_factory.mktemp("unit")
 

@@ -13,7 +13,7 @@ same) 10 s into a 60 s run at 5 ms steps (the events that converge:
 The plant's recorder: generator 1's electrical power GENROU.Pe (x Sb/Sn to the machine
 base, in MW) and its speed as the frequency (Hz), both at 30 frames/s (a C37.118 rate at
 60 Hz). Frequency noise: 1 mHz, correlated over 0.3 s (a PMU's estimator); power: white
-0.9 MW plus AR(1) 1.2 MW (phi 0.95) and a 1.5 MW offset (rapid_cosim.synthetic.NoiseModel).
+0.9 MW plus AR(1) 1.2 MW (phi 0.95) and a 1.5 MW offset (rapid_cosim.experiment.synthetic.NoiseModel).
 The speed stands for the terminal frequency a PMU measures: the two differ by the rotor
 angle's swing against the bus, which this test leaves out.
 
@@ -227,7 +227,7 @@ def record(event: Event, run: dict, noise: bool = True, seed: int | None = None,
 def recorder_noise(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """The recorder's noise on ``n`` frames: frequency (Hz) and power (MW), in that order
     from ``rng`` (the module docstring says what they are)."""
-    from rapid_cosim.synthetic import NoiseModel, pmu_noise
+    from rapid_cosim.experiment.synthetic import NoiseModel, pmu_noise
 
     f_noise = pmu_noise(n, rate=RATE, sigma=1e-3, window=0.3, rng=rng)
     return f_noise, NoiseModel(white_sigma=0.9, ar1_sigma=1.2, phi=0.95, offset=1.5).sample(n, rng)

@@ -3,7 +3,7 @@
 The plant is invented for this example, close to the staged tests' unit but not taken
 from it: TG Type I with the documented constants of ../shared/staged_tests (Tc 0.4 s,
 T3 0.2 s, T4 1.5 s, T5 6.0 s, limits 0..1 pu) at 60 % of a 400 MW rating, droop
-R = 0.055 and governor time constant Ts = 1.6 s. The grid (rapid_cosim.synthetic.
+R = 0.055 and governor time constant Ts = 1.6 s. The grid (rapid_cosim.experiment.synthetic.
 under_frequency_event) loses 3 % of its generation 20 s into the record: frequency
 falls at 0.15 Hz/s to a nadir near -0.24 Hz and recovers to -0.07 Hz.
 
@@ -26,7 +26,7 @@ import numpy as np
 
 from rapid_cosim.compiler import ensure_fmu
 from rapid_cosim.data.comtrade import write_comtrade
-from rapid_cosim.synthetic import NoiseModel, synthesize_event
+from rapid_cosim.experiment.synthetic import NoiseModel, synthesize_event
 
 HERE = Path(__file__).resolve().parent
 TRUTH = {"gov.R": 0.055, "gov.Ts": 1.6, "gov.p_ref": 0.6, "gov.Tc": 0.4, "gov.T3": 0.2, "gov.T4": 1.5,

@@ -15,9 +15,9 @@ from ..data import MeasuredData
 from ..data.timebase import Repairs
 from ..errors import ConfigError, FmuError
 from ..experiment import Experiment, load_experiment, parse_experiment
-from ..fitness import combination_weights, gaussian_log_likelihood
-from ..problem import Problem, build_problem, check_parameters, check_signals
-from ..search import Evaluations
+from ..fitting.fitness import combination_weights, gaussian_log_likelihood
+from ..fitting.problem import Problem, build_problem, check_parameters, check_signals
+from ..fitting.search import Evaluations
 from ..simulator import FmuRef, get_simulator
 
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Mapping, Sequence
 
-from ..engine import Engine, make_engine
+from ..fitting.engine import Engine, make_engine
 from ..errors import RapidCosimError
 from ..estimators.chain import REGISTRY, parse_method
-from ..objective import PENALTY
+from ..fitting.objective import PENALTY
 from ..simulator import DEFAULT_RUNNER, check_runner
 
 

@@ -9,7 +9,7 @@ from typing import Mapping
 import numpy as np
 
 from ..estimators.base import Evaluations, Iteration
-from ..objective import ProblemObjective
+from ..fitting.objective import ProblemObjective
 
 
 class RecordingObjective:

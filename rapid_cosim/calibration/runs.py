@@ -26,7 +26,7 @@ from ..errors import ArchiveDamaged, ArchiveError, ConfigError, EngineLost, RunI
 from ..estimators import parse_method, run_chain
 from ..estimators.base import EstimationResult, Iteration
 from ..experiment import Experiment
-from ..objective import ProblemObjective
+from ..fitting.objective import ProblemObjective
 from ..simulator import get_simulator
 from .inputs import RunInputs, inputs_from_archive, log_likelihood_for
 from .options import RunOptions, stage_options

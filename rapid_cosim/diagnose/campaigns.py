@@ -21,7 +21,7 @@ and 4 (-200, -100, +100, +200 mHz, held 50 s and returned, 110 s at 10 Hz), the 
 out.
 
 ``event`` (:data:`EVENTS`): three recorded grid events driving the unit's measured
-frequency, 120 s at 50 frames/s, the event 20 s in (:func:`rapid_cosim.synthetic.
+frequency, 120 s at 50 frames/s, the event 20 s in (:func:`rapid_cosim.experiment.synthetic.
 under_frequency_event`): 3 % of generation lost, 2.5 % of load lost (the frequency
 rises, the unit backs off), and, held out, 2 % of generation lost, each in a grid of
 inertia 4-7 s and reserve lag 4-8 s drawn per event; PMU frequency noise of 1 mHz RMS
@@ -53,7 +53,7 @@ import numpy as np
 
 from ..compiler import ensure_fmu
 from ..simulator import get_simulator
-from ..synthetic import NoiseModel, synthesize, synthesize_event, under_frequency_event, write_event_experiment, \
+from ..experiment.synthetic import NoiseModel, synthesize, synthesize_event, under_frequency_event, write_event_experiment, \
     write_experiment
 from .catalogue import EFFECTS, INPUT_BENCH, NONE, bench_name, check_effects, write_bench
 

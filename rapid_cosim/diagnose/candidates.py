@@ -19,7 +19,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..calibration import RunOptions, best_run, inputs_from_experiments
-from ..objective import ProblemObjective, evaluate_in_detail
+from ..fitting.objective import ProblemObjective, evaluate_in_detail
 from ..experiment import Experiment, parse_experiment, render_config
 from ..noise import RecorderNoise
 from ..simulator import FmuRef

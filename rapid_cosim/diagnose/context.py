@@ -18,7 +18,7 @@ import numpy as np
 
 from ..calibration import RunOptions
 from ..compiler import build_models
-from ..engine import JOBLIB_BACKENDS, JoblibEngine
+from ..fitting.engine import JOBLIB_BACKENDS, JoblibEngine
 from ..errors import RapidCosimError
 from ..experiment import Experiment
 from ..noise import campaign_noise

@@ -27,11 +27,12 @@ import numpy as np
 from scipy import stats
 
 from ..calibration import log_likelihood_for
-from ..engine import make_engine
+from ..fitting.engine import make_engine
 from ..errors import RapidCosimError
 from ..estimators.laplace import laplace
-from ..objective import ProblemObjective
+from ..fitting.objective import ProblemObjective
 from .candidates import CandidateFit
+from .exchanges import exchanges
 
 LEVEL = 0.9
 STEP = 1e-3  # forward difference in unit coordinates
@@ -61,8 +62,6 @@ def intervals(fit: CandidateFit, level: float = LEVEL, n_jobs: int = 1, log=lamb
 def exchanged(fit: CandidateFit, bands: dict[str, list[float]], noise) -> dict[str, list[float]]:
     """For parameters the tests fit either way round with another, the interval at the
     other optimum: the partner's (module docstring)."""
-    from .identifiability import exchanges  # a sibling module: the same floor
-
     if not bands or fit.inputs is None:
         return {}
     names = fit.inputs.problem.names

@@ -30,7 +30,7 @@ import numpy as np
 from scipy import stats
 
 from ..experiment.electrical import rocof_component, with_component
-from ..fitness import whitenings
+from ..fitting.fitness import whitenings
 from ..noise import NoiseFit
 from ..noise.filtered import FilteredNoise
 

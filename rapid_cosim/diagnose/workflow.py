@@ -21,8 +21,8 @@ from ..calibration import ensure_run
 from ..compiler import build_models
 from ..errors import ConfigError
 from ..estimators.profile import grid, profile
-from ..engine import make_engine
-from ..objective import ProblemObjective
+from ..fitting.engine import make_engine
+from ..fitting.objective import ProblemObjective
 from ..experiment import Experiment
 from .adequacy import jitter_share
 from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, residuals_at

@@ -1,5 +1,5 @@
 """What every estimator shares: the objective it calls, the record of one iteration and
-the result (the search space and a batch's scores come from :mod:`rapid_cosim.search`).
+the result (the search space and a batch's scores come from :mod:`rapid_cosim.fitting.search`).
 
 Estimators are plain functions ``method(objective, space, *, options, rng, callback, x0)``
 returning an :class:`EstimationResult`, in the manner of ``scipy.optimize``. They never
@@ -20,7 +20,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from ..search import Evaluations, SearchSpace
+from ..fitting.search import Evaluations, SearchSpace
 from .uncertainty import Uncertainty
 
 

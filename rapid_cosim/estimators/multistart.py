@@ -182,7 +182,7 @@ def elsewhere(space: SearchSpace, u: np.ndarray, f: np.ndarray, margin: float, b
     the best (more than DISTINCT apart, relative, in some parameter): the fit then does
     not fix those parameters, however many starts reached it. Two points that differ by
     two parameters' values swapped are named as such (two lags in series, no limit
-    between them: :mod:`rapid_cosim.diagnose.identifiability`)."""
+    between them: :mod:`rapid_cosim.structures.identifiability`)."""
     ok = np.isfinite(f)
     if not ok.any():
         return ""

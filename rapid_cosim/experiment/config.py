@@ -2,7 +2,7 @@
 
 One TOML file per experiment, ``experiments/<name>/config.toml``; relative data paths are
 taken from the config file's folder. :func:`load_experiment` reads one file into an
-:class:`Experiment` (with its measurements loaded); :func:`rapid_cosim.problem.build_problem`
+:class:`Experiment` (with its measurements loaded); :func:`rapid_cosim.fitting.problem.build_problem`
 joins one or more experiments into the problem the estimators explore.
 
 Schema (keys not shown here are rejected, with a suggestion when one is close)::

@@ -6,7 +6,7 @@
     components = [{ sigma = 0.00076, tau = 0.9 }]   # slow parts: std (pu), correlation time (s)
 
 With it the fitness is the generalised least squares of the residuals whitened by that
-model (:mod:`rapid_cosim.fitness`), so correlated noise is not counted as evidence. The
+model (:mod:`rapid_cosim.fitting.fitness`), so correlated noise is not counted as evidence. The
 diagnosis writes it into its candidates' configs from the quiet data
 (:mod:`rapid_cosim.noise`); a user may give it too.
 """

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..calibration import inputs_from_experiments
 from ..diagnose.selection import noise_floors
-from ..diagnose.structures import Structure, on_structure
+from ..structures.select import Structure, on_structure
 from ..errors import ConfigError
 from ..exchange import Record
 from ..noise import campaign_noise

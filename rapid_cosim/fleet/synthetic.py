@@ -7,7 +7,7 @@ What is invented here, and how:
 - **The event.** One committed ANDES event's noise-free frequency
   (``experiments/electrical/tgov1_on``: 200 MW switched on in the Kundur grid, 60 Hz, 30
   frames/s, 60 s): every unit sees the same grid frequency, through its own PMU's noise
-  (1 mHz, correlated over 0.3 s, :func:`rapid_cosim.synthetic.pmu_noise`).
+  (1 mHz, correlated over 0.3 s, :func:`rapid_cosim.experiment.synthetic.pmu_noise`).
 - **The plants** (structure ``k % 5``): parameters drawn across the structure files'
   ranges where real units sit (droop 4-7 %, lags and water columns in their usual
   spans), the documented constants the unit's structure file gives. A TG Type I plant is
@@ -125,7 +125,7 @@ def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: 
     """The plant's P (pu) on the event: its record model's bench, driven by the true
     frequency (the recorded one is that plus the PMU's noise)."""
     from ..compiler import ensure_fmu
-    from ..diagnose.structures import Structure
+    from ..structures.select import Structure
     from ..simulator import get_simulator
 
     structure = next(Structure.load(p) for p in structures if Structure.load(p).name == plan.record_model)
@@ -140,7 +140,7 @@ def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: 
 def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir) -> Path:
     from ..exchange import FORMATS
     from ..experiment import render_config
-    from ..synthetic import NoiseModel, pmu_noise
+    from ..experiment.synthetic import NoiseModel, pmu_noise
 
     folder.mkdir(parents=True, exist_ok=True)
     clean = np.genfromtxt(EVENT / "clean.csv", delimiter=",", names=True)
@@ -191,7 +191,7 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir) -> Path:
 def _record_values(plan: UnitPlan, structures: list[Path]) -> dict[str, float]:
     """The record on file's values: the structure file's documented constants and the
     record's own (wrong or right) values."""
-    from ..diagnose.structures import Structure
+    from ..structures.select import Structure
 
     structure = next(Structure.load(p) for p in structures if Structure.load(p).name == plan.record_model)
     fixed = {k.removeprefix("gov."): v for k, v in structure.fixed.items()}

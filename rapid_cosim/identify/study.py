@@ -51,13 +51,13 @@ import numpy as np
 from ..calibration import RunOptions, inputs_from_experiments
 from ..compiler import ensure_fmu
 from ..experiment import Experiment, load_experiment
-from ..synthetic import synthesize, write_experiment
+from ..experiment.synthetic import synthesize, write_experiment
 from ..diagnose.campaigns import recorder
 from ..diagnose.catalogue import STANDARD
 from ..diagnose.candidates import residuals_at
 from ..diagnose.context import METHOD
 from ..diagnose.selection import noise_floors
-from ..diagnose.structures import Structure, StructureVerdict, on_structure
+from ..structures.select import Structure, StructureVerdict, on_structure
 
 # The field campaign's ten tests (../shared/staged_tests): (dispatch in pu, step in Hz,
 # return time in s or None for a step held to the end, length in s, recorder rate in Hz),

@@ -5,7 +5,7 @@ with one noise model.
   catalogue): which effects the unit has, adequate or not (:mod:`rapid_cosim.diagnose`).
 * **The deliverable** is a standard record. Every standard structure the unit allows is
   calibrated by the same whitened multistart least squares and judged by the same
-  computed null (:func:`rapid_cosim.diagnose.structures.select_structure`); a structure
+  computed null (:func:`rapid_cosim.structures.select.select_structure`); a structure
   with optional parts (IEEEG1's valve rates ``Uo``/``Uc``) is also fitted with them
   free, and that fit is kept only where it wins by the selection threshold (the data
   call for them). Each record's fidelity is stated per test in noise units beside the
@@ -33,7 +33,7 @@ from typing import Callable, Sequence
 from ..calibration import RunOptions
 from ..diagnose.context import METHOD
 from ..diagnose.selection import THRESHOLD
-from ..diagnose.structures import Structure, StructureFit, StructureVerdict, on_structure, select_structure
+from ..structures.select import Structure, StructureFit, StructureVerdict, on_structure, select_structure
 from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
 from ..exchange import MODELS
 from ..experiment import Experiment, load_experiment

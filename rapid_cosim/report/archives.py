@@ -12,7 +12,7 @@ from ..calibration import RunInputs, inputs_from_archive
 from ..archive import RunArchive
 from ..errors import ArchiveError
 from ..estimators.base import EstimationResult
-from ..objective import ExperimentResult, evaluate_in_detail, evaluate_one, simulate_experiment
+from ..fitting.objective import ExperimentResult, evaluate_in_detail, evaluate_one, simulate_experiment
 from ..experiment import Experiment
 from ..simulator import Trajectory
 

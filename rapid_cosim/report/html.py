@@ -142,7 +142,7 @@ def validation_page(archive: str | Path, out: str | Path | None = None, *, n_job
     intervals of its own gets the Laplace approximation at the best point, when the noise
     levels are known."""
     from ..experiment import load_experiment
-    from ..staged import hessian_uncertainty
+    from ..calibration.staged import hessian_uncertainty
     from .archives import load_run
     from .pdf import chromium, print_pdf
     from .tolerances import load_tolerances

@@ -2,7 +2,7 @@
 consistent the per-test estimates are with it.
 
 Takes the joint SMC archive and the per-test Laplace approximations
-(:class:`rapid_cosim.staged.Laplace`, from :func:`rapid_cosim.staged.ensure_laplace`);
+(:class:`rapid_cosim.calibration.staged.Laplace`, from :func:`rapid_cosim.calibration.staged.ensure_laplace`);
 simulates only to report each test's offset and RSSD at the posterior mean.
 Writes ``joint.md``, ``joint.json`` and ``joint.png``.
 """
@@ -17,7 +17,7 @@ from typing import Sequence
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
-from ..staged import Laplace
+from ..calibration.staged import Laplace
 
 from .archives import load_run, offsets_at
 from .consistency import Homogeneity, ellipse, homogeneity

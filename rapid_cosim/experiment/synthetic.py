@@ -16,8 +16,8 @@ from typing import Mapping
 
 import numpy as np
 
-from .noise import RecorderNoise
-from .simulator import Simulator, get_simulator
+from ..noise import RecorderNoise
+from ..simulator import Simulator, get_simulator
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ def write_experiment(folder: str | Path, *, model: str, time: np.ndarray, values
                      fitness: Mapping | None = None, simulation: Mapping | None = None,
                      description: str = "synthetic staged test") -> Path:
     """A config folder (config.toml + data.csv) that ``load_experiment`` reads."""
-    from .experiment import render_config
+    from . import render_config
 
     folder = Path(folder)
     write_csv(folder / "data.csv", time, values)
@@ -128,7 +128,7 @@ def write_event_experiment(folder: str | Path, *, time: np.ndarray, frequency: n
     """A config folder for a recorded event: ``data.csv`` with the recorded frequency
     (Hz) and power (pu); the frequency drives the model's ``f_dev`` as a deviation from
     50 Hz with its pre-event level removed."""
-    from .experiment import render_config
+    from . import render_config
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

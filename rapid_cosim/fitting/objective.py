@@ -1,7 +1,7 @@
 """The objective every estimator calls: many parameter sets scored against a problem.
 
 Each row of ``X`` is simulated for every experiment of the problem and scored (RSSD per
-experiment, ARSSD overall). The rows go to the :mod:`engine <rapid_cosim.engine>` the
+experiment, ARSSD overall). The rows go to the :mod:`engine <rapid_cosim.fitting.engine>` the
 objective was given, in one chunk per worker; each worker keeps its own simulators
 (:func:`rapid_cosim.simulator.get_simulator`), so no FMU is loaded per particle, and
 simulates its chunk as one batch per experiment.
@@ -21,10 +21,10 @@ import numpy as np
 
 from .engine import Engine, SequentialEngine
 from .search import Evaluations
-from .experiment import Experiment
+from ..experiment import Experiment
 from .problem import Problem
 from .fitness import ExperimentFit, arssd, batch_scores, combination_weights, experiment_fitness
-from .simulator import DEFAULT_RUNNER, FmuRef, Trajectory, check_runner, get_simulator
+from ..simulator import DEFAULT_RUNNER, FmuRef, Trajectory, check_runner, get_simulator
 
 PENALTY = 1.0  # pu^2: ~10^4 times a poor fit of a 0.08 pu step, finite for every method
 
@@ -92,7 +92,7 @@ class ExperimentBatch:
 def _score_chunk(payload: Payload, X: np.ndarray, batches: list[ExperimentBatch] | None = None,
                  residuals: bool = False) -> tuple:
     """Worker: (rssd (n, E), failed (n,), failure messages), and with ``residuals`` the
-    residual rows of each experiment (:func:`~rapid_cosim.fitness.batch_residuals`, NaN
+    residual rows of each experiment (:func:`~rapid_cosim.fitting.fitness.batch_residuals`, NaN
     for a failed set). A set that fails in one experiment is not simulated in the next.
     ``batches`` are the prepared experiments when the caller keeps them (in-process
     calls); a worker prepares its own."""

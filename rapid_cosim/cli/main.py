@@ -1,5 +1,5 @@
 """Command line: argument parsing over the Python API (:mod:`rapid_cosim.api`) and the
-staged-test campaign (:mod:`rapid_cosim.campaign`); every command calls one of them and
+staged-test campaign (:mod:`rapid_cosim.cli.campaign`); every command calls one of them and
 prints what it returns.
 
 Kept whole (over 400 lines): one short parser per command; split, the commands' help
@@ -14,8 +14,8 @@ import json
 import sys
 from pathlib import Path
 
-from .version import __version__
-from .errors import RapidCosimError, RunInterrupted
+from ..version import __version__
+from ..errors import RapidCosimError, RunInterrupted
 
 
 def _assignments(items: list[str]) -> dict[str, float]:
@@ -36,7 +36,7 @@ def _models(args) -> dict:
 
 
 def cmd_build(args) -> int:
-    from .compiler import build_models
+    from ..compiler import build_models
 
     print(f"building into {args.fmus} (compiler {args.compiler})")
     build_models(args.models or None, package=args.package, fmu_dir=args.fmus, compiler=args.compiler,
@@ -45,7 +45,7 @@ def cmd_build(args) -> int:
 
 
 def cmd_simulate(args) -> int:
-    from .api import simulate
+    from ..api import simulate
 
     traj = simulate(args.model, _assignments(args.set), stop_time=args.stop_time,
                     output_interval=args.output_interval, outputs=args.outputs.split(",") if args.outputs else None,
@@ -66,9 +66,9 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_estimate(args) -> int:
-    from .api import as_experiments, calibrate, default_archive
-    from .calibration import RunOptions, parse_option_overrides
-    from .experiment.electrical import describe_recording
+    from ..api import as_experiments, calibrate, default_archive
+    from ..calibration import RunOptions, parse_option_overrides
+    from ..experiment.electrical import describe_recording
 
     options = parse_option_overrides(args.option)
     RunOptions(method=args.method, seed=args.seed, n_jobs=args.n_jobs, backend=args.joblib_backend,
@@ -91,7 +91,7 @@ def cmd_estimate(args) -> int:
 
 
 def cmd_resume(args) -> int:
-    from .api import resume
+    from ..api import resume
 
     print(resume(args.archive, n_jobs=args.n_jobs, joblib_backend=args.joblib_backend, scheduler=args.scheduler,
                  progress=not args.quiet))
@@ -99,7 +99,7 @@ def cmd_resume(args) -> int:
 
 
 def cmd_rerun(args) -> int:
-    from .api import rerun
+    from ..api import rerun
 
     fit = rerun(args.archive, n_jobs=args.n_jobs, joblib_backend=args.joblib_backend, scheduler=args.scheduler,
                 progress=not args.quiet)
@@ -116,8 +116,8 @@ def cmd_rerun(args) -> int:
 
 
 def cmd_show(args) -> int:
-    from .calibration import summary_json
-    from .report.tables import summary_text
+    from ..calibration import summary_json
+    from ..report.tables import summary_text
 
     summary = summary_json(args.archive)
     print(summary_text(summary))
@@ -130,7 +130,7 @@ def cmd_show(args) -> int:
 
 
 def cmd_verify(args) -> int:
-    from .archive.verify import verify
+    from ..archive.verify import verify
 
     checks = verify(args.archive)
     for c in checks:
@@ -157,8 +157,8 @@ def cmd_staged_test(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from .report.html import validation_page
-    from .report.tolerances import LABELS, verdict
+    from ..report.html import validation_page
+    from ..report.tolerances import LABELS, verdict
 
     page = validation_page(args.archive, args.out, n_jobs=args.n_jobs, tolerances=args.tolerances,
                            heldout=args.holdout or (), diagnosis=args.diagnosis, pdf=args.pdf or None, bus=args.bus,
@@ -177,7 +177,7 @@ def cmd_report(args) -> int:
 
 def cmd_table1(args) -> int:
     from .campaign import table_1
-    from .staged import parse_tests
+    from ..calibration.staged import parse_tests
 
     text, md, csv_path = table_1(args.results, parse_tests(args.tests))
     print(text, end="")
@@ -187,7 +187,7 @@ def cmd_table1(args) -> int:
 
 def cmd_figures(args) -> int:
     from .campaign import figures
-    from .staged import parse_tests
+    from ..calibration.staged import parse_tests
 
     for path in figures(args.results, parse_tests(args.tests) if args.tests else None):
         print(f"wrote {path}")
@@ -204,10 +204,10 @@ def cmd_benches(args) -> int:
 
 
 def cmd_joint(args) -> int:
-    from .calibration import parse_option_overrides
+    from ..calibration import parse_option_overrides
     from .campaign import joint
-    from .report.joint import markdown
-    from .staged import parse_tests
+    from ..report.joint import markdown
+    from ..calibration.staged import parse_tests
 
     options = parse_option_overrides(args.option) if args.option else None
     summary, md, js, png = joint(parse_tests(args.tests), experiments=args.experiments,
@@ -219,9 +219,9 @@ def cmd_joint(args) -> int:
 
 
 def cmd_diagnose(args) -> int:
-    from .api import as_experiments, diagnose
+    from ..api import as_experiments, diagnose
     from .campaign import diagnosis_report
-    from .diagnose.workflow import DiagnoseOptions, split_holdout
+    from ..diagnose.workflow import DiagnoseOptions, split_holdout
 
     options = {"threshold": args.threshold, "max_effects": args.max_effects, "model_name": args.model_name,
                "backend": args.joblib_backend, "scheduler": args.scheduler}
@@ -229,7 +229,7 @@ def cmd_diagnose(args) -> int:
         options["candidates"] = tuple(args.candidates.split(","))
     DiagnoseOptions(**options)  # refused before anything is read or written
     training, heldout = split_holdout(as_experiments(args.configs), args.holdout or [])
-    from .identify.result import recording_story
+    from ..identify.result import recording_story
 
     for line in recording_story({e.name: e.recording.summary() for e in (*training, *heldout)}):
         print(line)
@@ -255,7 +255,7 @@ def cmd_structures(args) -> int:
 
 
 def cmd_identify(args) -> int:
-    from .api import identify
+    from ..api import identify
     from .campaign import identification_report
 
     result = identify(args.unit, workdir=args.results, seed=args.seed, n_jobs=args.n_jobs, package=args.package,
@@ -268,7 +268,7 @@ def cmd_identify(args) -> int:
 
 
 def cmd_fleet(args) -> int:
-    from .fleet import run_fleet
+    from ..fleet import run_fleet
 
     result = run_fleet(args.fleet, results=args.results, workers=args.workers, scheduler=args.scheduler,
                        seed=args.seed, package=args.package, fmu_dir=args.fmus, pdf=args.pdf, progress=not args.quiet)
@@ -284,7 +284,7 @@ def cmd_fleet(args) -> int:
 
 
 def cmd_export(args) -> int:
-    from .api import export
+    from ..api import export
 
     written = export(args.archive, args.out, format=args.format, bus=args.bus, machine_id=args.id, mva=args.mva,
                      bus_name=args.bus_name, kv=args.kv)
@@ -322,7 +322,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="Modelica-to-FMU compiler; auto = OpenModelica where omc exists (default %(default)s)")
 
     def runner_option(p):
-        from .simulator import DEFAULT_RUNNER, RUNNERS
+        from ..simulator import DEFAULT_RUNNER, RUNNERS
 
         p.add_argument("--runner", default=DEFAULT_RUNNER, choices=list(RUNNERS),
                        help="simulation runner: the exponential integrator (one model evaluation per sample, CVODE "

@@ -23,16 +23,16 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .calibration import (RunInputs, RunOptions, ensure_run, inputs_from_archive, inputs_from_configs,
+from . import (RunInputs, RunOptions, ensure_run, inputs_from_archive, inputs_from_configs,
                            log_likelihood_for)
-from .archive import RunArchive
-from .data import ar1_inflation, noise_level
-from .errors import RapidCosimError
-from .estimators.base import EstimationResult
-from .estimators.laplace import laplace
-from .estimators.uncertainty import Uncertainty
-from .engine import make_engine
-from .objective import ProblemObjective
+from ..archive import RunArchive
+from ..data import ar1_inflation, noise_level
+from ..errors import RapidCosimError
+from ..estimators.base import EstimationResult
+from ..estimators.laplace import laplace
+from ..estimators.uncertainty import Uncertainty
+from ..fitting.engine import make_engine
+from ..fitting.objective import ProblemObjective
 
 
 @dataclass(frozen=True)

@@ -34,15 +34,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..objective import evaluate_in_detail
+from ..diagnose.exchanges import exchanges, whitened_residual
 from ..simulator import get_simulator
 
 REL_DETERMINED = 0.10
 REL_WEAK = 0.50
 TRADE_OFF = 0.9
 STEP = 0.01
-SAME_FIT = 0.1  # a change of the whitened sum of squares smaller than this is no change of the fit
-DISTINCT = 0.01  # values closer than this (relative) are one value: swapping them is no test
 
 
 @dataclass(frozen=True)
@@ -89,14 +87,6 @@ def _covariance(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return cov, np.where(blind | (np.diag(F) <= 0), np.inf, se)
 
 
-def _whitened(inputs, x, noise) -> np.ndarray:
-    parts = []
-    for r in evaluate_in_detail(inputs.problem, inputs.fmus, np.asarray(x, dtype=float)):
-        (column,) = r.fit.residuals
-        parts.append(noise[r.experiment.name].whiten(r.fit.residuals[column]))  # masked samples: no information
-    return np.concatenate(parts)
-
-
 def _pair(inputs, x: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, float]:
     """The points either side of ``x`` along parameter ``k`` (a 1 % step, kept inside
     the declared bounds: one-sided at a bound) and their distance."""
@@ -113,7 +103,7 @@ def identifiability(inputs, x: np.ndarray, noise) -> Identifiability:
     cols = []
     for k in range(x.size):
         up, down, width = _pair(inputs, x, k)
-        d = (_whitened(inputs, up, noise) - _whitened(inputs, down, noise)) / width
+        d = (whitened_residual(inputs, up, noise) - whitened_residual(inputs, down, noise)) / width
         cols.append(d * (abs(x[k]) if x[k] != 0 else 1.0))  # per relative change: d/d(log theta)
     J = np.column_stack(cols)
     F = J.T @ J
@@ -125,27 +115,6 @@ def identifiability(inputs, x: np.ndarray, noise) -> Identifiability:
     corr = np.nan_to_num(corr)
     np.fill_diagonal(corr, 1.0)
     return Identifiability(tuple(inputs.problem.names), se, corr, condition, F, exchanges(inputs, x, noise))
-
-
-def exchanges(inputs, x: np.ndarray, noise) -> tuple[tuple[str, str, float], ...]:
-    """The pairs of estimated parameters whose values, swapped (each inside the other's
-    bounds, the two distinct), change the whitened sum of squares by under SAME_FIT, with
-    that change: one simulation per test and candidate pair."""
-    x = np.asarray(x, dtype=float)
-    space = inputs.problem.space
-    base = float(np.sum(_whitened(inputs, x, noise) ** 2))
-    found = []
-    for i in range(x.size):
-        for j in range(i + 1, x.size):
-            inside = space.lower[j] <= x[i] <= space.upper[j] and space.lower[i] <= x[j] <= space.upper[i]
-            if not inside or abs(x[i] - x[j]) <= DISTINCT * max(abs(x[i]), abs(x[j])):
-                continue
-            swapped = x.copy()
-            swapped[[i, j]] = x[[j, i]]
-            change = float(np.sum(_whitened(inputs, swapped, noise) ** 2)) - base
-            if abs(change) < SAME_FIT:
-                found.append((space.names[i], space.names[j], change))
-    return tuple(found)
 
 
 # Information below this share of the largest is none: a limit never reached changes the

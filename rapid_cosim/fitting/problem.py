@@ -15,13 +15,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .data import close_matches
-from .errors import ConfigError
-from .experiment import EstimateSpec, Experiment, config_key
+from ..data import close_matches
+from ..errors import ConfigError
+from ..experiment import EstimateSpec, Experiment, config_key
 from .search import SearchSpace
-from .simulator import ParameterInfo
-from .simulator.fmu import OUTPUT_TYPES, REAL_TYPES
-from .simulator.rocof import FREQUENCY, ROCOF
+from ..simulator import ParameterInfo
+from ..simulator.fmu import OUTPUT_TYPES, REAL_TYPES
+from ..simulator.rocof import FREQUENCY, ROCOF
 
 @dataclass(frozen=True, eq=False)
 class Problem:

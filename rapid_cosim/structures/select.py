@@ -54,12 +54,12 @@ from ..errors import ConfigError
 from ..experiment import Experiment, documented, parse_experiment, render_config
 from ..simulator import get_simulator
 from ..noise import campaign_noise
-from .adequacy import adequacy
-from .candidates import jacobian_at, residuals_at
+from ..diagnose.adequacy import adequacy
+from ..diagnose.candidates import jacobian_at, residuals_at
 from .identifiability import best_separating_step, identifiability
-from .null import replicates_for
-from .selection import THRESHOLD, noise_floors, score
-from .separate import separating_menu
+from ..diagnose.null import replicates_for
+from ..diagnose.selection import THRESHOLD, noise_floors, score
+from ..diagnose.separate import separating_menu
 
 KEPT_FIXED = ("src.", "gov.p_ref", "f_nom", "mach.")  # the test's and the unit's machine (H, D), not the governor's
 
@@ -179,7 +179,7 @@ def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Se
                workdir: str | Path, options, package, fmu_dir, log: Callable[[str], None] = print) -> dict:
     """The effect catalogue on ``structure`` (frequency-path and output effects on a
     standard structure; all of them on TG Type I): the diagnosis's verdict, in short."""
-    from .workflow import diagnose
+    from ..diagnose.workflow import diagnose
 
     d = diagnose([structure.experiment(e) for e in training], [structure.experiment(e) for e in heldout],
                  workdir=workdir, options=options, package=package, fmu_dir=fmu_dir, log=log)

@@ -1,7 +1,7 @@
 """The staged-test campaign as the make targets run it: each test calibrated with the
 paper's two chains and drawn, Table 1, the figures of the paper, the joint fit and its
 report, the bench step responses, and the demo. Each function runs estimations (through
-:mod:`rapid_cosim.staged`) and writes reports (through :mod:`rapid_cosim.report`), and
+:mod:`rapid_cosim.calibration.staged`) and writes reports (through :mod:`rapid_cosim.report`), and
 returns what it made for the command line to print.
 """
 
@@ -12,15 +12,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-from .compiler import build_models
-from .errors import RapidCosimError
-from .report import table1
-from .report.archives import caption
-from .report.figures import plot_step_responses
-from .report.fits import load_fits, plot_fit_grid, plot_test_fit
-from .report.search import plot_convergence, plot_particle_clouds
-from .simulator import Simulator, Trajectory
-from .staged import METHODS, archive_path, archived_tests, run_staged_test
+from ..compiler import build_models
+from ..errors import RapidCosimError
+from ..report import table1
+from ..report.archives import caption
+from ..report.figures import plot_step_responses
+from ..report.fits import load_fits, plot_fit_grid, plot_test_fit
+from ..report.search import plot_convergence, plot_particle_clouds
+from ..simulator import Simulator, Trajectory
+from ..calibration.staged import METHODS, archive_path, archived_tests, run_staged_test
 
 # Figs. 3-8 of the paper show tests 1 to 6.
 PAPER_FIGURE_TESTS = tuple(f"test{k}" for k in range(1, 7))
@@ -137,8 +137,8 @@ def joint(tests: Sequence[str], *, experiments: str | Path, results: str | Path,
           compiler: str, log=print):
     """The joint SMC fit over ``tests`` and its consistency with each test's own
     optimum (Laplace approximations there); returns the summary and the files written."""
-    from .report.joint import write_joint_report
-    from .staged import ensure_laplace, laplace_cache, method, run_joint
+    from ..report.joint import write_joint_report
+    from ..calibration.staged import ensure_laplace, laplace_cache, method, run_joint
 
     method(per_test_method)
     per_test = [archive_path(results, t, per_test_method) for t in tests]
@@ -162,8 +162,8 @@ def diagnosis_report(diagnosis, folder: str | Path, json_path: str | Path | None
     files."""
     import json
 
-    from .report.diagnosis import markdown, residual_figure
-    from .report.evidence import evidence_figure
+    from ..report.diagnosis import markdown, residual_figure
+    from ..report.evidence import evidence_figure
 
     folder = Path(folder)
     js, h5 = diagnosis.save(folder)
@@ -190,13 +190,13 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
     import json
     from dataclasses import asdict
 
-    from .diagnose.structures import Structure, effects_on
-    from .diagnose.workflow import DiagnoseOptions, split_holdout
-    from .identify.workflow import deliver
-    from .experiment import load_experiment
-    from .calibration import RunOptions
-    from .diagnose.context import METHOD
-    from .report.structures import identifiability_figure, markdown
+    from ..structures.select import Structure, effects_on
+    from ..diagnose.workflow import DiagnoseOptions, split_holdout
+    from ..identify.workflow import deliver
+    from ..experiment import load_experiment
+    from ..calibration import RunOptions
+    from ..diagnose.context import METHOD
+    from ..report.structures import identifiability_figure, markdown
 
     found = [Structure.load(f) for f in structure_files]  # every file checked before a run starts
     training, heldout = split_holdout([load_experiment(c) for c in configs], holdout)

@@ -15,7 +15,7 @@ from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 
-from .errors import EngineLost, RapidCosimError
+from ..errors import EngineLost, RapidCosimError
 
 JOBLIB_BACKENDS = ("loky", "multiprocessing", "sequential", "dask")
 LOST_WORKER_RETRIES = 3  # times a batch is run again on a fresh pool after a worker died
