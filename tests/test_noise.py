@@ -172,3 +172,24 @@ def test_a_bad_noise_section_names_its_key(noise, key, message):
         _staged(noise)
     assert e.value.key == key
 
+
+def test_a_masked_sample_or_two_does_not_cut_a_quiet_stretch_and_a_longer_run_does():
+    """A frame flagged invalid is out of the quiet data as a dropped frame is, and the
+    stretch runs on across it: cutting there split 10 s of pre-event data into pieces,
+    each with its own trend, and tripled the correlation time's error. Three masked
+    samples in a row cut (MAX_MASKED_RUN)."""
+    from rapid_cosim.noise.quiet import MAX_MASKED_RUN, quiet_stretches
+
+    def pre_step(masked):
+        t = np.arange(1101) * 0.1
+        pm = 0.6 + 0.08 * (t >= 10) * (t < 60) + 0.001 * np.random.default_rng(7).standard_normal(t.size)
+        pm[list(masked)] = np.nan
+        exp = experiment_from_arrays("s", "iGrGen.TestBenches.StagedTest", t, {"pm": pm},
+                                     fixed={"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 10.0, "src.t_return": 60.0},
+                                     estimate={"gov.R": (0.02, 0.12)}, fitness={"offset": True, "pre_step_end": 10.0})
+        return [s.time.size for s in quiet_stretches([exp]) if s.kind == "pre-step"]
+
+    assert pre_step([]) == [100]
+    assert pre_step([30, 31]) == [98]  # two in a row: one stretch
+    assert pre_step([30, 60]) == [98]  # two apart: one stretch
+    assert pre_step(range(40, 40 + MAX_MASKED_RUN + 1)) == [40, 57]  # three in a row: cut
