@@ -18,7 +18,7 @@ from rapid_cosim.calibration import RunOptions, inputs_from_configs, resume_run,
 from rapid_cosim.cli import main
 from rapid_cosim.errors import ArchiveFull
 
-from conftest import slow_objective, synthetic_config
+from conftest import gated_objective, synthetic_config
 # The Python runner on a 120 s record with 80 particles keeps a run going for seconds
 # (each iteration a few tenths), long enough to be interrupted in the middle: with 24
 # particles on 25 s a whole run took 0.3 s, and a signal or a kill could come too late.
@@ -26,11 +26,14 @@ N_PARTICLES = 80
 OPTIONS = dict(method="pf:10+nm", seed=4, runner="python", estimator_options={"pf": {"n_particles": N_PARTICLES}})
 CLI_OPTIONS = ["--method", OPTIONS["method"], "--seed", "4", "--runner", "python", "--option",
                f"pf.n_particles={N_PARTICLES}"]
-# The command line in a subprocess, each objective call 0.1 s slower: a run lasts several
-# seconds after the iterations a test waits for, however loaded the machine (on a loaded
-# one the archive, rewritten as it grows, could first be read once the run had finished,
-# and a signal sent then met a process already on its way out with status 0).
-SLOW_CLI = slow_objective(0.1) + "import sys\nfrom rapid_cosim.cli import main\nsys.exit(main(sys.argv[1:]))\n"
+OPEN_CALLS = 5  # objective calls a gated run makes (PF iterations, each archived) before it holds
+
+
+def _gated_cli(gate):
+    """The command line in a subprocess, held at its sixth objective call while ``gate``
+    exists (see conftest.gated_objective): no timing decides what the test sees."""
+    gate.touch()
+    return gated_objective(gate, OPEN_CALLS) + "import sys\nfrom rapid_cosim.cli import main\nsys.exit(main(sys.argv[1:]))\n"
 
 
 @pytest.fixture(scope="module")
@@ -64,12 +67,16 @@ def _wait_for_iterations(archive, n, proc, timeout=60):
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_an_interrupt_closes_the_archive_and_says_how_to_resume(config, expected, tmp_path, repo, sig):
-    archive = tmp_path / "run.h5"
-    cmd = [sys.executable, "-c", SLOW_CLI, "estimate", str(config), *CLI_OPTIONS, "--archive", str(archive), "--quiet"]
+    archive, gate = tmp_path / "run.h5", tmp_path / "gate"
+    cmd = [sys.executable, "-c", _gated_cli(gate), "estimate", str(config), *CLI_OPTIONS, "--archive", str(archive),
+           "--quiet"]
     proc = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _wait_for_iterations(archive, 3, proc)
-    proc.send_signal(sig)
-    out, err = proc.communicate(timeout=60)
+    try:
+        _wait_for_iterations(archive, 3, proc)
+        proc.send_signal(sig)  # the run holds at the gate: it cannot have finished
+        out, err = proc.communicate(timeout=60)
+    finally:
+        gate.unlink(missing_ok=True)
     assert proc.returncode == 130, err
     assert "holds" in err and f"'rapid-cosim resume {archive}' continues the run" in err
     assert "Traceback" not in err
@@ -157,8 +164,9 @@ def test_a_killed_worker_costs_a_retry_not_the_run(config, expected, tmp_path):
 
 
 def test_show_counts_what_a_live_run_has_done(config, tmp_path, repo):
-    archive = tmp_path / "live.h5"
-    cmd = [sys.executable, "-c", SLOW_CLI, "estimate", str(config), *CLI_OPTIONS, "--archive", str(archive), "--quiet"]
+    archive, gate = tmp_path / "live.h5", tmp_path / "gate"
+    cmd = [sys.executable, "-c", _gated_cli(gate), "estimate", str(config), *CLI_OPTIONS, "--archive", str(archive),
+           "--quiet"]
     proc = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         _wait_for_iterations(archive, 3, proc)
@@ -168,6 +176,7 @@ def test_show_counts_what_a_live_run_has_done(config, tmp_path, repo):
     finally:
         proc.kill()
         proc.wait()
+        gate.unlink(missing_ok=True)
     n = summary["n_iterations"]
     # the elite particle is carried, not simulated again: all in the first iteration, one fewer after
     assert summary["nfev"] == its[n - 1].n_sims <= N_PARTICLES + (N_PARTICLES - 1) * (n - 1)
