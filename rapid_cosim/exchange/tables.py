@@ -41,7 +41,7 @@ Conversions (the same for both formats)
   Writing one of the sharpness or ``DELT`` parameters away from its default warns
   (:class:`ExchangeWarning`): the record then means a slightly different model than the
   one calibrated. Reading a record gives them no value (the iGrGen defaults apply).
-* **Flags.** GGOV1's ``Rselect`` and ``Flag`` (PSS/E ICONs) are Reals holding the integer in
+* **Flags.** GGOV1's ``Rselect`` and ``Flag`` (PSS/E ICONs) are Integer parameters in
   iGrGen; they are written as integers. ``Rselect = -2`` has no iGrGen counterpart.
 """
 

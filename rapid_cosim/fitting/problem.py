@@ -86,6 +86,17 @@ def check_parameters(experiment: Experiment, parameter_info: Mapping[str, Parame
             hint = (f"; close matches: {', '.join(close)}" if close
                     else f"; no close match among the {len(known)} parameters of the model")
             raise ConfigError(f"model {experiment.model} has no parameter '{name}'{hint}", file, key)
+        if key.startswith("estimate") and info.type not in ("Real", "Float64"):
+            raise ConfigError(f"'{name}' is a{'n' if info.type[0] in 'AEIOU' else ''} {info.type} parameter of "
+                              f"{experiment.model} (a flag: a choice of structure, not a value to fit): give it in "
+                              "[fixed], and compare the choices as structures", file, key)
+        if not info.settable:
+            raise ConfigError(f"'{name}' of {experiment.model} cannot be set: it is calculated from other "
+                              f"parameters, or a {info.type} parameter of an FMI 3.0 FMU (Float64 ones can be set)",
+                              file, key)
+        if info.type == "Integer" and any(v != round(v) for v in values):
+            raise ConfigError(f"'{name}' is an Integer parameter of {experiment.model}: {values[0]:g} is not a "
+                              "whole number", file, key)
         lo = -math.inf if info.min is None else info.min
         hi = math.inf if info.max is None else info.max
         for v in values:

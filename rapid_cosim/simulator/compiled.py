@@ -58,6 +58,7 @@ class _Batch(ctypes.Structure):
         ("n_inputs", c_int), ("input_vrs", POINTER(c_uint)), ("n_rows", c_int),
         ("input_time", POINTER(c_double)), ("input_values", POINTER(c_double)),
         ("start_time", c_double), ("timeout", c_double), ("out_elem", POINTER(c_int)),
+        ("param_types", POINTER(c_int)),
     ]
 
 
@@ -226,6 +227,10 @@ class PreparedRun:
         if elements is not None:
             self._keep.append(elements)
             b.out_elem = _ptr(elements, c_int)
+        kinds = runner.fmu.parameter_types(param_names)
+        if kinds is not None:
+            self._keep.append(kinds)
+            b.param_types = _ptr(kinds, c_int)
         if inputs is not None:
             if len(inputs.names) > 64:
                 raise SimulationError(f"{runner.fmu.name}: the runner drives at most 64 inputs")

@@ -64,6 +64,8 @@ typedef struct {
     fmi2GetRealTYPE *get_real;
     fmi2GetIntegerTYPE *get_integer;
     fmi2GetBooleanTYPE *get_boolean;
+    fmi2SetIntegerTYPE *set_integer; /* flag parameters */
+    fmi2SetBooleanTYPE *set_boolean;
     fmi2DoStepTYPE *do_step;
     fmi2SetRealInputDerivativesTYPE *set_input_derivatives;
     fmi2GetBooleanStatusTYPE *get_boolean_status;
@@ -97,6 +99,7 @@ typedef struct {
     double start_time, stop_time, timeout, tolerance;
     int interpolation; /* 0 held, 1 FMI 2.0 input derivatives, 2 FMI 3.0 intermediate update */
     const int *out_elem; /* n_out x 2: an array element's offset and array size (NULL: none) */
+    const int *param_types; /* n_params: 0 Real, 1 Integer, 2 Boolean (FMI 2.0 flags); NULL: all Real */
 } CsBatch;
 
 typedef struct {
@@ -219,7 +222,8 @@ static int load2(CsRunner *r, char *err, int err_len) {
     F(setup_experiment, "fmi2SetupExperiment"); F(enter_init, "fmi2EnterInitializationMode");
     F(exit_init, "fmi2ExitInitializationMode"); F(reset, "fmi2Reset"); F(terminate, "fmi2Terminate");
     F(set_real, "fmi2SetReal"); F(get_real, "fmi2GetReal"); F(get_integer, "fmi2GetInteger");
-    F(get_boolean, "fmi2GetBoolean"); F(do_step, "fmi2DoStep");
+    F(get_boolean, "fmi2GetBoolean"); F(set_integer, "fmi2SetInteger"); F(set_boolean, "fmi2SetBoolean");
+    F(do_step, "fmi2DoStep");
     F(set_input_derivatives, "fmi2SetRealInputDerivatives"); F(get_boolean_status, "fmi2GetBooleanStatus");
     F(get_real_status, "fmi2GetRealStatus");
 #undef F
@@ -306,6 +310,28 @@ RC_EXPORT void cs_close(CsRunner *r) {
 }
 
 /* ---- one set ---- */
+
+/* One set's parameters on an FMI 2.0 FMU, each by its type (CsBatch.param_types): a flag
+ * is set as the Integer or Boolean it is declared. */
+static fmi2Status set_parameters2(CsRunner *r, const CsBatch *b, const double *params) {
+    fmi2Status s, worst = fmi2OK;
+    int k;
+    if (!b->n_params) return fmi2OK;
+    if (!b->param_types) return r->f2.set_real(r->c, b->param_vrs, (size_t)b->n_params, params);
+    for (k = 0; k < b->n_params; k++) {
+        if (b->param_types[k] == 1) {
+            fmi2Integer v = (fmi2Integer)params[k];
+            s = r->f2.set_integer(r->c, &b->param_vrs[k], 1, &v);
+        } else if (b->param_types[k] == 2) {
+            fmi2Boolean v = params[k] != 0.0 ? fmi2True : fmi2False;
+            s = r->f2.set_boolean(r->c, &b->param_vrs[k], 1, &v);
+        } else {
+            s = r->f2.set_real(r->c, &b->param_vrs[k], 1, &params[k]);
+        }
+        if (s > worst) worst = s;
+    }
+    return worst;
+}
 
 #define FMI(call, what)                                                                  \
     do {                                                                                 \
@@ -413,7 +439,7 @@ static int run_set(CsRunner *r, const double *params, double *out, double *t_rea
         r->fresh = 0;
         FMI(r->f2.setup_experiment(r->c, fmi2True, b->tolerance, b->start_time, fmi2True, b->stop_time),
             "fmi2SetupExperiment");
-        if (b->n_params) FMI(r->f2.set_real(r->c, b->param_vrs, (size_t)b->n_params, params), "fmi2SetReal (parameters)");
+        FMI(set_parameters2(r, b, params), "setting the parameters");
         FMI(r->f2.enter_init(r->c), "fmi2EnterInitializationMode");
         if (set_inputs(r, b->u)) { set_message(r, "setting inputs failed at the start"); return CS_FMI; }
         FMI(r->f2.exit_init(r->c), "fmi2ExitInitializationMode");

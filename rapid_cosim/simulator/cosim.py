@@ -39,7 +39,7 @@ from ..errors import SimulationError
 from . import compiled
 from .compiled import FMI, NONFINITE, OK, TERMINATED, TIMEOUT, _address, _ptr
 from .communication import left_values, plan_communication
-from .fmu import ELEMENT, LoadedFmu
+from .fmu import ELEMENT, LoadedFmu, set_parameters
 from .inputs import InputTable
 
 INTERPOLATION = {"hold": 0, "derivatives": 1, "intermediate": 2}
@@ -59,7 +59,7 @@ class _CsBatch(ctypes.Structure):
         ("u", POINTER(c_double)), ("du", POINTER(c_double)), ("read", POINTER(c_int)),
         ("out_comm", POINTER(c_int)), ("out_w", POINTER(c_double)),
         ("start_time", c_double), ("stop_time", c_double), ("timeout", c_double), ("tolerance", c_double),
-        ("interpolation", c_int), ("out_elem", POINTER(c_int)),
+        ("interpolation", c_int), ("out_elem", POINTER(c_int)), ("param_types", POINTER(c_int)),
     ]
 
 
@@ -123,6 +123,9 @@ class PreparedCosim:
             tolerance=driver.relative_tolerance, interpolation=INTERPOLATION[plan.interpolation])
         if keep["out_elem"] is not None:
             b.out_elem = _ptr(keep["out_elem"], c_int)
+        keep["param_types"] = fmu.parameter_types(param_names)
+        if keep["param_types"] is not None:
+            b.param_types = _ptr(keep["param_types"], c_int)
         if inputs is not None:
             if len(inputs.names) > 64:
                 raise SimulationError(f"{fmu.name}: the Co-Simulation driver drives at most 64 inputs")
@@ -215,6 +218,7 @@ class CosimLoop:
             messages = []
             self._table, self._input_vrs, self._interpolation = inputs, input_vrs, plan.interpolation
             self._elements = elements
+            self._param_kinds = self.fmu.parameter_types(param_names)
             try:
                 for i, row in enumerate(values):
                     rows = [0]
@@ -270,13 +274,11 @@ class CosimLoop:
         stop_time = float(plan.comm[-1])
         set_inputs = f.setFloat64 if fmu.fmi3 else f.setReal
         if fmu.fmi3:
-            if param_vrs:
-                f.setFloat64(param_vrs, params)
+            set_parameters(f, True, param_vrs, params, None)
             f.enterInitializationMode(tolerance=self.relative_tolerance, startTime=start_time, stopTime=stop_time)
         else:
             f.setupExperiment(tolerance=self.relative_tolerance, startTime=start_time, stopTime=stop_time)
-            if param_vrs:
-                f.setReal(param_vrs, params)
+            set_parameters(f, False, param_vrs, params, self._param_kinds)
             f.enterInitializationMode()
         if input_vrs:
             set_inputs(input_vrs, plan.u[0].tolist())

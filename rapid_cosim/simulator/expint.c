@@ -1033,7 +1033,7 @@ static int ex_run_set(Runner *r, Plan *p, const double *params, double *out, dou
     r->limit_row = -1;
     r->cursor = 0;
     FMI(r->fmi.setup_experiment(r->c, fmi2False, 0.0, b->start_time, fmi2False, 0.0), "fmi2SetupExperiment");
-    if (b->n_params) FMI(r->fmi.set_real(r->c, b->param_vrs, (size_t)b->n_params, params), "fmi2SetReal (parameters)");
+    FMI(set_parameters(r, b, params), "setting the parameters");
     if (set_inputs(r, t)) { set_message(r, "setting inputs failed at the start"); return RC_FMI; }
     if (p->m) input_at(r, t, p->u); /* the values just set */
     FMI(r->fmi.enter_init(r->c), "fmi2EnterInitializationMode");

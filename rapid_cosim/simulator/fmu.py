@@ -44,7 +44,11 @@ ENUMERATION = {"2.0": 1, "3.0": 9}
 # One element of an FMI 3.0 array, recorded as a variable of its own ("y[2]", "A[1,2]"): a
 # flag on its type's code, its offset and its array's size passed beside (fmi3_table.h).
 ELEMENT, MAX_ELEMENTS = 16, 1024
-REAL_TYPES = ("Real", "Float64")  # what parameters and inputs may be (FMI 2.0, FMI 3.0)
+REAL_TYPES = ("Real", "Float64")  # what inputs may be (FMI 2.0, FMI 3.0), and estimated parameters
+# Parameters that can be set, with the runners' type codes: FMI 2.0's Integer and Boolean
+# flags too (GGOV1's Rselect), each set by its own function; FMI 3.0 sets Float64 only.
+PARAMETER_TYPES = {"Real": 0, "Float64": 0, "Integer": 1, "Boolean": 2}
+FLAG_TYPES = ("Integer", "Boolean")
 MODEL_EXCHANGE, CO_SIMULATION = "ModelExchange", "CoSimulation"
 INTERFACE_NAMES = {MODEL_EXCHANGE: "Model Exchange", CO_SIMULATION: "Co-Simulation"}
 
@@ -153,7 +157,9 @@ class LoadedFmu:
         self.parameters: dict[str, ParameterInfo] = {
             v.name: ParameterInfo(name=v.name, start=_float(v.start), min=_float(v.min), max=_float(v.max),
                                   unit=v.unit or "", description=v.description or "",
-                                  settable=v.causality == "parameter" and self.types[v.name] in REAL_TYPES,
+                                  settable=v.causality == "parameter" and (
+                                      self.types[v.name] in REAL_TYPES
+                                      or (self.types[v.name] in FLAG_TYPES and not self.fmi3)),
                                   type=self.types[v.name])
             for v in variables if v.causality in ("parameter", "calculatedParameter")}
         self.outputs = [v.name for v in variables if v.causality == "output"]
@@ -243,9 +249,9 @@ class LoadedFmu:
                 close = difflib.get_close_matches(name, self.parameters, n=3)
                 hint = f"; did you mean {', '.join(close)}?" if close else ""
                 raise ParameterError(f"{self.name} has no parameter {name!r}{hint}")
-            if info.type not in REAL_TYPES:
-                raise ParameterError(f"{name} of {self.name} is a {info.type} parameter; only Real (FMI 3.0: "
-                                     "Float64) parameters can be set or estimated")
+            if info.type not in REAL_TYPES and (self.fmi3 or info.type not in FLAG_TYPES):
+                raise ParameterError(f"{name} of {self.name} is a {info.type} parameter; Real parameters (FMI 2.0 "
+                                     "Integer and Boolean ones too; FMI 3.0: Float64) can be set")
             if not info.settable:
                 raise ParameterError(f"{name} of {self.name} is calculated from other parameters and cannot be set")
             try:
@@ -254,12 +260,25 @@ class LoadedFmu:
                 raise ParameterError(f"{name} = {value!r} is not a number") from None
             if not math.isfinite(value):
                 raise ParameterError(f"{name} = {value} is not finite")
+            if info.type == "Integer" and value != round(value):
+                raise ParameterError(f"{name} = {value:g} is not a whole number: it is an Integer parameter of "
+                                     f"{self.name}")
+            if info.type == "Boolean" and value not in (0.0, 1.0):
+                raise ParameterError(f"{name} = {value:g}: it is a Boolean parameter of {self.name}; give 0 or 1")
             if (info.min is not None and value < info.min) or (info.max is not None and value > info.max):
                 raise ParameterError(
                     f"{name} = {value:g} is outside its declared range [{_fmt(info.min)}, {_fmt(info.max)}]"
                     f" in {self.name}")
             checked[name] = value
         return checked
+
+    def parameter_types(self, names: Sequence[str]):
+        """The runners' type code per parameter set (0 Real, 1 Integer, 2 Boolean), an
+        int32 array, or None when all are Real (the runners then set them in one call)."""
+        import numpy as np
+
+        codes = np.array([PARAMETER_TYPES.get(self.types[n], 0) for n in names], dtype=np.int32)
+        return codes if codes.any() else None
 
     def output_types(self, names: Sequence[str]) -> list[int]:
         """The runner's type code per recorded variable; unknown or String ones refused."""
@@ -372,3 +391,22 @@ def cache_key(fmu: str | Path | FmuRef) -> tuple[tuple, Path]:
     if stat is None or not S_ISREG(stat.st_mode):
         raise FmuError(f"{name}: no such FMU file")
     return (name, stat.st_mtime_ns, stat.st_size), Path(name)
+
+
+def set_parameters(instance, fmi3: bool, vrs: Sequence[int], values: Sequence[float], kinds) -> None:
+    """Parameters on an fmpy instance, each by its type (``kinds`` as
+    :meth:`Fmu.parameter_types`; None: all Real), as the C runners set them."""
+    if not vrs:
+        return
+    if fmi3:
+        instance.setFloat64(list(vrs), list(values))
+    elif kinds is None:
+        instance.setReal(list(vrs), list(values))
+    else:
+        for vr, value, kind in zip(vrs, values, kinds):
+            if kind == 1:
+                instance.setInteger([vr], [int(round(value))])
+            elif kind == 2:
+                instance.setBoolean([vr], [bool(value)])
+            else:
+                instance.setReal([vr], [float(value)])

@@ -35,7 +35,7 @@ from fmpy.sundials import (CV_BDF, CV_NORMAL, CVode, CVodeCreate, CVodeFree, CVo
 from fmpy.sundials.libraries import sundials_core
 
 from ..errors import FmuError, SimulationError, SimulationTimeout
-from .fmu import ELEMENT, LoadedFmu
+from .fmu import ELEMENT, LoadedFmu, set_parameters
 from .inputs import InputTable
 
 # Destructors fmpy's binding does not declare (its own solver leaves them to the OS).
@@ -244,8 +244,7 @@ class ReferenceLoop:
         set_real = fmu.setFloat64 if v3 else fmu.setReal
         if not v3:
             fmu.setupExperiment(startTime=start_time)
-        if params:
-            set_real([vr[n] for n in params], list(params.values()))
+        set_parameters(fmu, v3, [vr[n] for n in params], list(params.values()), self.fmu.parameter_types(params))
         limit = {"row": -1}
         set_inputs = None if inputs is None else _input_setter(set_real, [vr[n] for n in inputs.names], inputs, limit)
         if set_inputs is not None:

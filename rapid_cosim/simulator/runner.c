@@ -117,6 +117,8 @@ typedef struct {
     fmi2GetRealTYPE *get_real;
     fmi2GetIntegerTYPE *get_integer;
     fmi2GetBooleanTYPE *get_boolean;
+    fmi2SetIntegerTYPE *set_integer; /* FMI 2.0 only (flag parameters); NULL for FMI 3.0 */
+    fmi2SetBooleanTYPE *set_boolean;
     fmi2SetTimeTYPE *set_time;
     fmi2SetContinuousStatesTYPE *set_states;
     fmi2GetContinuousStatesTYPE *get_states;
@@ -156,6 +158,7 @@ typedef struct {
     double start_time;
     double timeout; /* seconds per set; <= 0: none */
     const int *out_elem; /* n_out x 2: an array element's offset and array size (NULL: none) */
+    const int *param_types; /* n_params: 0 Real, 1 Integer, 2 Boolean (FMI 2.0 flags); NULL: all Real */
 } Batch;
 
 typedef struct {
@@ -466,6 +469,7 @@ static int load_fmu3(Runner *r, char *err, int err_len) {
     f->setup_experiment = fmi3_setup_experiment; f->enter_init = fmi3_enter_init; f->exit_init = fmi3_exit_init;
     f->reset = fmi3_reset; f->terminate = fmi3_terminate; f->set_real = fmi3_set_real; f->get_real = fmi3_get_real;
     f->get_integer = fmi3_get_integer; f->get_boolean = fmi3_get_boolean; f->set_time = fmi3_set_time;
+    f->set_integer = NULL; f->set_boolean = NULL; /* refused before a run (fmu.py): FMI 3.0 sets Float64 only */
     f->set_states = fmi3_set_states; f->get_states = fmi3_get_states; f->get_derivatives = fmi3_get_derivatives;
     f->get_event_indicators = fmi3_get_event_indicators; f->get_nominals = fmi3_get_nominals;
     f->enter_event_mode = fmi3_enter_event_mode; f->new_discrete_states = fmi3_new_discrete_states;
@@ -487,7 +491,8 @@ static int load_fmu(Runner *r, const char *path, char *err, int err_len) {
     F(setup_experiment, "fmi2SetupExperiment"); F(enter_init, "fmi2EnterInitializationMode");
     F(exit_init, "fmi2ExitInitializationMode"); F(reset, "fmi2Reset"); F(terminate, "fmi2Terminate");
     F(set_real, "fmi2SetReal"); F(get_real, "fmi2GetReal"); F(get_integer, "fmi2GetInteger");
-    F(get_boolean, "fmi2GetBoolean"); F(set_time, "fmi2SetTime"); F(set_states, "fmi2SetContinuousStates");
+    F(get_boolean, "fmi2GetBoolean"); F(set_integer, "fmi2SetInteger"); F(set_boolean, "fmi2SetBoolean");
+    F(set_time, "fmi2SetTime"); F(set_states, "fmi2SetContinuousStates");
     F(get_states, "fmi2GetContinuousStates"); F(get_derivatives, "fmi2GetDerivatives");
     F(get_event_indicators, "fmi2GetEventIndicators"); F(get_nominals, "fmi2GetNominalsOfContinuousStates");
     F(enter_event_mode, "fmi2EnterEventMode"); F(new_discrete_states, "fmi2NewDiscreteStates");
@@ -621,6 +626,31 @@ RC_EXPORT void rc_close(Runner *r) {
 }
 
 /* ---- one set ---- */
+
+/* One set's parameters, each by its type (Batch.param_types): an FMU's Integer or Boolean
+ * flag (GGOV1's Rselect) set through fmi2SetReal would be refused, or, by an FMU that
+ * indexes its Reals by value reference, silently set another variable. */
+static fmi2Status set_parameters(Runner *r, const Batch *b, const double *params) {
+    fmi2Status s, worst = fmi2OK;
+    int k;
+    if (!b->n_params) return fmi2OK;
+    if (!b->param_types) return r->fmi.set_real(r->c, b->param_vrs, (size_t)b->n_params, params);
+    for (k = 0; k < b->n_params; k++) {
+        if (b->param_types[k] == 1 && r->fmi.set_integer) {
+            fmi2Integer v = (fmi2Integer)params[k];
+            s = r->fmi.set_integer(r->c, &b->param_vrs[k], 1, &v);
+        } else if (b->param_types[k] == 2 && r->fmi.set_boolean) {
+            fmi2Boolean v = params[k] != 0.0 ? fmi2True : fmi2False;
+            s = r->fmi.set_boolean(r->c, &b->param_vrs[k], 1, &v);
+        } else if (b->param_types[k] == 0) {
+            s = r->fmi.set_real(r->c, &b->param_vrs[k], 1, &params[k]);
+        } else {
+            s = fmi2Error;
+        }
+        if (s > worst) worst = s;
+    }
+    return worst;
+}
 
 #define FMI(call, what)                                                                  \
     do {                                                                                 \
@@ -842,7 +872,7 @@ static int run_set(Runner *r, const double *params, double *out, double *t_reach
     r->limit_row = -1;
     r->cursor = 0;
     FMI(r->fmi.setup_experiment(r->c, fmi2False, 0.0, b->start_time, fmi2False, 0.0), "fmi2SetupExperiment");
-    if (b->n_params) FMI(r->fmi.set_real(r->c, b->param_vrs, (size_t)b->n_params, params), "fmi2SetReal (parameters)");
+    FMI(set_parameters(r, b, params), "setting the parameters");
     if (set_inputs(r, t)) { set_message(r, "setting inputs failed at the start"); return RC_FMI; }
     FMI(r->fmi.enter_init(r->c), "fmi2EnterInitializationMode");
     FMI(r->fmi.exit_init(r->c), "fmi2ExitInitializationMode");

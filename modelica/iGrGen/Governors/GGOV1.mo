@@ -1,7 +1,7 @@
 within iGrGen.Governors;
 block GGOV1 "General gas-turbine governor GGOV1 (WECC; IEEE PES-TR1 2013, sec. 3.3): governor PID, load and acceleration limiters under a low-value gate"
   parameter Types.PerUnit R(min=0, max=1) = 0.04 "permanent droop (pu)";
-  parameter Real Rselect(min=-1, max=1) = 1 "droop feedback: 1 electrical power, -1 valve stroke, 0 isochronous (PSS/E's integer flag; its -2, governor output, is not offered)";
+  parameter Integer Rselect(min=-1, max=1) = 1 "droop feedback: 1 electrical power, -1 valve stroke, 0 isochronous (PSS/E's integer flag; its -2, governor output, is not offered)";
   parameter Types.Time Tpelec(min=0.001, max=10) = 1.0 "electrical power transducer time constant";
   parameter Types.PerUnit maxerr(min=0, max=1) = 0.05 "largest speed error signal (pu)";
   parameter Types.PerUnit minerr(min=-1, max=0) = -0.05 "smallest speed error signal (pu)";
@@ -16,7 +16,7 @@ block GGOV1 "General gas-turbine governor GGOV1 (WECC; IEEE PES-TR1 2013, sec. 3
   parameter Types.PerUnit Wfnl(min=0, max=1) = 0.2 "no-load fuel flow (pu)";
   parameter Types.Time Tb(min=0.001, max=100) = 0.5 "turbine lag time constant";
   parameter Types.Time Tc(min=0, max=100) = 0 "turbine lead time constant";
-  parameter Real Flag(min=0, max=1) = 1 "fuel flow: 1 proportional to speed, 0 independent of it (PSS/E's integer flag)";
+  parameter Integer Flag(min=0, max=1) = 1 "fuel flow: 1 proportional to speed, 0 independent of it (PSS/E's integer flag)";
   parameter Types.Time Tfload(min=0.001, max=100) = 3 "load limiter time constant (lag of the temperature path)";
   parameter Types.PerUnit Kpload(min=0, max=100) = 2 "load limiter proportional gain";
   parameter Types.PerUnitRate Kiload(min=0, max=100) = 0.67 "load limiter integral gain (1/s)";
@@ -126,7 +126,7 @@ equation
 <p>Source: IEEE PES, <i>Dynamic Models for Turbine-Governors in Power System Studies</i>,
 PES-TR1 (2013), section 3.3 (GGOV1, the WECC general governor/turbine model) and the
 PSS/E and PowerWorld GGOV1 documentation; parameter names, defaults and ranges follow
-them (Pmwset in pu here; the flags Rselect and Flag are Reals holding PSS/E's integer values, as the embedded build handles Reals only). The governor's PID acts on the speed error
+them (Pmwset in pu here; the flags Rselect and Flag are Integers, as in PSS/E and OpenIPSL). The governor's PID acts on the speed error
 Pref + power controller - R x feedback - speed deviation, limited to minerr..maxerr; a
 <b>low-value gate</b> takes the smallest of the governor's output, the load limiter's (a
 PI on the temperature, read as fuel flow through Tfload and the detector's lead-lag
@@ -151,5 +151,5 @@ limits Rup/Rdown of the load limit reference (which a test holds constant), and 
 state: steady at the dispatch p_ref (valve and fuel flow v0 = p_ref / Kturb + Wfnl, the
 speed-load reference Pref = R x the feedback's value), which must lie within
 Vmin..Vmax and below the load limit. Units: pu on the machine base, s.</p></html>",
-    revisions="<html><ul><li>2026-11-24: first version.</li><li>2026-11-25: the electrical power is an input, pelec (issue 26).</li></ul></html>"));
+    revisions="<html><ul><li>2026-11-24: first version.</li><li>2026-11-25: the electrical power is an input, pelec (issue 26).</li><li>2026-11-27: Rselect and Flag are Integer parameters, as PSS/E and OpenIPSL have them and MLS section 3.5 requires of a comparison with == (issue 35).</li></ul></html>"));
 end GGOV1;

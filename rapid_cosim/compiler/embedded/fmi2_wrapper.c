@@ -265,6 +265,22 @@ static fmi2Status check_vr(Instance *m, const fmi2ValueReference vr[], size_t nv
     return fmi2OK;
 }
 
+/* A flag parameter (PARAM_TYPE 1 Integer, 2 Boolean) is set and got by its own type's
+ * functions only, every other variable by the Real ones: a caller that sets GGOV1's Rselect
+ * through fmi2SetReal is told, not obeyed. */
+static fmi2Status check_type(Instance *m, const fmi2ValueReference vr[], size_t nvr, int type, const char *fn) {
+    size_t i;
+    for (i = 0; i < nvr; i++) {
+        int actual = vr[i] < N_PARAMS ? PARAM_TYPE[vr[i]] : 0;
+        if (vr[i] < N_VARS && actual != type) {
+            logf_(m, fmi2Error, "error", "%s: value reference %u is %s", fn, vr[i],
+                  actual == 1 ? "an Integer parameter" : actual == 2 ? "a Boolean parameter" : "a Real variable");
+            return fmi2Error;
+        }
+    }
+    return fmi2OK;
+}
+
 FMI2_Export fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     Instance *m = (Instance *)c;
     size_t i;
@@ -273,6 +289,7 @@ FMI2_Export fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[
         logf_(m, fmi2Error, "error", "evaluating the model failed at t=%g", m->time);
         return fmi2Error;
     }
+    if (check_type(m, vr, nvr, 0, "fmi2GetReal") != fmi2OK) return fmi2Error;
     for (i = 0; i < nvr; i++) {
         unsigned r = vr[i];
         if (r < VR_CALC) value[i] = m->p[r];
@@ -287,6 +304,7 @@ FMI2_Export fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[
 FMI2_Export fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
     Instance *m = (Instance *)c;
     size_t i;
+    if (check_type(m, vr, nvr, 0, "fmi2SetReal") != fmi2OK) return fmi2Error;
     for (i = 0; i < nvr; i++) {
         unsigned r = vr[i];
         if (r < VR_CALC) m->p[r] = value[i];
@@ -301,19 +319,56 @@ FMI2_Export fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[
 }
 
 #define NOT_SUPPORTED(n) if ((n) > 0) return fmi2Error; return fmi2OK
+/* Integer and Boolean parameters (flags), held as doubles beside the Real ones. */
+static fmi2Status get_flags(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, int type, double out[]) {
+    Instance *m = (Instance *)c;
+    size_t i;
+    if (check_vr(m, vr, nvr, N_PARAMS, "parameter") != fmi2OK || check_type(m, vr, nvr, type, "get") != fmi2OK)
+        return fmi2Error;
+    for (i = 0; i < nvr; i++) out[i] = m->p[vr[i]];
+    return fmi2OK;
+}
+
+static fmi2Status set_flags(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, int type, const double in[]) {
+    Instance *m = (Instance *)c;
+    size_t i;
+    if (check_vr(m, vr, nvr, N_PARAMS, "parameter") != fmi2OK || check_type(m, vr, nvr, type, "set") != fmi2OK)
+        return fmi2Error;
+    for (i = 0; i < nvr; i++) m->p[vr[i]] = in[i];
+    m->computed_valid = 0;
+    return fmi2OK;
+}
+
+#define MAX_FLAGS 64
 FMI2_Export fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer v[]) {
-    (void)c; (void)vr; (void)v; NOT_SUPPORTED(nvr);
+    double d[MAX_FLAGS];
+    size_t i;
+    if (nvr > MAX_FLAGS || get_flags(c, vr, nvr, 1, d) != fmi2OK) return fmi2Error;
+    for (i = 0; i < nvr; i++) v[i] = (fmi2Integer)d[i];
+    return fmi2OK;
 }
 FMI2_Export fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean v[]) {
-    (void)c; (void)vr; (void)v; NOT_SUPPORTED(nvr);
-}
-FMI2_Export fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String v[]) {
-    (void)c; (void)vr; (void)v; NOT_SUPPORTED(nvr);
+    double d[MAX_FLAGS];
+    size_t i;
+    if (nvr > MAX_FLAGS || get_flags(c, vr, nvr, 2, d) != fmi2OK) return fmi2Error;
+    for (i = 0; i < nvr; i++) v[i] = d[i] != 0.0 ? fmi2True : fmi2False;
+    return fmi2OK;
 }
 FMI2_Export fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer v[]) {
-    (void)c; (void)vr; (void)v; NOT_SUPPORTED(nvr);
+    double d[MAX_FLAGS];
+    size_t i;
+    if (nvr > MAX_FLAGS) return fmi2Error;
+    for (i = 0; i < nvr; i++) d[i] = (double)v[i];
+    return set_flags(c, vr, nvr, 1, d);
 }
 FMI2_Export fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean v[]) {
+    double d[MAX_FLAGS];
+    size_t i;
+    if (nvr > MAX_FLAGS) return fmi2Error;
+    for (i = 0; i < nvr; i++) d[i] = v[i] ? 1.0 : 0.0;
+    return set_flags(c, vr, nvr, 2, d);
+}
+FMI2_Export fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String v[]) {
     (void)c; (void)vr; (void)v; NOT_SUPPORTED(nvr);
 }
 FMI2_Export fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String v[]) {

@@ -26,6 +26,7 @@ from . import c_compiler
 from .structure import ExplicitModel
 
 WRAPPER = Path(__file__).with_name("fmi2_wrapper.c")
+TYPE_CODES = {"Real": 0, "Integer": 1, "Boolean": 2}
 
 
 @dataclass(frozen=True)
@@ -41,6 +42,7 @@ class FmuVariable:
     max: float | None = None
     description: str = ""
     derivative: int | None = None  # 1-based index of the state (FMI 2.0 convention)
+    type: str = "Real"  # Integer or Boolean: a flag parameter, held as a double by the wrapper
 
 
 def model_identifier(class_name: str) -> str:
@@ -57,7 +59,7 @@ def fmu_variables(em: ExplicitModel) -> list[FmuVariable]:
 
     for v in m.parameters:
         add(name=v.name, causality="parameter", variability="tunable", initial="exact", start=v.start,
-            unit=v.unit, min=v.min, max=v.max, description=v.description)
+            unit=v.unit, min=v.min, max=v.max, description=v.description, type=v.kind)
     for v, _ in m.calculated:
         add(name=v.name, causality="calculatedParameter", variability="tunable", initial="calculated",
             unit=v.unit, description=v.description)
@@ -113,10 +115,39 @@ def _config_header(em: ExplicitModel, guid: str) -> str:
         f"#define N_ALGS {len(m.algebraics)}",
         f"#define N_EVENTS {len(m.conditions)}",
         f"static const double PARAM_START[] = {arr(v.start for v in m.parameters)};",
+        "/* each parameter's type: 0 Real, 1 Integer, 2 Boolean (set and got by its own functions) */",
+        f"static const int PARAM_TYPE[] = {{{', '.join(str(TYPE_CODES[v.kind]) for v in m.parameters) or '0'}}};",
         f"static const double INPUT_START[] = {arr(v.start for v in m.inputs)};",
         f"static const char *STATE_NAMES[] = {{{states}}};",
         "",
     ])
+
+
+def _type_element(v: FmuVariable) -> str:
+    """The variable's type element: Real with its unit, or a flag's Integer (min, max,
+    start as whole numbers) or Boolean (start true or false)."""
+    attrs = ""
+    if v.type == "Boolean":
+        if v.start is not None:
+            attrs += f' start="{"true" if v.start else "false"}"'
+        return f"<Boolean{attrs}/>"
+    if v.type == "Integer":
+        for key in ("min", "max", "start"):
+            value = getattr(v, key)
+            if value is not None:
+                attrs += f' {key}="{int(round(value))}"'
+        return f"<Integer{attrs}/>"
+    if v.unit:
+        attrs += f" unit={quoteattr(v.unit)}"
+    if v.min is not None:
+        attrs += f' min="{v.min!r}"'
+    if v.max is not None:
+        attrs += f' max="{v.max!r}"'
+    if v.start is not None and v.initial != "calculated":
+        attrs += f' start="{float(v.start)!r}"'
+    if v.derivative is not None:
+        attrs += f' derivative="{v.derivative}"'
+    return f"<Real{attrs}/>"
 
 
 def _model_description(em: ExplicitModel, variables: list[FmuVariable], guid: str, description: str,
@@ -144,18 +175,7 @@ def _model_description(em: ExplicitModel, variables: list[FmuVariable], guid: st
             attrs += f' initial="{v.initial}"'
         if v.description:
             attrs += f" description={quoteattr(v.description)}"
-        real = ""
-        if v.unit:
-            real += f" unit={quoteattr(v.unit)}"
-        if v.min is not None:
-            real += f' min="{v.min!r}"'
-        if v.max is not None:
-            real += f' max="{v.max!r}"'
-        if v.start is not None and v.initial != "calculated":
-            real += f' start="{float(v.start)!r}"'
-        if v.derivative is not None:
-            real += f' derivative="{v.derivative}"'
-        lines.append(f"    <!-- {v.vr + 1} --><ScalarVariable {attrs}><Real{real}/></ScalarVariable>")
+        lines.append(f"    <!-- {v.vr + 1} --><ScalarVariable {attrs}>{_type_element(v)}</ScalarVariable>")
     lines.append("  </ModelVariables>")
     index = {v.name: v.vr + 1 for v in variables}
     outputs = [v for v in variables if v.causality == "output"]

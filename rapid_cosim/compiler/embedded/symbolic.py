@@ -45,6 +45,7 @@ class Variable:
     max: float | None = None
     fixed: bool = False
     is_output: bool = False
+    kind: str = "Real"  # "Integer" or "Boolean" for a flag parameter (held as a Real inside)
 
 
 @dataclass
@@ -92,7 +93,7 @@ class Translator:
     def run(self) -> SymbolicModel:
         params, calc_src, states, algebraics, inputs = [], [], [], [], []
         for s in self.cls.symbols.values():
-            self._check_symbol(s)
+            kind = self._check_symbol(s)
             var = Variable(
                 name=s.name,
                 sym=ca.SX.sym(s.name),
@@ -103,6 +104,7 @@ class Translator:
                 max=_literal_float(s.max),
                 fixed=bool(_literal(s.fixed)),
                 is_output="output" in s.prefixes and "." not in s.name,
+                kind=kind,
             )
             self.syms[s.name] = var.sym
             if "parameter" in s.prefixes or "constant" in s.prefixes:
@@ -111,6 +113,9 @@ class Translator:
                     raise ModelicaError(f"parameter {s.name} of {self.name} has no value")
                 if isinstance(value, A.Primary):
                     var.start = float(value.value)
+                    if kind != "Real" and var.start != round(var.start):
+                        raise ModelicaError(f"{kind} parameter {s.name} of {self.name} = {value.value!r} is not "
+                                            "a whole number")
                     params.append(var)
                 else:
                     calc_src.append((var, value))
@@ -130,6 +135,9 @@ class Translator:
             if _is_constant(value):
                 var.start = float(ca.evalf(value))
                 params.append(var)
+            elif var.kind != "Real":
+                raise UnsupportedConstruct(f"{var.kind} parameter {var.name} of {self.name} is bound to other "
+                                           "parameters; the embedded compiler takes flags with a constant value")
             else:
                 calculated.append((var, value))
         calculated = _resolve_calculated(calculated, self.name)
@@ -148,14 +156,19 @@ class Translator:
         )
         return _substitute_calculated(model)
 
-    def _check_symbol(self, s) -> None:
+    def _check_symbol(self, s) -> str:
+        """The variable's type: Real, or Integer and Boolean for parameters (flags such as
+        GGOV1's Rselect, which the language lets no Real be compared with ``==``)."""
         type_name = getattr(s.type, "name", str(s.type))
-        if type_name != "Real":
+        flag = type_name in ("Integer", "Boolean") and ("parameter" in s.prefixes or "constant" in s.prefixes)
+        if type_name != "Real" and not flag:
             raise UnsupportedConstruct(
-                f"variable {s.name} of type {type_name}: the embedded compiler handles Real only")
+                f"variable {s.name} of type {type_name}: the embedded compiler handles Real variables, and "
+                "Integer and Boolean parameters")
         dims = [d for d in s.dimensions for d in (d if isinstance(d, list) else [d])]
         if any(not (isinstance(d, A.Primary) and d.value in (1, None)) for d in dims):
             raise UnsupportedConstruct(f"array variable {s.name}: the embedded compiler handles scalars only")
+        return type_name
 
     # -- equations and expressions -------------------------------------------------------
     def _equation(self, eq) -> ca.SX:
