@@ -215,3 +215,21 @@ def test_the_recommendation_follows_the_criterion():
     short.cannot_carry = ["rate_limit"]  # the explanation found a rate limit TGOV1 has no part for
     model, why = _recommend([short, _record("IEEEG1", 0.0, 7)])
     assert model == "IEEEG1" and "TGOV1 ties with it but cannot carry rate_limit" in why
+
+
+def test_a_tie_held_by_its_bounds_or_outside_the_noise_is_not_recommended_over_a_clean_first():
+    """A simpler record that ties with the first but has estimates on their bounds (or is
+    not within the noise) where the first has none is not recommended: its BIC is a
+    constrained one. Where the first is held too, the tie stands."""
+    from rapid_cosim.identify.workflow import _recommend
+
+    held = _record("GGOV1", 1.1, 6)
+    held.at_bounds = ["gov.Kpgov = 40 at its upper bound", "gov.Tb = 0.05 at its lower bound"]
+    model, why = _recommend([held, _record("IEEEG1", 0.0, 7)])
+    assert model == "IEEEG1" and "GGOV1 ties with it but its gov.Kpgov, gov.Tb on their bounds" in why
+    first = _record("IEEEG1", 0.0, 7)
+    first.at_bounds = ["gov.T2 = 0 at its lower bound"]
+    model, why = _recommend([held, first])
+    assert model == "GGOV1" and "it ties with IEEEG1" in why
+    model, why = _recommend([_record("TGOV1", 3.0, 4, adequate=False), _record("IEEEG1", 0.0, 7)])
+    assert model == "IEEEG1" and "TGOV1 ties with it but it is not within the noise" in why
