@@ -17,13 +17,44 @@ import argparse
 import json
 import shutil
 import sys
+import threading
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def run(folder: Path, units: int | list[int], workers: int, results: Path) -> tuple[dict, float]:
+class PeakMemory:
+    """The largest resident set of any process this one started (the dask workers and
+    their nannies), sampled every half second while the block runs."""
+
+    def __init__(self):
+        self.peak_mb = 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._sample, daemon=True)
+
+    def _sample(self):
+        import psutil  # a dependency of dask.distributed
+
+        me = psutil.Process()
+        while not self._stop.wait(0.5):
+            for child in me.children(recursive=True):
+                try:
+                    self.peak_mb = max(self.peak_mb, child.memory_info().rss / 2 ** 20)
+                except psutil.Error:
+                    pass
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+
+
+def run(folder: Path, units: int | list[int], workers: int, results: Path) -> tuple[dict, float, float]:
+    """(the fleet's result, its wall time in s, the largest worker's peak memory in MB)."""
     from rapid_cosim.fleet import run_fleet
     from rapid_cosim.fleet.synthetic import make_fleet
 
@@ -31,9 +62,10 @@ def run(folder: Path, units: int | list[int], workers: int, results: Path) -> tu
     if results.exists():
         shutil.rmtree(results)
     t0 = time.perf_counter()
-    result = run_fleet(spec, results=results, workers=workers, package=ROOT / "modelica" / "iGrGen",
-                       fmu_dir=ROOT / "fmus", log=lambda *_: None)
-    return result, time.perf_counter() - t0
+    with PeakMemory() as memory:
+        result = run_fleet(spec, results=results, workers=workers, package=ROOT / "modelica" / "iGrGen",
+                           fmu_dir=ROOT / "fmus", log=lambda *_: None)
+    return result, time.perf_counter() - t0, memory.peak_mb
 
 
 def judge(folder: Path, result) -> dict:
@@ -77,26 +109,28 @@ def main(argv=None) -> int:
     figures = {}
     if args.scaling:
         subset = list(range(args.scaling))
-        one, t1 = run(work / "scaling", subset, 1, work / "scaling" / "results1")
-        two, t2 = run(work / "scaling", subset, 2, work / "scaling" / "results2")
+        one, t1, _ = run(work / "scaling", subset, 1, work / "scaling" / "results1")
+        two, t2, _ = run(work / "scaling", subset, 2, work / "scaling" / "results2")
         same = all({k: v for k, v in a.items() if k != "seconds"} == {k: v for k, v in b.items() if k != "seconds"}
                    for a, b in zip(one.units, two.units))
         figures["scaling"] = {"units": len(subset), "one_worker_s": t1, "two_workers_s": t2, "ratio": t1 / t2,
                               "identical": same}
         print(f"{len(subset)} units: 1 worker {t1:.0f} s, 2 workers {t2:.0f} s: {t1 / t2:.2f} times faster; "
               f"results identical: {same}")
-    result, seconds = run(work / "fleet", args.units, 2, work / "fleet" / "results")
+    result, seconds, peak_mb = run(work / "fleet", args.units, 2, work / "fleet" / "results")
     j = judge(work / "fleet", result)
     per_unit = [u["seconds"] for u in result.units]
     passed = [u["seconds"] for u in result.units if u["path"] == "record on file passes"]
     ident = [u["seconds"] for u in result.units if u["path"] == "identified"]
-    figures["fleet"] = {"units": args.units, "seconds": seconds, **j,
+    figures["fleet"] = {"units": args.units, "seconds": seconds, "worker_peak_mb": peak_mb, **j,
                         "unit_seconds": {"passing_median": sorted(passed)[len(passed) // 2] if passed else None,
                                          "identified_median": sorted(ident)[len(ident) // 2] if ident else None,
                                          "sum": sum(per_unit)}}
     print(f"{args.units} units on 2 workers: {seconds:.0f} s ({seconds / 60:.1f} min); per unit: a record played back "
           f"{figures['fleet']['unit_seconds']['passing_median'] or 0:.1f} s, an identification "
-          f"{figures['fleet']['unit_seconds']['identified_median'] or 0:.0f} s (medians, one worker each)")
+          f"{figures['fleet']['unit_seconds']['identified_median'] or 0:.0f} s (medians, one worker each); the units' "
+          f"own times sum to {sum(per_unit):.0f} s ({sum(per_unit) / seconds:.2f} of 2 workers' wall time); the "
+          f"largest worker process peaked at {peak_mb:.0f} MB resident")
     print(f"wrong records flagged: {j['wrong_flagged']}/{j['wrong']}" + (f" (missed: {'; '.join(j['missed'])})"
                                                                        if j["missed"] else ""))
     print(f"right records passed: {j['right_passed']}/{j['right']}")
