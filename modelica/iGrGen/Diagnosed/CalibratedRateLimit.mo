@@ -1,7 +1,7 @@
 within iGrGen.Diagnosed;
 model CalibratedRateLimit "StagedTest with rate_limit, calibrated on test1, test2, test3, test5, test6, test7, test9, test10 by rapid-cosim diagnose"
   Sources.FrequencyStep src;
-  Governors.TGTypeIRateLimit gov(R = 0.05503006781, Ts = 1.443242961, rate_open = 0.01008134821, rate_close = 0.02946754191);
+  Governors.TGTypeIRateLimit gov(R = 0.05502995802, Ts = 1.443234821, rate_open = 0.0100811853, rate_close = 0.02946913463);
   output Types.PerUnit pm "mechanical power as recorded (pu)";
 equation
   connect(src.y, gov.dw);
