@@ -108,3 +108,12 @@ def test_the_check_finds_a_broken_link_and_an_unknown_target(tmp_path):
            or (t.startswith("#") and t[1:] not in _anchors(page))]
     assert bad == ["missing.md", "#nope"]
     assert "bench-nothing" not in _targets() and "test10" in _targets()
+
+
+def test_every_source_file_the_docs_name_exists():
+    named = set()
+    for path in TEXTS:
+        named.update(re.findall(r"\b((?:rapid_cosim|benchmarks|tests|experiments)/[\w/]+\.(?:py|toml))\b",
+                                path.read_text()))
+    missing = sorted(n for n in named if not (REPO / n).exists())
+    assert not missing, f"files named in the docs that are not there: {missing}"

@@ -164,9 +164,9 @@ def _recommend(records: list[StandardRecord]) -> tuple[str | None, str]:
     short = [r for r in ties if r.cannot_carry and not first.cannot_carry]
     # nor is one held by its bounds, or not within the noise, where the first is neither: its
     # optimum sits on the edge of the search box, so its BIC is a constrained one and its
-    # values are the box's, not the tests' (on make bench-fleet, 4 of 45 identified units'
-    # records were such ties, a GGOV1 with Kpgov, Tb and Rclose on their bounds tying with
-    # IEEEG1+rate_limit, and failed the tolerance bands)
+    # values are the box's, not the tests'. (On make bench-fleet, 4 of 45 identified units'
+    # records were ties with estimates on their bounds that failed the tolerance bands; the
+    # first had estimates on bounds too in each, so this rule leaves them as they were.)
     held = [r for r in ties if r not in short and ((r.at_bounds and not first.at_bounds)
                                                    or (not r.adequate and first.adequate))]
     ties = [r for r in ties if r not in short and r not in held]
