@@ -1,4 +1,4 @@
-"""Structure selection (diagnose.structures) and identifiability on synthetic campaigns:
+"""Structure selection (structures.select) and identifiability on synthetic campaigns:
 plants invented here, simulated with the standard models' bench FMUs, with the study's
 noise. A TGOV1 plant (valve lag 0.5 s, reheater lead 2.5 s over 7.5 s) must be told from
 TG Type I with the documented constants; a parameter the tests cannot move (a valve limit
