@@ -226,10 +226,10 @@ def test_a_tie_held_by_its_bounds_or_outside_the_noise_is_not_recommended_over_a
     held = _record("GGOV1", 1.1, 6)
     held.at_bounds = ["gov.Kpgov = 40 at its upper bound", "gov.Tb = 0.05 at its lower bound"]
     model, why = _recommend([held, _record("IEEEG1", 0.0, 7)])
-    assert model == "IEEEG1" and "GGOV1 ties with it but its gov.Kpgov, gov.Tb on their bounds" in why
+    assert model == "IEEEG1" and "GGOV1 ties with IEEEG1 but its gov.Kpgov, gov.Tb on their bounds" in why
     first = _record("IEEEG1", 0.0, 7)
     first.at_bounds = ["gov.T2 = 0 at its lower bound"]
     model, why = _recommend([held, first])
     assert model == "GGOV1" and "it ties with IEEEG1" in why
     model, why = _recommend([_record("TGOV1", 3.0, 4, adequate=False), _record("IEEEG1", 0.0, 7)])
-    assert model == "IEEEG1" and "TGOV1 ties with it but it is not within the noise" in why
+    assert model == "IEEEG1" and "TGOV1 ties with IEEEG1 but it is not within the noise" in why

@@ -97,6 +97,9 @@ def check_parameters(experiment: Experiment, parameter_info: Mapping[str, Parame
         if info.type == "Integer" and any(v != round(v) for v in values):
             raise ConfigError(f"'{name}' is an Integer parameter of {experiment.model}: {values[0]:g} is not a "
                               "whole number", file, key)
+        if info.type == "Boolean" and any(v not in (0.0, 1.0) for v in values):
+            raise ConfigError(f"'{name}' is a Boolean parameter of {experiment.model}: give 0 or 1, not "
+                              f"{values[0]:g}", file, key)
         lo = -math.inf if info.min is None else info.min
         hi = math.inf if info.max is None else info.max
         for v in values:

@@ -178,14 +178,14 @@ def _recommend(records: list[StandardRecord]) -> tuple[str | None, str]:
         if short:
             reason += (f"; {', '.join(r.fit for r in short)} ties with it but cannot carry "
                        f"{', '.join(short[0].cannot_carry)}")
-        for r in held:
-            why = (f"its {', '.join(n.split(' ')[0] for n in r.at_bounds)} on their bounds" if r.at_bounds
-                   and not first.at_bounds else "it is not within the noise")
-            reason += f"; {r.fit} ties with it but {why}"
     else:
         reason = (f"it ties with {first.fit}, the first by BIC ({chosen.bic - first.bic:.1f} behind, within "
                   f"{THRESHOLD:g}), with fewer estimated parameters ({chosen.n_estimated} against "
                   f"{first.n_estimated}): either record fits these tests as well; {first.model} is the richer one")
+    for r in held:  # passed over, whichever record was chosen
+        why = (f"its {', '.join(n.split(' ')[0] for n in r.at_bounds)} on their bounds" if r.at_bounds
+               and not first.at_bounds else "it is not within the noise")
+        reason += f"; {r.fit} ties with {first.fit} but {why}"
     if chosen.adequate:
         reason += "; within the noise on every test"
     else:

@@ -637,7 +637,7 @@ static fmi2Status set_parameters(Runner *r, const Batch *b, const double *params
     if (!b->param_types) return r->fmi.set_real(r->c, b->param_vrs, (size_t)b->n_params, params);
     for (k = 0; k < b->n_params; k++) {
         if (b->param_types[k] == 1 && r->fmi.set_integer) {
-            fmi2Integer v = (fmi2Integer)params[k];
+            fmi2Integer v = (fmi2Integer)lround(params[k]); /* as the Python loops round it */
             s = r->fmi.set_integer(r->c, &b->param_vrs[k], 1, &v);
         } else if (b->param_types[k] == 2 && r->fmi.set_boolean) {
             fmi2Boolean v = params[k] != 0.0 ? fmi2True : fmi2False;
