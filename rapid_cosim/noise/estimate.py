@@ -9,7 +9,7 @@ variance for what the trends absorbed. The family with the lowest BIC is kept.
 
 Uncertainty: the inverse of the numerical Hessian of the REML deviance in the log
 parameters, so that :meth:`NoiseFit.draw` gives noise models as plausible as the data
-allow, which the adequacy null (:mod:`rapid_cosim.selection.adequacy`) draws from.
+allow, which the adequacy null (:mod:`rapid_cosim.diagnose.adequacy`) draws from.
 """
 
 from __future__ import annotations
