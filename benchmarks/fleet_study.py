@@ -7,8 +7,11 @@ with 2 workers.
     python benchmarks/fleet_study.py --units 100 --scaling 10 --work results/bench-fleet
 
 Prints: the time per unit and in all, the scaling ratio, memory per worker, and against
-each unit's truth: wrong records on file flagged, right ones passed (each false alarm
-named), every identified unit's new record passing its bands, failures.
+each unit's truth: wrong records on file flagged (by the bands, or by the noise tests
+alone; each miss with how far the wrong record's noise-free response is from the
+plant's, in noise levels), right ones passed (each false alarm named with its stated
+rate, and the false alarms the stated rates predict), every identified unit's new record
+passing its bands, failures.
 """
 
 from __future__ import annotations
@@ -71,25 +74,37 @@ def run(folder: Path, units: int | list[int], workers: int, results: Path) -> tu
 def judge(folder: Path, result) -> dict:
     rows = {u["unit"]: u for u in result.units}
     out = {"wrong_flagged": 0, "wrong": 0, "right_passed": 0, "right": 0, "false_alarms": [], "missed": [],
-           "new_records_pass": 0, "identified": 0, "new_records_failing": [], "failed": []}
+           "new_records_pass": 0, "identified": 0, "new_records_failing": [], "failed": [],
+           "right_expected_false_alarms": 0.0, "wrong_by_bands": 0, "wrong_by_noise_only": 0,
+           "wrong_flagged_off": [], "wrong_missed_off": []}
     for name, r in rows.items():
         truth = json.loads((folder / "units" / name / "truth.json").read_text())
         flagged = r["path"] != "record on file passes"
         if r["path"] == "failed":
             out["failed"].append(f"{name}: {r['error']}")
             continue
+        on = r["on_file"]
+        by_bands = not all(v["passed"] for v in on["tests"].values())
         if truth["record_right"]:
             out["right"] += 1
             out["right_passed"] += not flagged
+            out["right_expected_false_alarms"] += on["false_alarm"]
             if flagged:
-                fails = [f"{t}: {', '.join(v['failing'])}" for t, v in r["on_file"]["tests"].items() if not v["passed"]]
+                fails = [f"{t}: {', '.join(v['failing'])}" for t, v in on["tests"].items() if not v["passed"]]
                 out["false_alarms"].append(f"{name} ({truth['structure']}{', hidden rate' if truth['hidden_rate'] else ''}"
-                                           f"): {'; '.join(fails)}")
+                                           f"): {'; '.join(fails + on['inconsistent'])}; its stated false-alarm "
+                                           f"rate {on['false_alarm']:.0%}")
         else:
             out["wrong"] += 1
             out["wrong_flagged"] += flagged
+            out["wrong_by_bands"] += by_bands
+            out["wrong_by_noise_only"] += flagged and not by_bands
+            off = truth["record_off_in_noise"]
+            out["wrong_flagged_off" if flagged else "wrong_missed_off"].append(off)
             if not flagged:
-                out["missed"].append(f"{name} ({truth['structure']}, {truth['wrong']})")
+                out["missed"].append(f"{name} ({truth['structure']}, {truth['wrong']}: its response "
+                                     f"{off:.2f} noise levels RMS from the plant's, noise-free; noise tests p "
+                                     f"{on['p']:.2g})")
         if r["path"] == "identified":
             out["identified"] += 1
             ok = bool(r.get("recommended") and r["recommended"]["playback"]["passed"])
@@ -131,9 +146,14 @@ def main(argv=None) -> int:
           f"{figures['fleet']['unit_seconds']['identified_median'] or 0:.0f} s (medians, one worker each); the units' "
           f"own times sum to {sum(per_unit):.0f} s ({sum(per_unit) / seconds:.2f} of 2 workers' wall time); the "
           f"largest worker process peaked at {peak_mb:.0f} MB resident")
-    print(f"wrong records flagged: {j['wrong_flagged']}/{j['wrong']}" + (f" (missed: {'; '.join(j['missed'])})"
-                                                                       if j["missed"] else ""))
-    print(f"right records passed: {j['right_passed']}/{j['right']}")
+    print(f"wrong records flagged: {j['wrong_flagged']}/{j['wrong']} ({j['wrong_by_bands']} by the bands, "
+          f"{j['wrong_by_noise_only']} by the noise tests alone)" + (f"; missed: {'; '.join(j['missed'])}"
+                                                                  if j["missed"] else ""))
+    if j["wrong_flagged_off"]:
+        print(f"  the flagged wrong records' responses were {min(j['wrong_flagged_off']):.2f} to "
+              f"{max(j['wrong_flagged_off']):.1f} noise levels RMS from the plant's (noise-free)")
+    print(f"right records passed: {j['right_passed']}/{j['right']}; false alarms expected from the stated rates: "
+          f"{j['right_expected_false_alarms']:.1f}, found: {j['right'] - j['right_passed']}")
     for line in j["false_alarms"]:
         print(f"  flagged although right: {line}")
     print(f"identified units whose new record passes its bands: {j['new_records_pass']}/{j['identified']}")

@@ -9,7 +9,7 @@ import pytest
 from scipy import stats
 
 from rapid_cosim.diagnose.candidates import ExperimentResiduals
-from rapid_cosim.diagnose.adequacy import adequacy
+from rapid_cosim.diagnose.adequacy import adequacy, score_test
 from rapid_cosim.diagnose.null import NoiseReplicates, ScoredTest, combined_p, holm, ljung_box_q
 from rapid_cosim.diagnose.selection import NoiseFloor
 from rapid_cosim.fitting.fitness import Whitening
@@ -87,6 +87,45 @@ def test_structure_the_size_of_the_noise_is_found(campaign):
         obs, Jw = _observed(tests, J, rng, bump)
         found += not adequacy(obs, floors, null, Jw, [t.name for t in tests]).adequate
     assert found >= 18
+
+
+def _unfitted(tests, J, rng, delta=(0.0, 0.0)):
+    """Noise plus the linear model moved by ``delta`` from the truth, nothing fitted (a
+    record on file played back): whitened residuals and Jacobians per test."""
+    e, Jw = {}, {}
+    for t in tests:
+        y = MODEL.sample(t.times, rng) + J[t.name] @ np.asarray(delta)
+        e[t.name] = t.whitening.residual(y[None], True)[0]
+        Jw[t.name] = t.whitening.residual(J[t.name].T, True).T
+    return e, Jw
+
+
+def test_the_score_test_rejects_a_right_point_at_the_stated_rate(campaign):
+    tests, null, J = campaign
+    rng = np.random.default_rng(5)
+    p = np.array([score_test(*_unfitted(tests, J, rng), null).p for _ in range(200)])
+    assert 0.01 <= np.mean(p < 0.05) <= 0.10
+    assert 0.05 <= np.mean(p < 0.2) <= 0.35  # p spread over (0, 1), not piled at either end
+
+
+def test_the_score_test_finds_a_moved_parameter_the_variance_cannot_see(campaign):
+    """A ramp's slope off by 0.7 noise levels at its end (its misfit 0.3 noise levels
+    RMS over the test): the residual's variance is within the noise, the score test sees
+    where the parameter moves the response, and its Gauss-Newton step points back."""
+    tests, null, J = campaign
+    floors = {t.name: NoiseFloor(t.noise) for t in tests}
+    rng = np.random.default_rng(6)
+    delta = (0.0, 0.7 * MODEL.sigma)
+    found_score = found_variance = 0
+    for _ in range(20):
+        e, Jw = _unfitted(tests, J, rng, delta)
+        s = score_test(e, Jw, null)
+        found_score += s.p < 0.01
+        assert s.step[1] < 0  # back towards the truth
+        obs = {t.name: ExperimentResiduals(t.name, t.times, np.zeros(N), 0.0, 0.0, N, whitened=e[t.name])
+               for t in tests}
+        found_variance += not adequacy(obs, floors, null, None, []).adequate
+    assert found_score >= 18 and found_variance <= 10, (found_score, found_variance)
 
 
 def test_holm_and_the_two_statistics_combined():

@@ -83,6 +83,33 @@ def test_the_fleet_report_lists_failing_units_first_and_holds_every_new_record(f
     assert records.count("'TGOV1'") + records.count("'IEEEG1'") == 1 and " 105 " in f" {records}"
 
 
+def test_a_wrong_record_inside_every_band_is_flagged_by_the_noise_tests(fmus, repo, tmp_path):
+    """Unit 98's record has HYGOV's water time constant twice the plant's: its playback
+    passes every band (an RMSE of 2 noise levels on P_e, where right records leave 1.1
+    to 2), and the score test finds the parameters away from where the recording puts
+    them, TW first. The right record of unit 0 passes both, with its bands' stated
+    false-alarm rate."""
+    from rapid_cosim.exchange import read_record
+    from rapid_cosim.experiment import load_experiment
+    from rapid_cosim.fleet.playback import play_back
+    from rapid_cosim.identify import Unit
+    from rapid_cosim.report.tolerances import Tolerances
+
+    make_fleet(tmp_path, [0, 98], seed=1, fmu_dir=repo / "fmus")
+    assert draw_unit(98, 1).wrong == "lag" and draw_unit(98, 1).structure == "HYGOV"
+    out = {}
+    for name in ("unit000", "unit098"):
+        unit = Unit.load(tmp_path / "units" / name)
+        record = read_record(tmp_path / "units" / name / "record.dyr", bus=unit.bus, machine_id=unit.machine_id)
+        out[name] = play_back(record, [load_experiment(c) for c in unit.configs], list(unit.structures),
+                              Tolerances(), package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus")
+    wrong, right = out["unit098"], out["unit000"]
+    assert all(t["passed"] for t in wrong.tests.values()) and not wrong.passed
+    assert wrong.p < 0.01 and "score test" in wrong.inconsistent[0] and "TW -" in wrong.inconsistent[0]
+    assert right.passed and right.p > 0.05 and not right.inconsistent
+    assert 0.0 <= right.tests["unit000"]["band_false_alarm"] <= right.false_alarm < 0.2
+
+
 def test_a_rerun_keeps_every_finished_unit_and_redoes_a_changed_one(fleet, tmp_path):
     folder, spec, result, first = fleet
     t0 = time.perf_counter()

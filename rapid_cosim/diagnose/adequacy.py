@@ -37,7 +37,7 @@ import numpy as np
 
 from ..experiment import Experiment
 from .candidates import ExperimentResiduals
-from .null import LAGS, NoiseReplicates, combined_p, holm, ljung_box_q, timing_jitter
+from .null import LAGS, NoiseReplicates, combined_p, holm, ljung_box_q, timing_jitter, upper_p
 from .selection import NoiseFloor, whitened
 
 ALPHA = 0.01  # family-wise false-alarm rate of a campaign's adequacy
@@ -102,6 +102,38 @@ def adequacy(tests: Mapping[str, ExperimentResiduals], noise: Mapping[str, Noise
     p_campaign = min(adjusted.values()) if adjusted else 1.0
     return Adequacy(p_campaign >= alpha, num / den if den else float("nan"), p_campaign, alpha, null.replicates,
                     tuple(rows))
+
+
+@dataclass(frozen=True)
+class ScoreTest:
+    """Are the parameters where the recordings put them? The Lagrange-multiplier (score)
+    test at a given point: ``S = g' A^-1 g`` with ``g = J' e`` and ``A = J' J`` summed
+    over the tests (``e`` the whitened, offset-profiled residual, ``J`` its Jacobian in
+    the parameters), i.e. what one Gauss-Newton step from the point would take off the
+    criterion. Against a parameter moved from its true value it is far more sensitive
+    than the residual's variance, whose excess is spread over every sample; its null is
+    read off the same noise replicates as the variance's (chi-square with as many
+    degrees of freedom as parameters, were the noise model exact)."""
+
+    statistic: float
+    p: float
+    step: tuple[float, ...]  # the Gauss-Newton step, in the parameters' own units
+    gains: tuple[float, ...]  # what refitting each parameter alone would take off (g_j^2 / A_jj)
+
+
+def score_test(residuals: Mapping[str, np.ndarray], jacobians: Mapping[str, np.ndarray],
+               null: NoiseReplicates) -> ScoreTest:
+    """The score test of the point whose whitened residuals (valid samples, per test) and
+    their Jacobians (samples x parameters) are given (:class:`ScoreTest`)."""
+    names = list(jacobians)
+    A = sum(jacobians[n].T @ jacobians[n] for n in names)
+    g = sum(jacobians[n].T @ residuals[n] for n in names)
+    A_inv = np.linalg.pinv(A)
+    g_null = sum(null.e[n].astype(float) @ jacobians[n] for n in names)
+    s_null = np.einsum("ri,ij,rj->r", g_null, A_inv, g_null)
+    s = float(g @ A_inv @ g)
+    gains = g * g / np.where(np.diag(A) > 0, np.diag(A), np.inf)
+    return ScoreTest(s, upper_p(s, s_null), tuple(float(v) for v in -(A_inv @ g)), tuple(float(v) for v in gains))
 
 
 def jitter_share(tests: Mapping[str, ExperimentResiduals], noise: Mapping[str, NoiseFloor]) -> dict:

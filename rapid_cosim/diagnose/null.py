@@ -71,6 +71,15 @@ def replicates_for(experiments, noise_fits: Mapping[str, NoiseFit], replicates: 
     return NoiseReplicates(tests, replicates, seed=seed)
 
 
+def _with_extra(models: list, extra: tuple) -> list:
+    """The recorder's drawn models with the residual's further components: the slow-component
+    form joins the recorder's; a filtered one is the whitening's own (Whitening.sample)."""
+    for component in extra:
+        if not isinstance(component, FilteredNoise):
+            models = [with_component(m, component) for m in models]
+    return models
+
+
 def ljung_box_q(e: np.ndarray, lags: int = LAGS) -> np.ndarray:
     """Ljung-Box statistic of each row of ``e`` (rows, n)."""
     e = np.atleast_2d(e)
@@ -99,10 +108,7 @@ class NoiseReplicates:
         self.e: dict[str, np.ndarray] = {}
         self._stats: dict[bytes, dict] = {}
         for t in self.tests:
-            models = recorders[id(t.noise)]
-            for component in t.extra:  # the slow-component form joins the recorder's; a filtered one
-                if not isinstance(component, FilteredNoise):  # is the whitening's own (Whitening.sample)
-                    models = [with_component(m, component) for m in models]
+            models = _with_extra(recorders[id(t.noise)], t.extra)
             out = np.empty((self.replicates, t.times.size), dtype=np.float32)
             for a in range(0, self.replicates, BLOCK):
                 raw = t.whitening.sample(models[a:a + BLOCK], rng)

@@ -17,6 +17,7 @@ import json
 from pathlib import Path
 
 from ..report.htmlkit import STYLE, e, mark
+from ..diagnose.adequacy import ALPHA
 from .spec import FleetSpec
 from .unit_job import FAILED, IDENTIFIED, PASSED
 
@@ -48,11 +49,11 @@ def write_report(spec: FleetSpec, result, folder: Path) -> dict[str, str]:
                                         indent=1, default=float) + "\n")
     with open(files["csv"], "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["unit", "path", "record on file", "on file passes", "failing recordings", "recommended",
+        w.writerow(["unit", "path", "record on file", "on file passes", "why it fails", "false-alarm rate", "recommended",
                     "key parameters", "changes", "flags", "error", "seconds", "report"])
         for r in rows:
             w.writerow([r["unit"], r["path"], (r.get("on_file") or {}).get("model", ""), _on_file_pass(r),
-                        ";".join(_failing(r)), (r.get("recommended") or {}).get("fit", ""), _key(r), _changes(r),
+                        ";".join(_failing(r)), _false_alarm(r), (r.get("recommended") or {}).get("fit", ""), _key(r), _changes(r),
                         ";".join(r.get("flags", [])), r.get("error", ""), f"{r.get('seconds', 0):.1f}",
                         r.get("files", {}).get("report", "")])
     files["html"].write_text(_page(spec, result, rows, folder))
@@ -66,8 +67,15 @@ def _on_file_pass(r: dict) -> str:
 
 
 def _failing(r: dict) -> list[str]:
+    """Why the record on file fails: band metrics per recording, then the noise tests."""
     on = r.get("on_file") or {}
-    return [f"{t}: {', '.join(v['failing']) or 'fails'}" for t, v in on.get("tests", {}).items() if not v["passed"]]
+    return ([f"{t}: {', '.join(v['failing']) or 'fails'}" for t, v in on.get("tests", {}).items() if not v["passed"]]
+            + list(on.get("inconsistent", [])))
+
+
+def _false_alarm(r: dict) -> str:
+    on = r.get("on_file")
+    return "" if on is None or "false_alarm" not in on else f"{on['false_alarm']:.0%}"
 
 
 def _key(r: dict) -> str:
@@ -80,6 +88,16 @@ def _changes(r: dict) -> str:
     return ", ".join(f"{k} {v:+.1%}" if isinstance(v, float) else f"{k}: {v}" for k, v in c.items())
 
 
+def _expected(rows: list[dict]) -> str:
+    """How many records on file would fail were they all correct: the sum of the rates."""
+    rates = [r["on_file"]["false_alarm"] for r in rows if (r.get("on_file") or {}).get("false_alarm") is not None]
+    if not rates:
+        return ""
+    return (f"were all {len(rates)} records on file correct, about {sum(rates):.1f} of them would fail "
+            f"(the rates' sum), {sum(r['path'] != FAILED and not r['on_file']['passed'] for r in rows if r.get('on_file'))} "
+            "did.")
+
+
 def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
     n_pass = sum(r["path"] == PASSED for r in rows)
     n_ident = sum(r["path"] == IDENTIFIED for r in rows)
@@ -88,10 +106,14 @@ def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
             f"{result.failed} failed ({result.seconds:.0f} s, {len(result.ran)} run now, {len(result.kept)} kept "
             f"from an earlier run; {result.workers} worker(s)).</p>",
             "<p class=note>Failing units first; click a column heading to sort by it. A record on file is played "
-            "back on the unit's recordings and judged against the tolerance bands; a unit whose record fails, or "
-            "has none, is identified as <code>rapid-cosim identify</code> identifies it.</p>",
+            "back on the unit's recordings and judged against the tolerance bands and against the recorder's noise "
+            "(is the residual more than the noise; are the parameters where the recordings put them); a unit whose "
+            "record fails, or has none, is identified as <code>rapid-cosim identify</code> identifies it. "
+            "<em>False-alarm rate</em>: how often a correct record would fail these checks on this unit's "
+            f"recordings (the bands' rate under the recorder's noise, and the noise tests' {ALPHA:.0%}); "
+            f"{_expected(rows)}</p>",
             "<table id=fleet><thead><tr><th>unit</th><th class=text>path</th><th class=text>record on file</th>"
-            "<th>on file passes</th><th class=text>failing recordings</th><th>RMSE/noise on file</th>"
+            "<th>on file passes</th><th class=text>why it fails</th><th>false-alarm rate</th><th>RMSE/noise on file</th>"
             "<th class=text>recommended</th><th class=text>key parameters</th><th class=text>changes</th>"
             "<th class=text>flags</th><th>report</th></tr></thead><tbody>"]
     for r in rows:
@@ -107,6 +129,7 @@ def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
                     f"<td class=text>{e((on or {}).get('model', 'none'))}</td>"
                     f"<td data-key='{_on_file_pass(r)}'>{mark(None if on is None else on['passed'])}</td>"
                     f"<td class=text>{e('; '.join(_failing(r)))}</td>"
+                    f"<td data-key='{(on or {}).get('false_alarm', '')}'>{_false_alarm(r)}</td>"
                     f"<td>{'' if rmse is None else f'{rmse:.2f}'}</td>"
                     f"<td class=text>{e((r.get('recommended') or {}).get('fit', ''))}</td>"
                     f"<td class=text>{e(_key(r))}</td><td class=text>{e(_changes(r))}</td>"

@@ -121,20 +121,31 @@ def structure_files(plan: UnitPlan, folder: Path) -> list[Path]:
     return out
 
 
-def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: np.ndarray, fmu_dir) -> np.ndarray:
+def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: np.ndarray, fmu_dir,
+                  governor: dict[str, float] | None = None) -> np.ndarray:
     """The plant's P (pu) on the event: its record model's bench, driven by the true
-    frequency (the recorded one is that plus the PMU's noise)."""
+    frequency (the recorded one is that plus the PMU's noise); with ``governor`` (the
+    record on file's values), what that record would have the plant do.
+
+    The plant's inertial power takes the frequency's mean rate over the frame before each
+    sample (a backward difference: a real machine does not move before the event), not
+    the benches' ROCOF, whose centred local fits reach four frames back across the event
+    and would put a precursor into the recorded pre-event window, where the recorder's
+    noise is estimated (it did: the P_e units' noise level came out about nine times the
+    recorder's, and the bands' noise terms with it)."""
     from ..compiler import ensure_fmu
     from ..structures.select import Structure
     from ..simulator import get_simulator
 
     structure = next(Structure.load(p) for p in structures if Structure.load(p).name == plan.record_model)
-    values = {**structure.fixed, **{f"gov.{k}": v for k, v in plan.plant.items()}, "gov.p_ref": plan.p_ref,
+    gov = plan.plant if governor is None else governor
+    values = {**structure.fixed, **{f"gov.{k}": v for k, v in gov.items()}, "gov.p_ref": plan.p_ref,
               "f_nom": F_NOM, "mach.H": plan.h}
     sim = get_simulator(ensure_fmu(structure.input_bench, fmu_dir=fmu_dir))
     out = "pe" if plan.electrical else "pm"
+    rocof = np.concatenate([[0.0], np.diff(f_dev) / np.diff(t)])
     return sim.simulate({k: v for k, v in values.items() if k in sim.parameters}, output_times=t, input_time=t,
-                        inputs={"f_dev": f_dev}, outputs=[out])[out]
+                        inputs={"f_dev": f_dev, "rocof": rocof}, outputs=[out])[out]
 
 
 def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir) -> Path:
@@ -182,8 +193,13 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir) -> Path:
                                       + ", ".join(f'"structures/{p.name}"' for p in structures) + "]\n")
     FORMATS["dyr"].write_record(folder / "record.dyr", plan.record_model, _record_values(plan, structures),
                                 bus=100 + int(plan.name[4:]), machine_id="1")
+    # How far the record on file's own response is from the plant's, noise-free, in the
+    # recorder's noise levels (RMS over the event): how wrong the record is for this event.
+    off = 0.0 if plan.record_right else float(np.sqrt(np.mean(
+        (simulate_unit(plan, structures, t, f - F_NOM, fmu_dir, plan.record) - p) ** 2)) / noise.sigma)
     truth = {"structure": plan.structure, "plant": plan.plant, "record_right": plan.record_right, "wrong": plan.wrong,
-             "hidden_rate": plan.hidden_rate, "electrical": plan.electrical, "H": plan.h, "rating": plan.rating}
+             "record_off_in_noise": off, "hidden_rate": plan.hidden_rate, "electrical": plan.electrical, "H": plan.h,
+             "rating": plan.rating}
     (folder / "truth.json").write_text(json.dumps(truth, indent=1) + "\n")
     return folder
 

@@ -122,8 +122,10 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
     result.recommended = {"model": rec.model, "fit": rec.fit, "parameters": written.values,
                           "key": {k: written.values[k] for k in KEY.get(rec.model, ()) if k in written.values},
                           "reason": ident.reason, "playback": check.to_json()}
-    if not check.passed:
-        result.flags.append("recommended record fails its bands on " + ", ".join(check.failing))
+    failing = [t for t, v in check.tests.items() if not v["passed"]]
+    if failing:
+        result.flags.append("recommended record fails its bands on " + ", ".join(failing))
+    result.flags.extend(f"recommended record: {why}" for why in check.inconsistent)
     result.changes = changes(on_file.values if on_file else None, on_file.model if on_file else None,
                              rec.model, written.values)
 

@@ -99,6 +99,12 @@ def _difference(pair: Pair) -> float | None:
 
 
 def metrics(curves: FitCurves, role: str = "training") -> ValidationMetrics:
+    return metrics_of(*compared(curves), role)
+
+
+def compared(curves: FitCurves) -> tuple:
+    """(test, output, times, measured, simulated, event, end, noise level): what the
+    metrics are read from, NaN where a sample is not compared."""
     exp = curves.detail.experiment
     out = curves.output
     t = np.asarray(curves.detail.fit.time, dtype=float)
@@ -107,13 +113,28 @@ def metrics(curves: FitCurves, role: str = "training") -> ValidationMetrics:
     measured_all, _ = exp.measured(out)
     idx = np.flatnonzero((exp.data.time >= t[0]) & (exp.data.time <= t[-1]))
     measured = np.where(ok, measured_all[idx], np.nan)
-    simulated = np.where(ok, measured - r, np.nan)
+    t0, t_end = span(exp, t)
+    noise = None if exp.noise_sigma is None else float(exp.noise_sigma.get(out, np.nan))
+    return exp.name, out, t, measured, measured - r, t0, t_end, noise
+
+
+def span(exp, t: np.ndarray) -> tuple[float, float]:
+    """(event, end) of the judged span on the time base ``t`` (module docstring)."""
     t0 = exp.pre_step_end if exp.pre_step_end is not None else float(t[0])
     t_end = float(t[-1])
     t_return = exp.fixed.get("src.t_return")
     if t_return is not None and t0 < t_return < t_end:
         t_end = float(t_return)
-    noise = None if exp.noise_sigma is None else float(exp.noise_sigma.get(out, np.nan))
+    return t0, t_end
+
+
+def metrics_of(name: str, out: str, t: np.ndarray, measured: np.ndarray, simulated: np.ndarray, t0: float,
+               t_end: float, noise: float | None, role: str = "training") -> ValidationMetrics:
+    """The metrics of a measured and a simulated curve on the time base ``t`` (NaN where a
+    sample is not compared): what :func:`metrics` reads off a fit, and what a noise
+    replicate of a record's playback is judged on (:mod:`rapid_cosim.fleet.playback`)."""
+    r = measured - simulated
+    ok = np.isfinite(r)
     sigma = noise if noise is not None and np.isfinite(noise) else 0.0
     shapes = [_shape(t, y, ok, t0, t_end) for y in (measured, simulated)]
     change_m = shapes[0].change
@@ -127,7 +148,7 @@ def metrics(curves: FitCurves, role: str = "training") -> ValidationMetrics:
         settle.append(s.settling(band))
     if not np.isfinite(change_m) or abs(change_m) < MIN_CHANGE_IN_NOISE * sigma or change_m == 0:
         rise, peak_t, settle = [None, None], [None, None], [None, None]
-    return ValidationMetrics(exp.name, out, float(np.sqrt(np.mean(r[ok] ** 2))), float(np.max(np.abs(r[ok]))),
+    return ValidationMetrics(name, out, float(np.sqrt(np.mean(r[ok] ** 2))), float(np.max(np.abs(r[ok]))),
                              (shapes[0].change, shapes[1].change), (shapes[0].peak, shapes[1].peak),
                              (rise[0], rise[1]), (peak_t[0], peak_t[1]), (settle[0], settle[1]), noise, role)
 
