@@ -74,8 +74,12 @@ def _failing(r: dict) -> list[str]:
 
 
 def _false_alarm(r: dict) -> str:
+    """The record's stated false-alarm rate, and the bands too noisy to judge here."""
     on = r.get("on_file")
-    return "" if on is None or "false_alarm" not in on else f"{on['false_alarm']:.0%}"
+    if on is None or "false_alarm" not in on:
+        return ""
+    noisy = [f"{k} {v:.0%}" for t in on["tests"].values() for k, v in t.get("not_judged", {}).items()]
+    return f"{on['false_alarm']:.0%}" + (f" (not judged, the noise alone fails: {', '.join(noisy)})" if noisy else "")
 
 
 def _key(r: dict) -> str:
@@ -110,7 +114,8 @@ def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
             "(is the residual more than the noise; are the parameters where the recordings put them); a unit whose "
             "record fails, or has none, is identified as <code>rapid-cosim identify</code> identifies it. "
             "<em>False-alarm rate</em>: how often a correct record would fail these checks on this unit's "
-            f"recordings (the bands' rate under the recorder's noise, and the noise tests' {ALPHA:.0%}); "
+            f"recordings (the bands' rate under the recorder's noise, and the noise tests' {ALPHA:.0%}); a band "
+            "the noise alone fails more than one time in ten is not judged, and named; "
             f"{_expected(rows)}</p>",
             "<table id=fleet><thead><tr><th>unit</th><th class=text>path</th><th class=text>record on file</th>"
             "<th>on file passes</th><th class=text>why it fails</th><th>false-alarm rate</th><th>RMSE/noise on file</th>"
