@@ -18,7 +18,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-png bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -113,6 +113,11 @@ bench-electrical: fmus  ## fourteen ANDES events, TGOV1, IEEEG1, TG Type I (gene
 fleet: fmus  ## one grid event, every unit: the five synthetic units of experiments/fleet (records on file checked, the failing ones identified) on 2 local workers; results/fleet/fleet.html
 	$(RC) fleet experiments/fleet/fleet.toml --results $(RESULTS)/fleet --workers $(N_JOBS); \
 		status=$$?; echo "make fleet: $$(( $$(date +%s) - $(T0) )) s wall time (exit status $$status)"
+
+fleet-png: fmus  ## the README's picture of make fleet's page (docs/fleet_report.png); runs make fleet if needed
+	@test -f $(RESULTS)/fleet/fleet.html || $(MAKE) --no-print-directory fleet
+	$(PY) -c "from rapid_cosim.report.pdf import screenshot; \
+		print('wrote', screenshot('$(RESULTS)/fleet/fleet.html', 'docs/fleet_report.png', width=1500, height=560))"
 
 bench-fleet: fmus  ## 100 synthetic units on 2 workers (a 1- and 2-worker timing on 10 first): wrong records flagged, right ones passed, new records within their bands
 	$(PY) benchmarks/fleet_study.py --units $(or $(UNITS),100) --scaling 10 --work $(RESULTS)/bench-fleet

@@ -74,7 +74,8 @@ def run(folder: Path, units: int | list[int], workers: int, results: Path) -> tu
 def judge(folder: Path, result) -> dict:
     rows = {u["unit"]: u for u in result.units}
     out = {"wrong_flagged": 0, "wrong": 0, "right_passed": 0, "right": 0, "false_alarms": [], "missed": [],
-           "new_records_pass": 0, "identified": 0, "new_records_failing": [], "failed": [],
+           "new_records_pass": 0, "new_records_within_noise": 0, "identified": 0, "new_records_failing": [],
+           "failed": [],
            "right_expected_false_alarms": 0.0, "wrong_by_bands": 0, "wrong_by_noise_only": 0,
            "wrong_flagged_off": [], "wrong_missed_off": []}
     for name, r in rows.items():
@@ -107,9 +108,11 @@ def judge(folder: Path, result) -> dict:
                                      f"{on['p']:.2g})")
         if r["path"] == "identified":
             out["identified"] += 1
-            ok = bool(r.get("recommended") and r["recommended"]["playback"]["passed"])
+            back = (r.get("recommended") or {}).get("playback")
+            ok = bool(back and all(v["passed"] for v in back["tests"].values()))  # its bands
             out["new_records_pass"] += ok
-            if not ok:
+            out["new_records_within_noise"] += bool(back and not back["inconsistent"])
+            if not (ok and back["passed"]):
                 out["new_records_failing"].append(f"{name} ({truth['structure']}): {r.get('flags')}")
     return out
 
@@ -156,9 +159,10 @@ def main(argv=None) -> int:
           f"{j['right_expected_false_alarms']:.1f}, found: {j['right'] - j['right_passed']}")
     for line in j["false_alarms"]:
         print(f"  flagged although right: {line}")
-    print(f"identified units whose new record passes its bands: {j['new_records_pass']}/{j['identified']}")
+    print(f"identified units whose new record passes its bands: {j['new_records_pass']}/{j['identified']}; "
+          f"passes the noise tests too: {j['new_records_within_noise']}/{j['identified']}")
     for line in j["new_records_failing"]:
-        print(f"  fails: {line}")
+        print(f"  fails a check: {line}")
     print(f"failed units: {len(j['failed'])}" + "".join(f"\n  {f}" for f in j["failed"]))
     (work / "study.json").write_text(json.dumps(figures, indent=1, default=float) + "\n")
     return 0

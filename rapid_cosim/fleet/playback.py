@@ -121,11 +121,11 @@ def play_back(record: Record, experiments: list, structures: list[Path], toleran
     if p < ALPHA:
         if score.p <= variance.p:
             first = sorted(range(len(names)), key=lambda j: -score.gains[j])[:2]
-            reasons.append("the parameters are not where the recordings put them (score test, p "
-                           f"{score.p:.2g}; one Gauss-Newton step: "
+            reasons.append(f"the parameters are not where the recordings put them (score test, {_p(score.p)}; "
+                           "one Gauss-Newton step: "
                            + ", ".join(_moved(names[j], x[j], score.step[j]) for j in first) + ")")
         else:
-            reasons.append(f"the residual is more than the recorder's noise (p {variance.p:.2g})")
+            reasons.append(f"the residual is more than the recorder's noise ({_p(variance.p)})")
     tests, kept_rate = {}, (1.0 - ALPHA)
     for i, exp in enumerate(scored):
         arrays = compared(curves_at(inputs, x, i))
@@ -144,6 +144,10 @@ def play_back(record: Record, experiments: list, structures: list[Path], toleran
     return Playback(record.model, record.file, dict(record.values),
                     all(t["passed"] for t in tests.values()) and not reasons, tests, reasons, float(p),
                     float(1.0 - kept_rate))
+
+
+def _p(p: float) -> str:
+    return "p < 1e-15" if p < 1e-15 else f"p {p:.2g}"
 
 
 def _moved(name: str, value: float, step: float) -> str:

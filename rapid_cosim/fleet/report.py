@@ -49,11 +49,12 @@ def write_report(spec: FleetSpec, result, folder: Path) -> dict[str, str]:
                                         indent=1, default=float) + "\n")
     with open(files["csv"], "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["unit", "path", "record on file", "on file passes", "why it fails", "false-alarm rate", "recommended",
-                    "key parameters", "changes", "flags", "error", "seconds", "report"])
+        w.writerow(["unit", "path", "record on file", "on file passes", "why it fails", "false-alarm rate", "not judged",
+                    "recommended", "key parameters", "changes", "flags", "error", "seconds", "report"])
         for r in rows:
             w.writerow([r["unit"], r["path"], (r.get("on_file") or {}).get("model", ""), _on_file_pass(r),
-                        ";".join(_failing(r)), _false_alarm(r), (r.get("recommended") or {}).get("fit", ""), _key(r), _changes(r),
+                        ";".join(_failing(r)), _false_alarm(r), _not_judged(r),
+                        (r.get("recommended") or {}).get("fit", ""), _key(r), _changes(r),
                         ";".join(r.get("flags", [])), r.get("error", ""), f"{r.get('seconds', 0):.1f}",
                         r.get("files", {}).get("report", "")])
     files["html"].write_text(_page(spec, result, rows, folder))
@@ -74,12 +75,15 @@ def _failing(r: dict) -> list[str]:
 
 
 def _false_alarm(r: dict) -> str:
-    """The record's stated false-alarm rate, and the bands too noisy to judge here."""
     on = r.get("on_file")
-    if on is None or "false_alarm" not in on:
-        return ""
-    noisy = [f"{k} {v:.0%}" for t in on["tests"].values() for k, v in t.get("not_judged", {}).items()]
-    return f"{on['false_alarm']:.0%}" + (f" (not judged, the noise alone fails: {', '.join(noisy)})" if noisy else "")
+    return "" if on is None or "false_alarm" not in on else f"{on['false_alarm']:.0%}"
+
+
+def _not_judged(r: dict) -> str:
+    """The bands too noisy to judge on the unit's recordings, with how often the noise
+    alone fails them."""
+    on = r.get("on_file") or {}
+    return ", ".join(f"{k} {v:.0%}" for t in on.get("tests", {}).values() for k, v in t.get("not_judged", {}).items())
 
 
 def _key(r: dict) -> str:
@@ -106,7 +110,7 @@ def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
     n_pass = sum(r["path"] == PASSED for r in rows)
     n_ident = sum(r["path"] == IDENTIFIED for r in rows)
     body = [f"<h1>Fleet {e(spec.name)}</h1>",
-            f"<p id=overall>{len(rows)} units: {n_pass} records on file pass their bands, {n_ident} identified, "
+            f"<p id=overall>{len(rows)} units: {n_pass} records on file pass, {n_ident} identified, "
             f"{result.failed} failed ({result.seconds:.0f} s, {len(result.ran)} run now, {len(result.kept)} kept "
             f"from an earlier run; {result.workers} worker(s)).</p>",
             "<p class=note>Failing units first; click a column heading to sort by it. A record on file is played "
@@ -118,7 +122,8 @@ def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
             "the noise alone fails more than one time in ten is not judged, and named; "
             f"{_expected(rows)}</p>",
             "<table id=fleet><thead><tr><th>unit</th><th class=text>path</th><th class=text>record on file</th>"
-            "<th>on file passes</th><th class=text>why it fails</th><th>false-alarm rate</th><th>RMSE/noise on file</th>"
+            "<th>on file passes</th><th class=text>why it fails</th><th>false-alarm rate</th>"
+            "<th class=text>not judged (the noise alone fails it)</th><th>RMSE/noise on file</th>"
             "<th class=text>recommended</th><th class=text>key parameters</th><th class=text>changes</th>"
             "<th class=text>flags</th><th>report</th></tr></thead><tbody>"]
     for r in rows:
@@ -135,6 +140,7 @@ def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
                     f"<td data-key='{_on_file_pass(r)}'>{mark(None if on is None else on['passed'])}</td>"
                     f"<td class=text>{e('; '.join(_failing(r)))}</td>"
                     f"<td data-key='{(on or {}).get('false_alarm', '')}'>{_false_alarm(r)}</td>"
+                    f"<td class=text>{e(_not_judged(r))}</td>"
                     f"<td>{'' if rmse is None else f'{rmse:.2f}'}</td>"
                     f"<td class=text>{e((r.get('recommended') or {}).get('fit', ''))}</td>"
                     f"<td class=text>{e(_key(r))}</td><td class=text>{e(_changes(r))}</td>"

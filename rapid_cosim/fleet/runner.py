@@ -8,8 +8,9 @@ unit, whole (:func:`.unit_job.run_unit`); dask runs the tasks of a lost worker a
 another, and the unit's result is the same bit for bit.
 
 Resume: a unit's result file records a digest of everything it was made from (the
-unit's folder, its configs' data files, its record on file, the options); a result
-whose digest still matches is kept, any other unit is run.
+unit's folder, its configs' data files, its record on file, the options, and the
+rapid-cosim version that judged it); a result whose digest still matches is kept, any
+other unit is run.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..errors import ConfigError
+from ..version import __version__
 from .spec import FleetSpec, UnitEntry, load_fleet
 from .unit_job import FAILED, FleetOptions, run_unit
 
@@ -68,6 +70,7 @@ def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
             h.update(str(path.name).encode())
             h.update(path.read_bytes())
     h.update(json.dumps({k: v for k, v in asdict(options).items() if k != "results"}, sort_keys=True).encode())
+    h.update(__version__.encode())  # another version may judge or identify differently
     return h.hexdigest()
 
 
