@@ -160,7 +160,8 @@ def main(argv=None) -> int:
     for line in j["false_alarms"]:
         print(f"  flagged although right: {line}")
     print(f"identified units whose new record passes its bands: {j['new_records_pass']}/{j['identified']}; "
-          f"passes the noise tests too: {j['new_records_within_noise']}/{j['identified']}")
+          f"not flagged by the playback's noise tests either (lenient on a fitted record: their null fits nothing): "
+          f"{j['new_records_within_noise']}/{j['identified']}")
     for line in j["new_records_failing"]:
         print(f"  fails a check: {line}")
     print(f"failed units: {len(j['failed'])}" + "".join(f"\n  {f}" for f in j["failed"]))

@@ -63,7 +63,7 @@ def test_right_records_pass_wrong_ones_are_identified_and_bad_units_fail_alone(f
     assert rows["unit000"]["path"] == "record on file passes" and rows["unit000"]["on_file"]["passed"]
     wrong = rows["unit005"]
     assert wrong["path"] == "identified" and not wrong["on_file"]["passed"]
-    assert wrong["recommended"]["playback"]["passed"], wrong["flags"]  # the new record passes its bands
+    assert wrong["recommended"]["playback"]["passed"], wrong["flags"]  # the new record passes its bands and the noise tests
     results = folder / "results"
     assert (results / wrong["files"]["dyr"]).is_file() and (results / wrong["files"]["report"]).is_file()
     assert rows["bad_config"]["path"] == "failed" and "no column 'POWER'" in rows["bad_config"]["error"]
@@ -108,7 +108,7 @@ def test_a_wrong_record_inside_every_band_is_flagged_by_the_noise_tests(fmus, re
     assert all(t["passed"] for t in wrong.tests.values()) and not wrong.passed
     assert wrong.p < 0.01 and "score test" in wrong.inconsistent[0] and "TW -" in wrong.inconsistent[0]
     assert right.passed and right.p > 0.05 and not right.inconsistent
-    assert 0.0 <= right.tests["unit000"]["band_false_alarm"] <= right.false_alarm < 0.2
+    assert right.false_alarm < 0.2 and right.false_alarm >= 0.01  # the noise tests' 1 % at least
     marginal = out["unit070"]
     assert draw_unit(70, 1).record_right and marginal.passed
     assert marginal.tests["unit070"]["not_judged"]["time_to_peak"] > 0.2

@@ -489,7 +489,7 @@ def build_parser() -> argparse.ArgumentParser:
     model_options(p)
 
     p = command("fleet", cmd_fleet, "many units, one grid event: each unit's record on file played back and judged "
-                "against the tolerance bands, the units whose record fails identified, on a dask cluster; the fleet's "
+                "against the tolerance bands and the recorder's noise, the units whose record fails identified, on a dask cluster; the fleet's "
                 "page, table and records (exit status 100 + the number of units that failed, 0 if none)")
     p.add_argument("fleet", help="the fleet file (fleet.toml), or its folder")
     p.add_argument("--results", default="results/fleet", help="results folder (default %(default)s); a rerun there "

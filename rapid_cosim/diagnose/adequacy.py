@@ -119,6 +119,7 @@ class ScoreTest:
     p: float
     step: tuple[float, ...]  # the Gauss-Newton step, in the parameters' own units
     gains: tuple[float, ...]  # what refitting each parameter alone would take off (g_j^2 / A_jj)
+    alone: tuple[float, ...]  # each parameter's own step, were it refitted alone (-g_j / A_jj)
 
 
 def score_test(residuals: Mapping[str, np.ndarray], jacobians: Mapping[str, np.ndarray],
@@ -128,12 +129,14 @@ def score_test(residuals: Mapping[str, np.ndarray], jacobians: Mapping[str, np.n
     names = list(jacobians)
     A = sum(jacobians[n].T @ jacobians[n] for n in names)
     g = sum(jacobians[n].T @ residuals[n] for n in names)
-    A_inv = np.linalg.pinv(A)
+    diag = np.where(np.diag(A) > 0, np.diag(A), np.inf)
+    d = 1.0 / np.sqrt(diag)  # columns to unit norm first: parameters in their own units differ by decades
+    A_inv = d[:, None] * np.linalg.pinv(d[:, None] * A * d[None, :]) * d[None, :]
     g_null = sum(null.e[n].astype(float) @ jacobians[n] for n in names)
     s_null = np.einsum("ri,ij,rj->r", g_null, A_inv, g_null)
     s = float(g @ A_inv @ g)
-    gains = g * g / np.where(np.diag(A) > 0, np.diag(A), np.inf)
-    return ScoreTest(s, upper_p(s, s_null), tuple(float(v) for v in -(A_inv @ g)), tuple(float(v) for v in gains))
+    return ScoreTest(s, upper_p(s, s_null), tuple(float(v) for v in -(A_inv @ g)),
+                     tuple(float(v) for v in g * g / diag), tuple(float(v) for v in -g / diag))
 
 
 def jitter_share(tests: Mapping[str, ExperimentResiduals], noise: Mapping[str, NoiseFloor]) -> dict:

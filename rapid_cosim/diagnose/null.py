@@ -71,7 +71,7 @@ def replicates_for(experiments, noise_fits: Mapping[str, NoiseFit], replicates: 
     return NoiseReplicates(tests, replicates, seed=seed)
 
 
-def _with_extra(models: list, extra: tuple) -> list:
+def with_extra(models: list, extra: tuple) -> list:
     """The recorder's drawn models with the residual's further components: the slow-component
     form joins the recorder's; a filtered one is the whitening's own (Whitening.sample)."""
     for component in extra:
@@ -108,7 +108,7 @@ class NoiseReplicates:
         self.e: dict[str, np.ndarray] = {}
         self._stats: dict[bytes, dict] = {}
         for t in self.tests:
-            models = _with_extra(recorders[id(t.noise)], t.extra)
+            models = with_extra(recorders[id(t.noise)], t.extra)
             out = np.empty((self.replicates, t.times.size), dtype=np.float32)
             for a in range(0, self.replicates, BLOCK):
                 raw = t.whitening.sample(models[a:a + BLOCK], rng)

@@ -4,9 +4,11 @@ one ``fleet.dyr`` (and ``fleet.dyd`` where every new record's unit states its MV
 ready for the operator's case.
 
 A row says which path the unit took (its record on file passes; identified; failed),
-the record on file's verdict per recording and its RMSE over the noise, the recommended
-record with its key parameters and what changed from the one on file, the flags
-(unexplained, a tie, estimates on a bound, a record that fails its own bands), and a link
+why the record on file fails (band metrics per recording, the noise tests' reason), its
+stated false-alarm rate and the bands too noisy to judge on its recordings
+(:mod:`.playback`), its RMSE over the noise, the recommended record with its key
+parameters and what changed from the one on file, the flags (unexplained, a tie,
+estimates on a bound, a new record that fails its bands or the noise tests), and a link
 to the unit's validation report.
 """
 
@@ -98,7 +100,8 @@ def _changes(r: dict) -> str:
 
 def _expected(rows: list[dict]) -> str:
     """How many records on file would fail were they all correct: the sum of the rates."""
-    rates = [r["on_file"]["false_alarm"] for r in rows if (r.get("on_file") or {}).get("false_alarm") is not None]
+    rates = [r["on_file"]["false_alarm"] for r in rows
+             if r["path"] != FAILED and (r.get("on_file") or {}).get("false_alarm") is not None]
     if not rates:
         return ""
     return (f"were all {len(rates)} records on file correct, about {sum(rates):.1f} of them would fail "

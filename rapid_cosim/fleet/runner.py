@@ -9,7 +9,7 @@ another, and the unit's result is the same bit for bit.
 
 Resume: a unit's result file records a digest of everything it was made from (the
 unit's folder, its configs' data files, its record on file, the options, and the
-rapid-cosim version that judged it); a result whose digest still matches is kept, any
+rapid-cosim version and judging rules that made it); a result whose digest still matches is kept, any
 other unit is run.
 """
 
@@ -26,6 +26,7 @@ from typing import Callable
 
 from ..errors import ConfigError
 from ..version import __version__
+from .playback import RULES
 from .spec import FleetSpec, UnitEntry, load_fleet
 from .unit_job import FAILED, FleetOptions, run_unit
 
@@ -70,7 +71,7 @@ def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
             h.update(str(path.name).encode())
             h.update(path.read_bytes())
     h.update(json.dumps({k: v for k, v in asdict(options).items() if k != "results"}, sort_keys=True).encode())
-    h.update(__version__.encode())  # another version may judge or identify differently
+    h.update(f"{__version__}; {RULES}".encode())  # another version or rule may judge or identify differently
     return h.hexdigest()
 
 

@@ -89,7 +89,7 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
     tolerances = _tolerances(options)
     experiments = [load_experiment(c) for c in unit.configs]
     noise = campaign_noise(experiments)
-    common = dict(package=options.package, fmu_dir=options.fmu_dir, noise_fits=noise)
+    common = dict(package=options.package, fmu_dir=options.fmu_dir, noise_fits=noise, seed=options.seed)
     on_file = None
     if entry.record is not None:
         record = read_record(entry.record, bus=unit.bus, machine_id=unit.machine_id, mva=unit.mva)
@@ -122,9 +122,8 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
     result.recommended = {"model": rec.model, "fit": rec.fit, "parameters": written.values,
                           "key": {k: written.values[k] for k in KEY.get(rec.model, ()) if k in written.values},
                           "reason": ident.reason, "playback": check.to_json()}
-    failing = [t for t, v in check.tests.items() if not v["passed"]]
-    if failing:
-        result.flags.append("recommended record fails its bands on " + ", ".join(failing))
+    if check.failing:
+        result.flags.append("recommended record fails its bands on " + ", ".join(check.failing))
     result.flags.extend(f"recommended record: {why}" for why in check.inconsistent)
     result.changes = changes(on_file.values if on_file else None, on_file.model if on_file else None,
                              rec.model, written.values)

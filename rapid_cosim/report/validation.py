@@ -99,7 +99,7 @@ def _difference(pair: Pair) -> float | None:
 
 
 def metrics(curves: FitCurves, role: str = "training") -> ValidationMetrics:
-    return metrics_of(*compared(curves), role)
+    return metrics_of(*compared(curves), role, residual=np.asarray(curves.residual, dtype=float))
 
 
 def compared(curves: FitCurves) -> tuple:
@@ -129,11 +129,13 @@ def span(exp, t: np.ndarray) -> tuple[float, float]:
 
 
 def metrics_of(name: str, out: str, t: np.ndarray, measured: np.ndarray, simulated: np.ndarray, t0: float,
-               t_end: float, noise: float | None, role: str = "training") -> ValidationMetrics:
+               t_end: float, noise: float | None, role: str = "training",
+               residual: np.ndarray | None = None) -> ValidationMetrics:
     """The metrics of a measured and a simulated curve on the time base ``t`` (NaN where a
-    sample is not compared): what :func:`metrics` reads off a fit, and what a noise
-    replicate of a record's playback is judged on (:mod:`rapid_cosim.fleet.playback`)."""
-    r = measured - simulated
+    sample is not compared): what :func:`metrics` reads off a fit (its ``residual`` as the
+    fit computed it), and what a noise replicate of a record's playback is judged on
+    (:mod:`rapid_cosim.fleet.playback`)."""
+    r = measured - simulated if residual is None else residual
     ok = np.isfinite(r)
     sigma = noise if noise is not None and np.isfinite(noise) else 0.0
     shapes = [_shape(t, y, ok, t0, t_end) for y in (measured, simulated)]
