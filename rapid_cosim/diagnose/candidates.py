@@ -262,9 +262,15 @@ def jacobian_at(inputs, x, step: float = 1e-3) -> dict[str, np.ndarray]:
     U[1:][np.arange(space.dim), np.arange(space.dim)] += steps
     _, R = ProblemObjective(problem, inputs.fmus).residuals(space.clip(space.from_unit(U)))
     J = (R[1:] - R[0]).T / steps  # (samples, parameters), on the objective's uniform scale
+    return {e.name: J[block] for e, block in experiment_blocks(problem)}
+
+
+def experiment_blocks(problem) -> list[tuple]:
+    """(experiment, slice) of each experiment's samples in the objective's residual
+    vector (:meth:`~rapid_cosim.fitting.objective.ProblemObjective.residuals`)."""
     sizes = [sum(ix.size for _, ix, _ in e.scored.columns) for e in problem.experiments]
     edges = np.cumsum([0, *sizes])
-    return {e.name: J[a:b] for e, a, b in zip(problem.experiments, edges[:-1], edges[1:])}
+    return [(e, slice(int(a), int(b))) for e, a, b in zip(problem.experiments, edges[:-1], edges[1:])]
 
 
 def residuals_at(inputs, x) -> dict[str, ExperimentResiduals]:
@@ -279,4 +285,4 @@ def residuals_at(inputs, x) -> dict[str, ExperimentResiduals]:
 
 __all__ = ["CATALOGUE", "CandidateFit", "CandidateSpec", "ExperimentResiduals", "candidate_config",
            "candidate_experiments", "candidate_inputs", "default_start", "fit_candidate", "jacobian_at",
-           "record_configs", "residuals_at"]
+           "record_configs", "residuals_at", "experiment_blocks"]

@@ -31,7 +31,7 @@ from ..fitting.engine import make_engine
 from ..errors import RapidCosimError
 from ..estimators.laplace import laplace
 from ..fitting.objective import ProblemObjective
-from .candidates import CandidateFit
+from .candidates import CandidateFit, experiment_blocks
 from .exchanges import exchanges
 
 LEVEL = 0.9
@@ -87,20 +87,18 @@ def sandwich_half_widths(fit: CandidateFit, x: np.ndarray, level: float = LEVEL)
     if not np.all(np.isfinite(R)):
         return None
     J = (R[1:] - R[0]).T / steps  # (samples, parameters) in unit coordinates
-    sizes = [sum(ix.size for _, ix, _ in e.scored.columns) for e in problem.experiments]
-    edges = np.cumsum([0, *sizes])
     A = np.zeros((space.dim, space.dim))
     B = np.zeros_like(A)
-    for e, a, b in zip(problem.experiments, edges[:-1], edges[1:]):
+    for e, block in experiment_blocks(problem):
         whitened = fit.tests[e.name].whitened if e.name in fit.tests else None
         if whitened is None:
             return None
         w = whitened[np.isfinite(whitened)]
-        r0 = R[0, a:b]
+        r0 = R[0, block]
         if w.size != r0.size or not np.any(r0):
             return None
         c = math.sqrt(float(w @ w) / float(r0 @ r0))  # the objective's rows are the whitened residual scaled
-        Je, res = c * J[a:b], c * r0
+        Je, res = c * J[block], c * r0
         A += Je.T @ Je
         scores = Je * res[:, None]
         B += newey_west(scores)

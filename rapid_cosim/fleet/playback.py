@@ -43,7 +43,7 @@ import numpy as np
 
 from ..calibration import inputs_from_experiments
 from ..diagnose.adequacy import ALPHA, adequacy, score_test
-from ..diagnose.candidates import residuals_at
+from ..diagnose.candidates import residuals_at, experiment_blocks
 from ..diagnose.null import ScoredTest, replicates_for, with_extra
 from ..diagnose.selection import noise_floors
 from ..fitting.objective import ProblemObjective
@@ -176,15 +176,13 @@ def _linearised(inputs, x: np.ndarray, structure: Structure, at_x: dict) -> tupl
     X[1:][np.arange(x.size), np.arange(x.size)] += steps
     _, R = ProblemObjective(inputs.problem, inputs.fmus).residuals(X)
     kept = [j for j in range(x.size) if np.all(np.isfinite(R[1 + j]))] if np.all(np.isfinite(R[0])) else []
-    sizes = [sum(ix.size for _, ix, _ in e.scored.columns) for e in inputs.problem.experiments]
-    edges = np.cumsum([0, *sizes])
     residuals, jacobians = {}, {}
-    for exp, a, b in zip(inputs.problem.experiments, edges[:-1], edges[1:]):
+    for exp, block in experiment_blocks(inputs.problem):
         e = at_x[exp.name].whitened
         e = e[np.isfinite(e)]
-        scale = float(R[0, a:b] @ e / (e @ e))  # the objective's own scaling of the whitened residual
-        residuals[exp.name] = R[0, a:b] / scale
-        jacobians[exp.name] = ((R[1:, a:b] - R[0, a:b]).T / steps / scale)[:, kept]
+        scale = float(R[0, block] @ e / (e @ e))  # the objective's own scaling of the whitened residual
+        residuals[exp.name] = R[0, block] / scale
+        jacobians[exp.name] = ((R[1:, block] - R[0, block]).T / steps / scale)[:, kept]
     return residuals, jacobians, kept
 
 
