@@ -2,7 +2,8 @@
 (:mod:`rapid_cosim.fleet.synthetic`: the four standard structures and TG Type I on one
 ANDES event's frequency, a quarter with a binding valve rate, half of the records on file
 wrong), run with 1 and with 2 workers on a subset to measure the scaling, and all of them
-with 2 workers.
+with 2 workers; then the same units recorded with 10 s before the event instead of 30,
+their records on file checked only (before and after the longer quiet span).
 
     python benchmarks/fleet_study.py --units 100 --scaling 10 --work results/bench-fleet
 
@@ -56,18 +57,20 @@ class PeakMemory:
         self._thread.join()
 
 
-def run(folder: Path, units: int | list[int], workers: int, results: Path) -> tuple[dict, float, float]:
-    """(the fleet's result, its wall time in s, the largest worker's peak memory in MB)."""
+def run(folder: Path, units: int | list[int], workers: int, results: Path, *, pre_event: float | None = None,
+        check_only: bool = False) -> tuple[dict, float, float]:
+    """(the fleet's result, its wall time in s, the largest worker's peak memory in MB);
+    ``pre_event``: seconds recorded before the event (default: the synthetic fleet's)."""
     from rapid_cosim.fleet import run_fleet
-    from rapid_cosim.fleet.synthetic import make_fleet
+    from rapid_cosim.fleet.synthetic import PRE_EVENT_S, make_fleet
 
-    spec = make_fleet(folder, units, seed=1, fmu_dir=ROOT / "fmus")
+    spec = make_fleet(folder, units, seed=1, fmu_dir=ROOT / "fmus", pre_event=pre_event or PRE_EVENT_S)
     if results.exists():
         shutil.rmtree(results)
     t0 = time.perf_counter()
     with PeakMemory() as memory:
         result = run_fleet(spec, results=results, workers=workers, package=ROOT / "modelica" / "iGrGen",
-                           fmu_dir=ROOT / "fmus", log=lambda *_: None)
+                           fmu_dir=ROOT / "fmus", check_only=check_only, log=lambda *_: None)
     return result, time.perf_counter() - t0, memory.peak_mb
 
 
@@ -77,7 +80,7 @@ def judge(folder: Path, result) -> dict:
            "new_records_pass": 0, "new_records_within_noise": 0, "identified": 0, "new_records_failing": [],
            "failed": [],
            "right_expected_false_alarms": 0.0, "wrong_by_bands": 0, "wrong_by_noise_only": 0,
-           "wrong_flagged_off": [], "wrong_missed_off": []}
+           "wrong_flagged_off": [], "wrong_missed_off": [], "right_p": []}
     for name, r in rows.items():
         truth = json.loads((folder / "units" / name / "truth.json").read_text())
         flagged = r["path"] != "record on file passes"
@@ -90,6 +93,7 @@ def judge(folder: Path, result) -> dict:
             out["right"] += 1
             out["right_passed"] += not flagged
             out["right_expected_false_alarms"] += on["false_alarm"]
+            out["right_p"].append(on["p"])
             if flagged:
                 fails = [f"{t}: {', '.join(v['failing'])}" for t, v in on["tests"].items() if not v["passed"]]
                 out["false_alarms"].append(f"{name} ({truth['structure']}{', hidden rate' if truth['hidden_rate'] else ''}"
@@ -165,6 +169,17 @@ def main(argv=None) -> int:
     for line in j["new_records_failing"]:
         print(f"  fails a check: {line}")
     print(f"failed units: {len(j['failed'])}" + "".join(f"\n  {f}" for f in j["failed"]))
+    # Before and after: the same units recorded with ANDES's own 10 s before the event, their
+    # records on file checked only (nothing identified).
+    short, short_s, _ = run(work / "short", args.units, 2, work / "short" / "results", pre_event=10.0, check_only=True)
+    k = judge(work / "short", short)
+    figures["short_pre_event"] = {"pre_event_s": 10.0, "seconds": short_s, **k}
+    for name, f in (("10 s", k), ("30 s", j)):
+        print(f"{name} before the event: wrong records flagged {f['wrong_flagged']}/{f['wrong']}, right ones passed "
+              f"{f['right_passed']}/{f['right']} ({f['right_expected_false_alarms']:.1f} false alarms expected); the "
+              f"right records' noise-test p under 0.05: {sum(p < 0.05 for p in f['right_p'])} "
+              f"({0.05 * f['right']:.1f} if calibrated), under 0.2: {sum(p < 0.2 for p in f['right_p'])} "
+              f"({0.2 * f['right']:.1f})" + (f"; missed: {'; '.join(f['missed'])}" if f["missed"] else ""))
     (work / "study.json").write_text(json.dumps(figures, indent=1, default=float) + "\n")
     return 0
 

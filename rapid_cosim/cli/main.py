@@ -271,10 +271,13 @@ def cmd_fleet(args) -> int:
     from ..fleet import run_fleet
 
     result = run_fleet(args.fleet, results=args.results, workers=args.workers, scheduler=args.scheduler,
-                       seed=args.seed, package=args.package, fmu_dir=args.fmus, pdf=args.pdf, progress=not args.quiet)
+                       seed=args.seed, package=args.package, fmu_dir=args.fmus, pdf=args.pdf,
+                       check_only=args.check_only, progress=not args.quiet)
     passed = sum(u["path"] == "record on file passes" for u in result.units)
+    fails = sum(u["path"] == "record on file fails" for u in result.units)
     identified = sum(u["path"] == "identified" for u in result.units)
-    print(f"\n{len(result.units)} units in {result.seconds:.0f} s: {passed} records on file pass, {identified} "
+    print(f"\n{len(result.units)} units in {result.seconds:.0f} s: {passed} records on file pass, "
+          + (f"{fails} fail, " if args.check_only else "") + f"{identified} "
           f"identified, {result.failed} failed ({len(result.kept)} kept from an earlier run)")
     for u in result.units:
         if u["path"] == "failed":
@@ -498,6 +501,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="a running dask scheduler instead of local workers")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--pdf", action="store_true", help="each identified unit's report as PDF too (headless Chromium)")
+    p.add_argument("--check-only", action="store_true", help="play every record on file back and judge it; identify "
+                   "nothing (about 2 s a unit; a unit without a record is a failed row)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     model_options(p)
 

@@ -3,7 +3,8 @@ columns sortable by a click), ``fleet.csv`` and ``fleet.json``; and every new re
 one ``fleet.dyr`` (and ``fleet.dyd`` where every new record's unit states its MVA base),
 ready for the operator's case.
 
-A row says which path the unit took (its record on file passes; identified; failed),
+A row says which path the unit took (its record on file passes; it fails, where the
+fleet only checks; identified; failed),
 why the record on file fails (band metrics per recording, the noise tests' reason), its
 stated false-alarm rate and the bands too noisy to judge on its recordings
 (:mod:`.playback`), its RMSE over the noise, the recommended record with its key
@@ -21,9 +22,9 @@ from pathlib import Path
 from ..report.htmlkit import STYLE, e, mark
 from ..diagnose.adequacy import ALPHA
 from .spec import FleetSpec
-from .unit_job import FAILED, IDENTIFIED, PASSED
+from .unit_job import FAILED, FAILS, IDENTIFIED, PASSED
 
-ORDER = {FAILED: 0, IDENTIFIED: 1, PASSED: 2}
+ORDER = {FAILED: 0, FAILS: 1, IDENTIFIED: 1, PASSED: 2}
 SORTER = """
 document.querySelectorAll('th').forEach((th, k) => th.addEventListener('click', () => {
   const body = th.closest('table').tBodies[0], rows = [...body.rows];
@@ -38,7 +39,8 @@ document.querySelectorAll('th').forEach((th, k) => th.addEventListener('click', 
 
 
 def rank(row: dict) -> tuple:
-    """Failing units first: failed, then identified with flags, identified, passing."""
+    """Failing units first: failed, then failing records and identified units (flagged
+first), then passing."""
     return ORDER.get(row["path"], 0), 0 if row.get("flags") else 1, row["unit"]
 
 

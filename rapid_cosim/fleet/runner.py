@@ -77,11 +77,12 @@ def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
 
 def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, scheduler: str | None = None,
               seed: int = 1, package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus", pdf: bool = False,
-              progress: bool = True, log: Callable[[str], None] = print) -> FleetResult:
+              check_only: bool = False, progress: bool = True, log: Callable[[str], None] = print) -> FleetResult:
     """Run (or resume) the fleet of ``fleet`` into ``results``: each unit's result in
     ``results/units/<unit>.json`` as it finishes, then the fleet's report
     (:mod:`.report`). ``scheduler``: a dask scheduler's address; else a LocalCluster of
-    ``workers`` processes on this machine."""
+    ``workers`` processes on this machine. ``check_only``: the records on file are
+    played back and judged, and nothing is identified (a failing record's row says so)."""
     from .report import write_report
 
     spec = load_fleet(fleet)
@@ -91,7 +92,7 @@ def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, sched
     folder = results / "units"
     folder.mkdir(parents=True, exist_ok=True)
     options = FleetOptions(str(results.resolve()), seed, str(Path(package).resolve()), str(Path(fmu_dir).resolve()),
-                           pdf, str(spec.tolerances) if spec.tolerances else None)
+                           pdf, str(spec.tolerances) if spec.tolerances else None, check_only)
     t0 = time.perf_counter()
     done, todo = {}, []
     for entry in spec.units:
