@@ -245,3 +245,22 @@ def test_checking_only_identifies_nothing_and_a_short_quiet_span_is_flagged(fmus
                    workers=1, progress=False, log=lambda *_: None, package=repo / "modelica" / "iGrGen",
                    fmu_dir=repo / "fmus", check_only=True)
     assert ok.units[0]["path"] == "record on file fails" and ok.units[0]["flags"] == []
+
+
+def test_a_parameter_on_its_bound_pulled_outward_is_held_out_of_the_score_test():
+    """The constrained score test: a record's value on its structure's bound is the
+    optimum there when the data pull it further out, so that parameter leaves the test;
+    pulled inward, or off the bound, it stays."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from rapid_cosim.fleet.playback import _held_at_bounds
+
+    structure = SimpleNamespace(estimate={"gov.T4": {"min": 0.001, "max": 10.0}, "gov.K": {"min": 8.0, "max": 50.0}})
+    names, x = ["gov.K", "gov.T4"], np.array([50.0, 0.001])
+    pulled = lambda *alone: SimpleNamespace(alone=alone)  # noqa: E731
+    assert _held_at_bounds(x, names, [0, 1], structure, pulled(0.3, -0.02)) == [0, 1]
+    assert _held_at_bounds(x, names, [0, 1], structure, pulled(-0.3, 0.02)) == []
+    assert _held_at_bounds(np.array([20.0, 0.5]), names, [0, 1], structure, pulled(0.3, -0.6)) == []
+    assert _held_at_bounds(x, names, [1], structure, pulled(-0.02)) == [1]  # columns follow the kept parameters

@@ -19,8 +19,11 @@ recorded frequency, its meter offset profiled as in the fitness, and judged twic
   levels of RMSE, 5 % of the change) let through records wrong by more than the
   recorder could hide: on the benchmark's fleet, seven records with a lag twice the
   plant's (HYGOV's TW, GGOV1's Tb) passed every band with an RMSE of 1.4 to 3 noise
-  levels (the right records leave 1.1 to 2 on P_e). The noise tests flagged six of the
-  seven; the one left moves the response 1.4 noise levels RMS from the plant's.
+  levels (the right records leave 1.1 to 2 on P_e). The noise tests flagged all seven
+  on recordings that start 30 s before the event; with 10 s (all the noise model had to
+  go on) they missed one, 1.4 noise levels RMS from the plant's. A parameter that the
+  record puts on its range's bound, and that the data pull further out, leaves the
+  score test (:func:`_held_at_bounds`).
 
 The record passes when both do. How often a *correct* record would fail is stated per
 unit (``false_alarm``): the bands' rate read off :data:`BAND_REPLICATES` replicates of
@@ -119,6 +122,12 @@ def play_back(record: Record, experiments: list, structures: list[Path], toleran
     variance = adequacy(at_x, floors, null, None, [])
     residuals, jacobians, kept = _linearised(inputs, x, structure, at_x)
     score = score_test(residuals, jacobians, null) if kept else None  # None: no parameter could be moved
+    held = _held_at_bounds(x, names, kept, structure, score)
+    if held:  # the constrained score test: those parameters cannot move the way the data pull
+        cols = [c for c, j in enumerate(kept) if j not in held]
+        kept = [kept[c] for c in cols]
+        jacobians = {n: J[:, cols] for n, J in jacobians.items()}
+        score = score_test(residuals, jacobians, null) if kept else None
     p_score = score.p if score is not None else 1.0
     p = 1.0 - (1.0 - min(variance.p, p_score)) ** 2  # Sidak: either test may reject
     reasons = []
@@ -160,6 +169,23 @@ def _moved(name: str, value: float, step: float) -> str:
     if value == 0 or abs(step / value) > 1.0:
         return f"{name} {value:.3g} -> {value + step:.3g}"
     return f"{name} {step / value:+.0%}"
+
+
+def _held_at_bounds(x: np.ndarray, names: list[str], kept: list[int], structure: Structure, score) -> list[int]:
+    """The kept parameters a record puts on a bound of its structure's range that the
+    data pull further out (their own step points outward): the record's value is the
+    constrained optimum there, so their gradient is no evidence against it. A TG Type I
+    record's 1 ms steam chest (IEEEG1's T4 at its 0.001 s floor) was flagged as a right
+    record's misfit, its step taking T4 to -0.024 s."""
+    if score is None:
+        return []
+    held = []
+    for c, j in enumerate(kept):
+        lo, hi = structure.estimate[names[j]]["min"], structure.estimate[names[j]]["max"]
+        tol = 1e-9 * max(1.0, abs(x[j]))
+        if (x[j] <= lo + tol and score.alone[c] < 0) or (x[j] >= hi - tol and score.alone[c] > 0):
+            held.append(j)
+    return held
 
 
 def _linearised(inputs, x: np.ndarray, structure: Structure, at_x: dict) -> tuple[dict, dict, list[int]]:
