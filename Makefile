@@ -119,7 +119,7 @@ fleet-png: fmus  ## the README's picture of make fleet's page (docs/fleet_report
 	$(PY) -c "from rapid_cosim.report.pdf import screenshot; \
 		print('wrote', screenshot('$(RESULTS)/fleet/fleet.html', 'docs/fleet_report.png', width=1500, height=560))"
 
-bench-fleet: fmus  ## 100 synthetic units on 2 workers (a 1- and 2-worker timing on 10 first): wrong records flagged, right ones passed, new records within their bands
+bench-fleet: fmus  ## 100 synthetic units on 2 workers (a 1- and 2-worker timing on 10 first): wrong records flagged, right ones passed, new records within their bands; then the same units recorded from 10 s before the event, checked only
 	$(PY) benchmarks/fleet_study.py --units $(or $(UNITS),100) --scaling 10 --work $(RESULTS)/bench-fleet
 
 bench-timebase: fmus  ## the committed ANDES events with only their time base changed (jitter, dropped frames, repeats, a gap, STAT flags): verdicts, estimates in SE, variance ratios, simulation cost; the electrical unit on untidy stamps

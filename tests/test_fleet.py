@@ -88,7 +88,8 @@ def test_a_wrong_record_inside_every_band_is_flagged_by_the_noise_tests(fmus, re
     passes every band (an RMSE of 2 noise levels on P_e, where right records leave 1.1
     to 2), and the noise tests reject it (with 30 s before the event, its residual's
     variance; the score test's naming is tested in test_adequacy_null). The right record
-    of unit 0 passes both, with its bands' stated false-alarm rate. Unit 70's right
+    of unit 0 passes both, with its bands' stated false-alarm rate; unit 64's (TG Type I)
+    is not said to want its steam chest below its floor. Unit 70's right
     record has a marginal overshoot, whose time to peak the noise alone fails more than
     one time in ten: not judged, and said."""
     from rapid_cosim.exchange import read_record
@@ -97,10 +98,10 @@ def test_a_wrong_record_inside_every_band_is_flagged_by_the_noise_tests(fmus, re
     from rapid_cosim.identify import Unit
     from rapid_cosim.report.tolerances import Tolerances
 
-    make_fleet(tmp_path, [0, 70, 98], seed=1, fmu_dir=repo / "fmus")
+    make_fleet(tmp_path, [0, 64, 70, 98], seed=1, fmu_dir=repo / "fmus")
     assert draw_unit(98, 1).wrong == "lag" and draw_unit(98, 1).structure == "HYGOV"
     out = {}
-    for name in ("unit000", "unit070", "unit098"):
+    for name in ("unit000", "unit064", "unit070", "unit098"):
         unit = Unit.load(tmp_path / "units" / name)
         record = read_record(tmp_path / "units" / name / "record.dyr", bus=unit.bus, machine_id=unit.machine_id)
         out[name] = play_back(record, [load_experiment(c) for c in unit.configs], list(unit.structures),
@@ -110,6 +111,10 @@ def test_a_wrong_record_inside_every_band_is_flagged_by_the_noise_tests(fmus, re
     assert wrong.p < 0.01 and wrong.inconsistent
     assert right.passed and right.p > 0.05 and not right.inconsistent
     assert right.false_alarm < 0.2 and right.false_alarm >= 0.01  # the noise tests' 1 % at least
+    # A right TG Type I record: its 1 ms steam chest sits on IEEEG1's T4 floor, and the data
+    # pull it below; the constrained score test leaves it out (it was named, going to -0.024 s).
+    assert draw_unit(64, 1).record_right and draw_unit(64, 1).structure == "TGTypeI"
+    assert not any("T4" in why for why in out["unit064"].inconsistent), out["unit064"].inconsistent
     marginal = out["unit070"]
     assert draw_unit(70, 1).record_right and marginal.passed
     assert marginal.tests["unit070"]["not_judged"]["time_to_peak"] > UNJUDGEABLE
@@ -239,8 +244,11 @@ def test_checking_only_identifies_nothing_and_a_short_quiet_span_is_flagged(fmus
     wrong = rows["unit005"]
     assert wrong["path"] == "record on file fails" and wrong["recommended"] is None and not wrong["files"]
     assert not (tmp_path / "results" / "fleet.dyr").exists()
-    assert any(f.startswith("under 30 s before the event (unit005: 10 s)") for f in wrong["flags"]), wrong["flags"]
+    assert any(f.startswith("under 30 s before the event (unit005: 10.0 s)") for f in wrong["flags"]), wrong["flags"]
     assert rows["no_record"]["path"] == "failed" and "no record on file" in rows["no_record"]["error"]
+    page = (tmp_path / "results" / "fleet.html").read_text()
+    assert "1 records on file pass" not in page and "0 records on file pass, 1 fail (checked only" in page
+    assert "<tr class=fails><td>unit005</td>" in page and "<tr class=failed><td>no_record</td>" in page
     ok = run_fleet(make_fleet(tmp_path / "long", [5], seed=1, fmu_dir=repo / "fmus"), results=tmp_path / "r30",
                    workers=1, progress=False, log=lambda *_: None, package=repo / "modelica" / "iGrGen",
                    fmu_dir=repo / "fmus", check_only=True)

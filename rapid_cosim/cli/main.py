@@ -493,7 +493,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("fleet", cmd_fleet, "many units, one grid event: each unit's record on file played back and judged "
                 "against the tolerance bands and the recorder's noise, the units whose record fails identified, on a dask cluster; the fleet's "
-                "page, table and records (exit status 100 + the number of units that failed, 0 if none)")
+                "page, table and records (exit status 100 + the number of units that failed with an error, 0 if none; a "
+                "record that fails is a row, not an error)")
     p.add_argument("fleet", help="the fleet file (fleet.toml), or its folder")
     p.add_argument("--results", default="results/fleet", help="results folder (default %(default)s); a rerun there "
                    "keeps every unit whose inputs have not changed")

@@ -62,7 +62,7 @@ BAND_REPLICATES = 200  # noise replicates the bands' false-alarm rate is read fr
 UNJUDGEABLE = 0.10  # a band that the noise alone fails more often than this is not judged on the recording
 NULL_REPLICATES = 400  # of the noise tests' null (beyond 20 replicates its tail is a fitted gamma's)
 # What a fleet's resume digest takes as the judging rules: a result judged by others is judged again.
-RULES = f"bands+variance+score; alpha {ALPHA}; null {NULL_REPLICATES}; bands {BAND_REPLICATES}; unjudgeable {UNJUDGEABLE}"
+RULES = f"bands+variance+score held at bounds; alpha {ALPHA}; null {NULL_REPLICATES}; bands {BAND_REPLICATES}; unjudgeable {UNJUDGEABLE}"
 
 
 @dataclass
@@ -182,8 +182,8 @@ def _held_at_bounds(x: np.ndarray, names: list[str], kept: list[int], structure:
     held = []
     for c, j in enumerate(kept):
         lo, hi = structure.estimate[names[j]]["min"], structure.estimate[names[j]]["max"]
-        tol = 1e-9 * max(1.0, abs(x[j]))
-        if (x[j] <= lo + tol and score.alone[c] < 0) or (x[j] >= hi - tol and score.alone[c] > 0):
+        tol = 1e-9 * max(1.0, abs(x[j]))  # on the bound itself: beyond it the optimum is not the record's value
+        if (abs(x[j] - lo) <= tol and score.alone[c] < 0) or (abs(x[j] - hi) <= tol and score.alone[c] > 0):
             held.append(j)
     return held
 

@@ -25,6 +25,7 @@ from .spec import FleetSpec
 from .unit_job import FAILED, FAILS, IDENTIFIED, PASSED
 
 ORDER = {FAILED: 0, FAILS: 1, IDENTIFIED: 1, PASSED: 2}
+ROW_CLASS = {FAILED: "failed", FAILS: "fails", IDENTIFIED: "identified", PASSED: "passes"}
 SORTER = """
 document.querySelectorAll('th').forEach((th, k) => th.addEventListener('click', () => {
   const body = th.closest('table').tBodies[0], rows = [...body.rows];
@@ -113,15 +114,18 @@ def _expected(rows: list[dict]) -> str:
 
 def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
     n_pass = sum(r["path"] == PASSED for r in rows)
+    n_fails = sum(r["path"] == FAILS for r in rows)
     n_ident = sum(r["path"] == IDENTIFIED for r in rows)
     body = [f"<h1>Fleet {e(spec.name)}</h1>",
-            f"<p id=overall>{len(rows)} units: {n_pass} records on file pass, {n_ident} identified, "
+            f"<p id=overall>{len(rows)} units: {n_pass} records on file pass, "
+            + (f"{n_fails} fail (checked only, not identified), " if n_fails else "") + f"{n_ident} identified, "
             f"{result.failed} failed ({result.seconds:.0f} s, {len(result.ran)} run now, {len(result.kept)} kept "
             f"from an earlier run; {result.workers} worker(s)).</p>",
             "<p class=note>Failing units first; click a column heading to sort by it. A record on file is played "
             "back on the unit's recordings and judged against the tolerance bands and against the recorder's noise "
             "(is the residual more than the noise; are the parameters where the recordings put them); a unit whose "
-            "record fails, or has none, is identified as <code>rapid-cosim identify</code> identifies it. "
+            "record fails, or has none, is identified as <code>rapid-cosim identify</code> identifies it (where the "
+            "fleet only checks, <code>--check-only</code>, nothing is identified). "
             "<em>False-alarm rate</em>: how often a correct record would fail these checks on this unit's "
             f"recordings (the bands' rate under the recorder's noise, and the noise tests' {ALPHA:.0%}); a band "
             "the noise alone fails more than one time in ten is not judged, and named; "
@@ -139,7 +143,7 @@ def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
         flags = r.get("flags", [])
         if r["path"] == FAILED:
             flags = [f"error: {r.get('error', '')}"]
-        body.append(f"<tr class={r['path'].split()[0]}><td>{e(r['unit'])}</td>"
+        body.append(f"<tr class={ROW_CLASS.get(r['path'], 'failed')}><td>{e(r['unit'])}</td>"
                     f"<td class=text data-key='{rank(r)[0]}'>{e(r['path'])}</td>"
                     f"<td class=text>{e((on or {}).get('model', 'none'))}</td>"
                     f"<td data-key='{_on_file_pass(r)}'>{mark(None if on is None else on['passed'])}</td>"
@@ -153,7 +157,7 @@ def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
     body.append("</tbody></table>")
     return ("<!DOCTYPE html>\n<html lang=en>\n<head><meta charset=utf-8>"
             f"<title>rapid-cosim fleet: {e(spec.name)}</title><style>{STYLE} th {{ cursor: pointer; }}"
-            " tr.failed td { background: #fbeaea; }</style></head>\n<body>\n" + "\n".join(body)
+            " tr.failed td { background: #fbeaea; } tr.fails td { background: #fdf3e1; }</style></head>\n<body>\n" + "\n".join(body)
             + f"\n<script>{SORTER}</script>\n</body>\n</html>\n")
 
 

@@ -163,7 +163,10 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
     from ..experiment.synthetic import NoiseModel, pmu_noise
 
     folder.mkdir(parents=True, exist_ok=True)
-    t, f = event_frequency(pre_event)
+    # Simulated and noised on the longest span, then cropped: a unit recorded from 10 s
+    # before the event carries the same noise as its 30 s recording's last 10 s of them.
+    t, f, t_event = event_frequency(max(pre_event, PRE_EVENT_S))
+    recorded = t >= t_event - pre_event - 1e-6
     structures = structure_files(plan, folder)
     p = simulate_unit(plan, structures, t, f - F_NOM, fmu_dir)
     g = np.random.default_rng([seed, 10_000 + int(plan.name[4:])])
@@ -174,7 +177,8 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
     recorded_f = f + pmu_noise(t.size, rate=30.0, sigma=1e-3, window=0.3, rng=g)
     with open(folder / "data.csv", "w") as fh:
         fh.write("time,FREQ,P\n")
-        fh.writelines(f"{a:.4f},{b:.6f},{c:.3f}\n" for a, b, c in zip(t, recorded_f, recorded_p))
+        fh.writelines(f"{a:.4f},{b:.6f},{c:.3f}\n" for a, b, c in zip(t[recorded], recorded_f[recorded],
+                                                                       recorded_p[recorded]))
     out = "pe" if plan.electrical else "pm"
     fixed = {"f_nom": F_NOM, "gov.p_ref": round(plan.p_ref, 6), **{f"gov.{k}": v for k, v in TGTYPEI_DOC.items()
                                                                    if k != "T5"}, "gov.pmax": 1.2, "gov.pmin": 0.0}
@@ -190,7 +194,7 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
               "estimate": {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"},
                            "gov.Ts": {"min": 0.1, "max": 5.0, "label": "Ts"},
                            "gov.T5": {"min": 1.0, "max": 20.0, "label": "T5"}},
-              "fitness": {"offset": True, "noise": "pre-step", "pre_step_end": round(float(t[0]) + pre_event, 4)},
+              "fitness": {"offset": True, "noise": "pre-step", "pre_step_end": t_event},
               "simulation": {"output_interval": 0.02, "timeout": 10.0}}
     (folder / "event").mkdir(exist_ok=True)
     shutil.move(str(folder / "data.csv"), folder / "event" / "data.csv")
@@ -202,7 +206,8 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
     FORMATS["dyr"].write_record(folder / "record.dyr", plan.record_model, _record_values(plan, structures),
                                 bus=100 + int(plan.name[4:]), machine_id="1")
     # How far the record on file's own response is from the plant's, noise-free, in the
-    # recorder's noise levels (RMS over the event): how wrong the record is for this event.
+    # recorder's noise levels (RMS over the longest span, whatever is recorded of it): how
+    # wrong the record is for this event.
     off = 0.0 if plan.record_right else float(np.sqrt(np.mean(
         (simulate_unit(plan, structures, t, f - F_NOM, fmu_dir, plan.record) - p) ** 2)) / noise.sigma)
     truth = {"structure": plan.structure, "plant": plan.plant, "record_right": plan.record_right, "wrong": plan.wrong,
@@ -212,17 +217,18 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
     return folder
 
 
-def event_frequency(pre_event: float = PRE_EVENT_S) -> tuple[np.ndarray, np.ndarray]:
+def event_frequency(pre_event: float = PRE_EVENT_S) -> tuple[np.ndarray, np.ndarray, float]:
     """The event's time and noise-free frequency with ``pre_event`` seconds before the
-    event: ANDES's own 10 s, lengthened by holding its initial steady state (exact: the
-    grid sits in its power flow's equilibrium until the event)."""
+    event, and the event's time: ANDES's own 10 s, lengthened by holding its initial
+    steady state (exact: the grid sits in its power flow's equilibrium until the event)."""
     clean = np.genfromtxt(EVENT / "clean.csv", delimiter=",", names=True)
     t, f = clean["time"], clean["FREQ"]
     dt = (t[-1] - t[0]) / (t.size - 1)  # the file's stamps are rounded to 0.1 ms
     extra = int(round((pre_event - ANDES_PRE_EVENT_S) / dt))
     if extra < 0:
         raise ValueError(f"pre_event {pre_event} s: at least ANDES's own {ANDES_PRE_EVENT_S} s")
-    return np.concatenate([t[0] + dt * np.arange(extra), t + dt * extra]), np.concatenate([np.full(extra, f[0]), f])
+    return (np.concatenate([t[0] + dt * np.arange(extra), t + dt * extra]), np.concatenate([np.full(extra, f[0]), f]),
+            round(float(t[0] + dt * extra + ANDES_PRE_EVENT_S), 4))
 
 
 def _record_values(plan: UnitPlan, structures: list[Path]) -> dict[str, float]:

@@ -57,7 +57,7 @@ class FleetOptions:
 class UnitResult:
     unit: str
     folder: str
-    path: str  # PASSED, IDENTIFIED or FAILED
+    path: str  # PASSED, FAILS (checking only), IDENTIFIED or FAILED
     error: str = ""
     on_file: dict | None = None  # the record on file's playback
     recommended: dict | None = None  # the identification's record: model, fit, parameters, its playback
@@ -151,7 +151,7 @@ def short_quiet(experiments: list) -> list[str]:
         if exp.inputs and exp.pre_step_end is not None:
             span = exp.pre_step_end - float(exp.windowed_data().time[0])
             if span < QUIET_ADVISED_S:
-                out.append(f"{exp.name}: {span:.0f} s")
+                out.append(f"{exp.name}: {span:.1f} s")
     return out
 
 
