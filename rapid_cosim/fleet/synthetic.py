@@ -167,6 +167,7 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
     # before the event carries the same noise as its 30 s recording's last 10 s of them.
     t, f, t_event = event_frequency(max(pre_event, PRE_EVENT_S))
     recorded = t >= t_event - pre_event - 1e-6
+    start = float(t[recorded][0])  # the recording's clock starts at 0 (the benches' simulations do)
     structures = structure_files(plan, folder)
     p = simulate_unit(plan, structures, t, f - F_NOM, fmu_dir)
     g = np.random.default_rng([seed, 10_000 + int(plan.name[4:])])
@@ -177,7 +178,7 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
     recorded_f = f + pmu_noise(t.size, rate=30.0, sigma=1e-3, window=0.3, rng=g)
     with open(folder / "data.csv", "w") as fh:
         fh.write("time,FREQ,P\n")
-        fh.writelines(f"{a:.4f},{b:.6f},{c:.3f}\n" for a, b, c in zip(t[recorded], recorded_f[recorded],
+        fh.writelines(f"{a:.4f},{b:.6f},{c:.3f}\n" for a, b, c in zip(t[recorded] - start, recorded_f[recorded],
                                                                        recorded_p[recorded]))
     out = "pe" if plan.electrical else "pm"
     fixed = {"f_nom": F_NOM, "gov.p_ref": round(plan.p_ref, 6), **{f"gov.{k}": v for k, v in TGTYPEI_DOC.items()
@@ -194,7 +195,7 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
               "estimate": {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"},
                            "gov.Ts": {"min": 0.1, "max": 5.0, "label": "Ts"},
                            "gov.T5": {"min": 1.0, "max": 20.0, "label": "T5"}},
-              "fitness": {"offset": True, "noise": "pre-step", "pre_step_end": t_event},
+              "fitness": {"offset": True, "noise": "pre-step", "pre_step_end": round(t_event - start, 4)},
               "simulation": {"output_interval": 0.02, "timeout": 10.0}}
     (folder / "event").mkdir(exist_ok=True)
     shutil.move(str(folder / "data.csv"), folder / "event" / "data.csv")
