@@ -2,8 +2,9 @@
 (:mod:`rapid_cosim.fleet.synthetic`: the four standard structures and TG Type I on one
 ANDES event's frequency, a quarter with a binding valve rate, half of the records on file
 wrong), run with 1 and with 2 workers on a subset to measure the scaling, and all of them
-with 2 workers; then the same units recorded with 10 s before the event instead of 30,
-their records on file checked only (before and after the longer quiet span).
+with 2 workers; then the same recordings cut to their last 10 s before the event (the
+same noise on what both hold), their records on file checked only (before and after the
+longer quiet span).
 
     python benchmarks/fleet_study.py --units 100 --scaling 10 --work results/bench-fleet
 
@@ -169,7 +170,7 @@ def main(argv=None) -> int:
     for line in j["new_records_failing"]:
         print(f"  fails a check: {line}")
     print(f"failed units: {len(j['failed'])}" + "".join(f"\n  {f}" for f in j["failed"]))
-    # Before and after: the same units recorded with ANDES's own 10 s before the event, their
+    # Before and after: the same recordings cut to ANDES's own 10 s before the event, their
     # records on file checked only (nothing identified).
     short, short_s, _ = run(work / "short", args.units, 2, work / "short" / "results", pre_event=10.0, check_only=True)
     k = judge(work / "short", short)

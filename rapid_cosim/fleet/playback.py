@@ -20,8 +20,8 @@ recorded frequency, its meter offset profiled as in the fitness, and judged twic
   recorder could hide: on the benchmark's fleet, seven records with a lag twice the
   plant's (HYGOV's TW, GGOV1's Tb) passed every band with an RMSE of 1.4 to 3 noise
   levels (the right records leave 1.1 to 2 on P_e). The noise tests flagged all seven
-  on recordings that start 30 s before the event; with 10 s (all the noise model had to
-  go on) they missed one, 1.4 noise levels RMS from the plant's. A parameter that the
+  on recordings that start 30 s before the event (with 10 s, all the noise model has to
+  go on, their p cannot be trusted: see :mod:`.unit_job`). A parameter that the
   record puts on its range's bound, and that the data pull further out, leaves the
   score test (:func:`_held_at_bounds`).
 

@@ -11,10 +11,10 @@ What is invented here, and how:
   through its own PMU's noise (1 mHz, correlated over 0.3 s,
   :func:`rapid_cosim.experiment.synthetic.pmu_noise`). Why 30 s before the event: on an
   event that is the only quiet data the recorder's noise is estimated from, and PMU
-  archives are continuous, so an operator can take it. With ANDES's 10 s the noise tests
-  missed a wrong record whose response is 1.4 noise levels RMS from the plant's, and the
-  right records' p-values were lopsided (none under 0.05 of 50); ``make bench-fleet``
-  plays the records back on both.
+  archives are continuous, so an operator can take it. With 10 s the noise tests' p
+  cannot be trusted either way: on the 30 s recordings' last 10 s, two right records of
+  50 were rejected at p 7e-11 and 4e-8 (on another noise draw, a wrong record 1.4 noise
+  levels off passed at p 0.13); ``make bench-fleet`` plays the records back on both.
 - **The plants** (structure ``k % 5``): parameters drawn across the structure files'
   ranges where real units sit (droop 4-7 %, lags and water columns in their usual
   spans), the documented constants the unit's structure file gives. A TG Type I plant is

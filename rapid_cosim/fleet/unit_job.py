@@ -9,9 +9,10 @@ archives are never resumed by another), the identification runs in one process
 A unit that fails gets a result with its error in its own words; nothing is raised.
 
 A recorded event with less than :data:`QUIET_ADVISED_S` before it is flagged: that span
-is all the recorder's noise is estimated from, and on ``make bench-fleet``'s records
-played back with ANDES's 10 s the noise tests missed a wrong record 1.4 noise levels RMS
-off (with 30 s, none of 150 wrong records in three fleets was missed).
+is all the recorder's noise is estimated from. On ``make bench-fleet``'s units recorded
+from 10 s before the event, the noise tests rejected two right records of 50 at p 7e-11
+and 4e-8 (with 30 s, 4 of 150 right records in three fleets, where their rates predict
+3.4, and none of 150 wrong ones passed).
 """
 
 from __future__ import annotations
