@@ -273,12 +273,7 @@ def cmd_fleet(args) -> int:
     result = run_fleet(args.fleet, results=args.results, workers=args.workers, scheduler=args.scheduler,
                        seed=args.seed, package=args.package, fmu_dir=args.fmus, pdf=args.pdf,
                        check_only=args.check_only, progress=not args.quiet)
-    passed = sum(u["path"] == "record on file passes" for u in result.units)
-    fails = sum(u["path"] == "record on file fails" for u in result.units)
-    identified = sum(u["path"] == "identified" for u in result.units)
-    print(f"\n{len(result.units)} units in {result.seconds:.0f} s: {passed} records on file pass, "
-          + (f"{fails} fail, " if args.check_only else "") + f"{identified} "
-          f"identified, {result.failed} failed ({len(result.kept)} kept from an earlier run)")
+    print(f"\n{result.summary()} ({result.seconds:.0f} s, {len(result.kept)} kept from an earlier run)")
     for u in result.units:
         if u["path"] == "failed":
             print(f"  {u['unit']}: failed: {u['error']}")

@@ -4,13 +4,12 @@ one ``fleet.dyr`` (and ``fleet.dyd`` where every new record's unit states its MV
 ready for the operator's case.
 
 A row says which path the unit took (its record on file passes; it fails, where the
-fleet only checks; identified; failed),
-why the record on file fails (band metrics per recording, the noise tests' reason), its
-stated false-alarm rate and the bands too noisy to judge on its recordings
-(:mod:`.playback`), its RMSE over the noise, the recommended record with its key
-parameters and what changed from the one on file, the flags (unexplained, a tie,
-estimates on a bound, a new record that fails its bands or the noise tests), and a link
-to the unit's validation report.
+fleet only checks; identified; failed), why the record on file fails (band metrics per
+recording, the noise tests' reason), its stated false-alarm rate and the bands too noisy
+to judge on its recordings (:mod:`.playback`), its RMSE over the noise, the recommended
+record with its key parameters and what changed from the one on file, the flags
+(unexplained, a tie, estimates on a bound, a new record that fails its bands or the
+noise tests), and a link to the unit's validation report.
 """
 
 from __future__ import annotations
@@ -41,7 +40,7 @@ document.querySelectorAll('th').forEach((th, k) => th.addEventListener('click', 
 
 def rank(row: dict) -> tuple:
     """Failing units first: failed, then failing records and identified units (flagged
-first), then passing."""
+    first), then passing."""
     return ORDER.get(row["path"], 0), 0 if row.get("flags") else 1, row["unit"]
 
 
@@ -113,13 +112,8 @@ def _expected(rows: list[dict]) -> str:
 
 
 def _page(spec: FleetSpec, result, rows: list[dict], folder: Path) -> str:
-    n_pass = sum(r["path"] == PASSED for r in rows)
-    n_fails = sum(r["path"] == FAILS for r in rows)
-    n_ident = sum(r["path"] == IDENTIFIED for r in rows)
     body = [f"<h1>Fleet {e(spec.name)}</h1>",
-            f"<p id=overall>{len(rows)} units: {n_pass} records on file pass, "
-            + (f"{n_fails} fail (checked only, not identified), " if n_fails else "") + f"{n_ident} identified, "
-            f"{result.failed} failed ({result.seconds:.0f} s, {len(result.ran)} run now, {len(result.kept)} kept "
+            f"<p id=overall>{e(result.summary())} ({result.seconds:.0f} s, {len(result.ran)} run now, {len(result.kept)} kept "
             f"from an earlier run; {result.workers} worker(s)).</p>",
             "<p class=note>Failing units first; click a column heading to sort by it. A record on file is played "
             "back on the unit's recordings and judged against the tolerance bands and against the recorder's noise "

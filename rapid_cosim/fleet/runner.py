@@ -28,7 +28,7 @@ from ..errors import ConfigError
 from ..version import __version__
 from .playback import RULES
 from .spec import FleetSpec, UnitEntry, load_fleet
-from .unit_job import FAILED, FleetOptions, run_unit
+from .unit_job import FAILED, FAILS, IDENTIFIED, PASSED, FleetOptions, run_unit
 
 
 @dataclass
@@ -46,7 +46,17 @@ class FleetResult:
 
     @property
     def failed(self) -> int:
-        return sum(u["path"] == FAILED for u in self.units)
+        return self.count(FAILED)
+
+    def count(self, path: str) -> int:
+        return sum(u["path"] == path for u in self.units)
+
+    def summary(self) -> str:
+        """The units by path, as the CLI and the page say it."""
+        fails = self.count(FAILS)
+        return (f"{len(self.units)} units: {self.count(PASSED)} records on file pass, "
+                + (f"{fails} fail (checked only, not identified), " if fails else "")
+                + f"{self.count(IDENTIFIED)} identified, {self.failed} failed")
 
     def to_json(self) -> dict:
         return asdict(self)

@@ -27,7 +27,7 @@ from ..errors import RapidCosimError
 from ..exchange import read_record
 from ..experiment import load_experiment
 from ..identify import Unit
-from ..noise import campaign_noise
+from ..noise import campaign_noise, quiet_windows
 from ..report.tolerances import Tolerances
 from .playback import play_back
 from .spec import UnitEntry
@@ -149,10 +149,9 @@ def short_quiet(experiments: list) -> list[str]:
     before the event, each with its span."""
     out = []
     for exp in experiments:
-        if exp.inputs and exp.pre_step_end is not None:
-            span = exp.pre_step_end - float(exp.windowed_data().time[0])
-            if span < QUIET_ADVISED_S:
-                out.append(f"{exp.name}: {span:.1f} s")
+        spans = [end - start for kind, start, end, _ in quiet_windows(exp) if kind == "pre-event"]
+        if spans and sum(spans) < QUIET_ADVISED_S:
+            out.append(f"{exp.name}: {sum(spans):.1f} s")
     return out
 
 
