@@ -262,8 +262,9 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
     record = result.record(result.recommended)
     for kind in ("dyr", "dyd") if spec.mva is not None else ("dyr",):  # a .dyd states the MVA base
         written = export(record.archive, folder / f"unit.{kind}", bus=spec.bus, machine_id=spec.machine_id,
-                         mva=spec.mva)
+                         mva=spec.mva)  # refused unless it reproduces its fit (calibration.delivery)
         result.files[kind] = str(written.path)
+        result.reproduced[kind] = written.reproduction.worst
     if spec.mva is None:
         result.notes["dyd"] = NO_DYD
     if not report:
@@ -349,20 +350,27 @@ def export(archive: str | Path, out: str | Path, *, format: str | None = None, b
     machine ``machine_id`` at ``bus``. The values are the archive's best estimates over
     its fixed values over the bench's defaults; ``mva``, the machine's MVA base, is
     written in a ``.dyd`` record (required there; a ``.dyr`` record has none: PSS/E takes
-    MBASE from the ``.raw``). Returns the :class:`~rapid_cosim.exchange.Written` record;
-    conversions are those of :mod:`rapid_cosim.exchange.tables`."""
-    from .calibration.record import standard_record
+    MBASE from the ``.raw``). The file is read back and simulated on every test of the
+    run first, and written only if it reproduces the fit
+    (:mod:`rapid_cosim.calibration.delivery`; else :class:`~rapid_cosim.errors.DeliveryError`).
+    Returns the :class:`~rapid_cosim.calibration.delivery.Delivered` record (``model``,
+    ``text``, ``path``, ``dropped``, ``reproduction``); conversions are those of
+    :mod:`rapid_cosim.exchange.tables`."""
+    from .calibration.delivery import deliver_record
+    from .calibration.record import finished_run
     from .exchange import FORMATS, ExchangeWarning, format_of, machine_note
 
     kind = format or format_of(out)
     if kind not in FORMATS:
         raise ParameterError(f"format {kind!r}: use dyr (PSS/E) or dyd (PSLF)")
-    calib = load(archive)
-    record = standard_record(calib.inputs, calib.parameters, calib.x, source=str(archive))
-    model, values = record.model, record.values
-    options = {"mva": mva, "bus_name": bus_name, "kv": kv} if kind == "dyd" else {}
-    written = FORMATS[kind].write_record(out, model.name, values, bus=bus, machine_id=machine_id, **options)
-    note = machine_note({n: v for n, v in calib.parameters.items() if n.startswith("mach.")}, kind)
+    if kind == "dyd" and (mva is None or not mva > 0):
+        raise ParameterError(f"a .dyd record needs the machine's MVA base (mva > 0), got {mva!r}")
+    if not Path(archive).exists():
+        raise ArchiveError(f"{archive}: no such archive")
+    inputs, parameters, x = finished_run(archive)
+    delivered = deliver_record(inputs, parameters, x, out, kind=kind, bus=bus, machine_id=machine_id, mva=mva,
+                               bus_name=bus_name, kv=kv, source=str(archive))
+    note = machine_note({n: v for n, v in parameters.items() if n.startswith("mach.")}, kind)
     if note:  # an electrical-power event's H (and D): the generator's record, not the governor's
         warnings.warn(note, ExchangeWarning, stacklevel=2)
-    return written
+    return delivered

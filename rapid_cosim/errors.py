@@ -114,3 +114,8 @@ class RecordError(RapidCosimError):
         what = f"field {field} = {value!r}: " if field is not None else ""
         tail = f" (allowed: {allowed})" if allowed else ""
         super().__init__(f"{where}: {what}{message}{tail}" if where else f"{what}{message}{tail}")
+
+
+class DeliveryError(RapidCosimError):
+    """A record that, read back as a grid simulator reads it, does not simulate what the
+    fit it was written from simulates: it is not handed over."""

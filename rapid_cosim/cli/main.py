@@ -290,6 +290,8 @@ def cmd_export(args) -> int:
     print(written.text, end="")
     if written.dropped:
         print("not in the record (no field): " + ", ".join(f"{k} = {v:g}" for k, v in written.dropped.items()))
+    check = written.reproduction
+    print(f"read back and simulated on {', '.join(check.errors)}: reproduces the fit to {check.worst:.1g} pu")
     if (args.format or Path(args.out).suffix.lstrip(".")) == "dyr" and args.mva is not None:
         print("note: a .dyr record carries no base; PSS/E takes the machine's MBASE from the .raw")
     return 0

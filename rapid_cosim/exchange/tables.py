@@ -28,8 +28,9 @@ Conversions (the same for both formats)
   ``K2``, ``K4``, ``K6``, ``K8`` as 0, for a single shaft; GGOV1's ``Teng`` 0, ``Trate`` 0, ``Rup``
   99 and ``Rdown`` -99, PSS/E's "no ramp limit" of a load reference a test holds constant).
   PSLF's ggov1 also has ``pmwset``, the power controller's set-point in MW (PSS/E computes
-  it from the initial power; iGrGen's ``Pmwset`` is the dispatch in pu): written 0, it acts
-  only with ``kimw`` > 0, which the standard structures hold at 0.
+  it from the initial power; iGrGen's ``Pmwset`` follows the dispatch, in pu): written 0,
+  and a ggov1 record with ``kimw`` > 0 is neither written nor read (:mod:`.pslf_dyd`);
+  the standard structures hold ``Kimw`` at 0.
   On reading, a value the iGrGen model cannot represent is an error naming the allowed
   value; ``Rup``/``Rdown`` (no effect while the load limit reference is constant),
   ``Trate`` and ``pmwset`` are kept in :attr:`Record.extra`, so a record read and written
@@ -41,6 +42,15 @@ Conversions (the same for both formats)
   Writing one of the sharpness or ``DELT`` parameters away from its default warns
   (:class:`ExchangeWarning`): the record then means a slightly different model than the
   one calibrated. Reading a record gives them no value (the iGrGen defaults apply).
+* **IEEEG1's stages.** ``K3_rest`` is how a structure *estimates* the stages (K3 the rest
+  of the shaft, 1 - K1 - K5 - K7, so that they sum to one), not a field: the record
+  carries the K3 in use, computed from the fitted K1, K5, K7 (``Model.resolve``). A record
+  read back states its K3, so it reads with ``K3_rest = 0`` (``Dropped.read_as``), and a
+  record is played with its own fields over any structure's values (``Model.played``):
+  a record on file whose stages do not sum to one is played as it is written.
+* **Ranges on writing.** A value the reader would refuse (outside the field's range, a
+  resolved K3 below 0) is refused on writing too, so no file is written that its own
+  reader cannot read.
 * **Flags.** GGOV1's ``Rselect`` and ``Flag`` (PSS/E ICONs) are Integer parameters in
   iGrGen; they are written as integers. ``Rselect = -2`` has no iGrGen counterpart.
 """
@@ -92,11 +102,18 @@ class Field:
 
 @dataclass(frozen=True)
 class Dropped:
-    """An iGrGen parameter no record field carries, and why."""
+    """An iGrGen parameter no record field carries, and why.
+
+    ``operating``: an operating point, which the grid simulator sets from its power flow
+    for each event; it is no part of a record, so a fit may hold it at another value per
+    test. ``read_as``: the value a record read back means, where the parameter chooses
+    how other fields are used (IEEEG1's ``K3_rest`` 0: K3 as the record states it)."""
 
     param: str
-    default: float | None  # None: an operating point, never warned about
+    default: float | None  # None: nothing to warn against when it is not written
     why: str
+    operating: bool = False
+    read_as: float | None = None
 
 
 @dataclass(frozen=True)
@@ -110,6 +127,7 @@ class Model:
     pslf_order: tuple[str, ...]
     dropped: tuple[Dropped, ...]
     resolve: Callable[[dict], dict] | None = None  # iGrGen values -> those the fields carry (K3 in use)
+    derived: str = ""  # what resolve derives, in words
 
     @property
     def pslf_name(self) -> str:
@@ -119,6 +137,30 @@ class Model:
     def params(self) -> tuple[str, ...]:
         """Every iGrGen parameter of the block (carried or dropped)."""
         return tuple(f.param for f in self.fields if f.param) + tuple(d.param for d in self.dropped)
+
+    @property
+    def record_params(self) -> tuple[str, ...]:
+        """The parameters that make the record's model: all but the operating points. An
+        export must know each one's value in the fit (a dropped one's decides what the
+        fields say: IEEEG1's ``K3_rest``)."""
+        operating = {d.param for d in self.dropped if d.operating}
+        return tuple(p for p in self.params if p not in operating)
+
+    def read_values(self, values: Mapping[str, float]) -> dict[str, float]:
+        """``values`` as a record states them: with the values its reading implies
+        (:attr:`Dropped.read_as`)."""
+        return {**values, **{d.param: d.read_as for d in self.dropped if d.read_as is not None}}
+
+    def played(self, values: Mapping[str, float], context: Mapping[str, float], prefix: str = "gov.") -> dict[str, float]:
+        """A record's ``values`` (iGrGen names) as a grid simulator plays them, in a bench's
+        names (``prefix``): the record's fields win; ``context`` (a structure's or a test's
+        values, bench names) fills only what the record has no field for (the operating
+        point, the smooth limits' sharpness, the bench's other blocks). A structure's
+        ``K3_rest = 1`` is a way to estimate, never a reason to ignore the K3 a file
+        states."""
+        stated = {prefix + k: float(v) for k, v in self.read_values(values).items()}
+        covered = {prefix + f.param for f in self.fields if f.param} | set(stated)
+        return {**{k: v for k, v in context.items() if k not in covered}, **stated}
 
     @property
     def psse_fields(self) -> tuple[Field, ...]:
@@ -133,7 +175,7 @@ _SHARP = "sharpness of iGrGen's smooth limits: the grid simulators' limits are e
 
 
 def _common(*extra: Dropped) -> tuple[Dropped, ...]:
-    return (Dropped("p_ref", None, _OPERATING), Dropped("eps_v", 1e-4, _SHARP), Dropped("K_lim", 100.0, _SHARP),
+    return (Dropped("p_ref", None, _OPERATING, operating=True), Dropped("eps_v", 1e-4, _SHARP), Dropped("K_lim", 100.0, _SHARP),
             *extra)
 
 
@@ -153,11 +195,12 @@ TGOV1 = Model("TGOV1", (
 ), ("r", "t1", "vmax", "vmin", "t2", "t3", "dt"), _common())
 
 def _ieeeg1_stages(values: dict) -> dict:
-    """With K3_rest = 1 the record carries the K3 in use, 1 - K1 - K5 - K7: the stages sum
-    to one in the .dyr as in the model."""
+    """With K3_rest = 1 the record carries the K3 in use, 1 - K1 - K5 - K7 (as the model's
+    ``K3s``): the stages sum to one in the .dyr as in the model. A missing K1, K5 or K7 is
+    the model's default, as in the model."""
     if values.get("K3_rest", 0.0) <= 0.5:
         return values
-    rest = 1.0 - sum(values.get(k, default) for k, default in (("K1", 0.2), ("K5", 0.5), ("K7", 0.0)))
+    rest = 1.0 - values.get("K1", 0.2) - values.get("K5", 0.5) - values.get("K7", 0.0)
     return {**values, "K3": rest}
 
 
@@ -170,7 +213,9 @@ IEEEG1 = Model("IEEEG1", (
     _none("K4", 0.0, "k4"), _f("T6", "T6", 0.6, 0.001, 100), _f("K5", "K5", 0.5, 0, 1), _none("K6", 0.0, "k6"),
     _f("T7", "T7", 0.05, 0.001, 100), _f("K7", "K7", 0.0, 0, 1), _none("K8", 0.0, "k8"),
 ), ("k", "t1", "t2", "t3", "uo", "uc", "pmax", "pmin", "t4", "k1", "k2", "t5", "k3", "k4", "t6", "k5", "k6", "t7",
-    "k7", "k8"), _common(Dropped("K3_rest", None, "written into K3 as 1 - K1 - K5 - K7")), _ieeeg1_stages)
+    "k7", "k8"), _common(Dropped("K3_rest", None, "with 1, written into K3 as 1 - K1 - K5 - K7; a record read states "
+                                 "its K3 (0)", read_as=0.0)), _ieeeg1_stages,
+    "K3 = 1 - K1 - K5 - K7, the rest of the shaft (K3_rest = 1)")
 
 GGOV1 = Model("GGOV1", (
     _f("Rselect", "Rselect", 1.0, -1, 1, integer=True, choices=(-1.0, 0.0, 1.0)),
@@ -181,7 +226,7 @@ GGOV1 = Model("GGOV1", (
     _f("Vmin", "Vmin", 0.15, 0, 1), _f("Tact", "Tact", 0.5, 0.001, 10), _f("Kturb", "Kturb", 1.5, 0.1, 5),
     _f("Wfnl", "Wfnl", 0.2, 0, 1), _f("Tb", "Tb", 0.5, 0.001, 100), _f("Tc", "Tc", 0.0, 0, 100),
     _none("Teng", 0.0, "teng"), _f("Tfload", "Tfload", 3.0, 0.001, 100), _f("Kpload", "Kpload", 2.0, 0, 100),
-    _f("Kiload", "Kiload", 0.67, 0, 100), _f("Ldref", "Ldref", 1.0, 0, 2), _f("Dm", "Dm", 0.0, -1, 1),
+    _f("Kiload", "Kiload", 0.67, 0, 100), _f("Ldref", "Ldref", 1.0, 0, 2), _f("Dm", "Dm", 0.0, 0, 1),
     _f("Ropen", "Ropen", 0.1, 1e-4, 100), _f("Rclose", "Rclose", -0.1, -100, -1e-4), _f("Kimw", "Kimw", 0.0, 0, 1),
     _f("Aset", "aset", 0.1, -1, 10), _f("Ka", "Ka", 10.0, 0, 100), _f("Ta", "Ta", 0.1, 0.001, 10),
     Field("Trate", None, None, 0.0, 0.0, math.inf, keep=True), _f("db", "db", 0.0, 0, 0.1),
@@ -191,7 +236,7 @@ GGOV1 = Model("GGOV1", (
 ), ("r", "rselect", "tpelec", "maxerr", "minerr", "kpgov", "kigov", "kdgov", "tdgov", "vmax", "vmin", "tact",
     "kturb", "wfnl", "tb", "tc", "flag", "teng", "tfload", "kpload", "kiload", "ldref", "dm", "ropen", "rclose",
     "kimw", "pmwset", "aset", "ka", "ta", "db", "tsa", "tsb", "rup", "rdown"),
-    _common(Dropped("Pmwset", None, _OPERATING + " (PSS/E sets it to the initial power)"),
+    _common(Dropped("Pmwset", None, _OPERATING + " (PSS/E sets it to the initial power)", operating=True),
             Dropped("K_track", 10.0, "tracking gain of iGrGen's smooth anti-windup; PSS/E's gate is exact"),
             Dropped("DELT", 0.005, "PSS/E's own time step, which iGrGen's acceleration limiter stands in for")))
 
@@ -257,6 +302,10 @@ def record_numbers(model: Model, values: Mapping[str, float],
     for f in model.fields:
         if f.param is not None:
             v = float(values.get(f.param, f.default))
+            if not f.lo <= v <= f.hi:  # a file its own reader would refuse is never written
+                raise ParameterError(f"{model.name}.{f.param} = {v!r} is outside the range a record can state "
+                                     f"({f.allowed()})" + (" (1 - K1 - K5 - K7 with K3_rest = 1)"
+                                                           if f.param == "K3" and model.resolve else ""))
             if f.zero_as is not None and math.isclose(v, f.zero_as, rel_tol=1e-12):
                 v = 0.0
         else:
@@ -278,7 +327,8 @@ def record_numbers(model: Model, values: Mapping[str, float],
 def values_from_numbers(model: Model, numbers: Mapping[str, tuple[str, str]], file: str, line: int,
                         mva: float | None) -> tuple[dict[str, float], dict[str, float]]:
     """iGrGen values and kept extras from a record's fields (PSS/E name -> (name as
-    written, text)), each checked against what the iGrGen model can represent."""
+    written, text)), each checked against what the iGrGen model can represent, with what
+    reading them implies (:meth:`Model.read_values`: IEEEG1's K3 as stated)."""
     values, extra = {}, {}
     for f in model.fields:
         shown, text = numbers[f.key]
@@ -305,7 +355,7 @@ def values_from_numbers(model: Model, numbers: Mapping[str, tuple[str, str]], fi
         if not f.lo <= v <= f.hi:
             raise RecordError(f"outside the iGrGen {model.name}'s range", file, line, shown, text, f.allowed())
         values[f.param] = v
-    return values, extra
+    return model.read_values(values), extra
 
 
 def number_text(value: float, integer: bool = False) -> str:

@@ -2,9 +2,11 @@
 on file gets before anything is fitted (NERC MOD-033's comparison of the system model
 with an actual event, one unit at a time).
 
-The record's model is the unit's structure of that name, with every value the record
-carries in place of the structure's (the operating point and the smooth limits'
-sharpness stay the test's and the bench's, as in a grid simulator). Each of the unit's
+The record's model is the unit's structure of that name, played as a grid simulator
+plays the record (:meth:`~rapid_cosim.structures.select.Structure.playing`): every value
+the record carries in place of the structure's, IEEEG1's K3 as the file states it
+whatever the structure's ``K3_rest``; the operating point and the smooth limits'
+sharpness stay the test's and the bench's. Each of the unit's
 recordings (training and held-out alike: nothing is fitted here) is simulated on the
 recorded frequency, its meter offset profiled as in the fitness, and judged twice:
 
@@ -39,7 +41,7 @@ band two noise levels wide: 32 % and 37 % on two right records, both of which fa
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -105,18 +107,14 @@ def play_back(record: Record, experiments: list, structures: list[Path], toleran
               package, fmu_dir, noise_fits: dict | None = None, seed: int = 0) -> Playback:
     """``record`` (iGrGen values of its model) on ``experiments`` (module docstring)."""
     structure = structure_for(record.model, structures)
-    values = {f"gov.{k}": v for k, v in record.values.items()}
-    kept = {k: v for k, v in values.items() if k not in structure.estimate}
-    as_read = replace(structure, fixed={**structure.fixed, **kept}, optional={})
+    as_read, values = structure.playing(record.values)
     noise_fits = noise_fits or campaign_noise(experiments)
     inputs = inputs_from_experiments(on_structure(as_read, experiments, noise_fits), package=package,
                                      fmu_dir=fmu_dir)
     scored = inputs.problem.experiments
     floors = noise_floors(scored, noise_fits)
     names = inputs.problem.names
-    x = np.array([values.get(n, structure.estimate[n].get("start", 0.5 * (structure.estimate[n]["min"]
-                                                                         + structure.estimate[n]["max"])))
-                  for n in names])
+    x = np.array([values[n] for n in names])
     null = replicates_for(scored, noise_fits, NULL_REPLICATES, seed=seed)
     at_x = residuals_at(inputs, x)
     variance = adequacy(at_x, floors, null, None, [])

@@ -1,6 +1,8 @@
 """One unit's work in a fleet, whole on one worker: its record on file played back and
 judged, and, where it fails or there is none (unless the fleet only checks), the unit identified as ``rapid-cosim
-identify`` identifies it (the same function), its recommended record played back too.
+identify`` identifies it (the same function), its recommended record read back from the
+file written, checked to be the model fitted (a unit whose file is not fails, its record
+left out of ``fleet.dyr``) and played back too.
 
 Why one worker, from scratch: a unit's result must not depend on where it ran or on a
 worker lost half-way. The work folder is cleared first (a killed run's half-written
@@ -23,7 +25,8 @@ import traceback
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from ..errors import RapidCosimError
+from ..calibration.delivery import archived_reproduction
+from ..errors import DeliveryError, RapidCosimError
 from ..exchange import read_record
 from ..experiment import load_experiment
 from ..identify import Unit
@@ -132,6 +135,11 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
     if not rec.adequate:
         result.flags.append("not within the noise")
     written = read_record(ident.files["dyr"], bus=unit.bus, machine_id=unit.machine_id)
+    same = archived_reproduction(rec.archive, written)  # the file on disk is the model identify fitted
+    if not same.reproduces:
+        raise DeliveryError(f"{result.files['dyr']}: the record written does not reproduce the fit it was written "
+                            f"from ({same.worst:.3g} pu off on {max(same.errors, key=same.errors.get)}): not "
+                            "delivered")
     check = play_back(written, experiments, list(unit.structures), tolerances, **common)
     check.source = result.files["dyr"]  # relative to the results: the same wherever the fleet ran
     result.recommended = {"model": rec.model, "fit": rec.fit, "parameters": written.values,

@@ -95,6 +95,7 @@ class Identification:
     seconds: float
     files: dict[str, str] = field(default_factory=dict)  # what was delivered: dyr, dyd, report, pdf
     notes: dict[str, str] = field(default_factory=dict)  # why one of those was not written
+    reproduced: dict[str, float] = field(default_factory=dict)  # dyr, dyd: read back, largest miss of the fit (pu)
     diagnosis: str = ""  # the explanation as diagnosis.json, for the report
     heldout_configs: list[str] = field(default_factory=list)  # the held-out tests on the recommended record's bench
     recordings: dict[str, dict] = field(default_factory=dict)  # per test: its stamps, masks, bridges (Recording)
@@ -169,7 +170,10 @@ class Identification:
         lines.append("written:")
         for kind, label in DELIVERED.items():
             if kind in self.files:
-                lines.append(f"  {label + ':':<26} {self.files[kind]}")
+                miss = self.reproduced.get(kind)
+                check = ("" if miss is None else " (read back, it simulates its fit "
+                         + (f"to {miss:.0e} pu" if miss > 0 else "exactly") + " on every test)")
+                lines.append(f"  {label + ':':<26} {self.files[kind]}{check}")
             elif kind in self.notes:
                 lines.append(f"  {label + ':':<26} none: {self.notes[kind]}")
         lines += [f"  {'identification:':<26} {path}" for path in also]

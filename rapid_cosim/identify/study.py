@@ -42,7 +42,7 @@ recorder's fitted noise level per test, offset profiled as in the fitness.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -193,26 +193,22 @@ def write_campaign(structure: Structure, plant: dict[str, float], steps, folder:
 
 def exported_fidelity(structure: Structure, archive: str, out: Path, tests: list[Experiment], fitted_noise: dict,
                       *, package, fmu_dir) -> dict[str, float]:
-    """Per test, RMSE over the recorder's noise level of the ``.dyr`` record ``rc.export`` writes (the same function)
-    from ``archive``, read back by the project's reader: every governor value the record
-    carries replaces the structure's (the operating point and the smooth limits'
-    sharpness stay the test's and the bench's, as in a grid simulator)."""
-    from ..calibration.record import archived_record
-    from ..exchange import FORMATS, read_record
+    """Per test, RMSE over the recorder's noise level of the ``.dyr`` record ``rc.export`` writes (the same function,
+    its check against the fit included) from ``archive``, read back by the project's reader and played as a grid
+    simulator plays it (:func:`record_fidelity`)."""
+    from ..calibration.delivery import deliver_archived
+    from ..exchange import read_record
 
-    record = archived_record(archive)
-    FORMATS["dyr"].write_record(out, record.model.name, record.values, bus=1, machine_id="1")
+    deliver_archived(archive, out, kind="dyr", bus=1, machine_id="1")
     return record_fidelity(structure, read_record(out).values, tests, fitted_noise, package=package, fmu_dir=fmu_dir)
 
 
 def record_fidelity(structure: Structure, record: dict[str, float], tests: list[Experiment], fitted_noise: dict,
                     *, package, fmu_dir) -> dict[str, float]:
-    """Per test, RMSE over the recorder's noise level of ``structure`` with a record's
-    values (iGrGen names without ``gov.``), offset profiled as in the fitness;
+    """Per test, RMSE over the recorder's noise level of ``structure`` playing a record's
+    values (iGrGen names without ``gov.``; :meth:`Structure.playing`), offset profiled as in the fitness;
     ``fitted_noise``: the selection's noise fits of these tests."""
-    values = {f"gov.{k}": v for k, v in record.items()}
-    fixed = {k: v for k, v in values.items() if k not in structure.estimate}
-    as_read = replace(structure, fixed={**structure.fixed, **fixed}, optional={})
+    as_read, values = structure.playing(record)
     floors = noise_floors(tests, fitted_noise)
     inputs = inputs_from_experiments(on_structure(as_read, tests, fitted_noise), package=package, fmu_dir=fmu_dir)
     residuals = residuals_at(inputs, np.array([values[n] for n in inputs.problem.names]))

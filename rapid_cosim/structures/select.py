@@ -51,6 +51,7 @@ import numpy as np
 
 from ..calibration import RunOptions, best_run, inputs_from_experiments
 from ..errors import ConfigError
+from ..exchange import model_named
 from ..experiment import Experiment, documented, parse_experiment, render_config
 from ..simulator import get_simulator
 from ..noise import campaign_noise
@@ -79,6 +80,19 @@ class Structure:
         """This structure with its optional parts estimated too (IEEEG1's valve rates)."""
         return replace(self, name=f"{self.name}+{self.carries or 'optional'}",
                        estimate={**self.estimate, **self.optional}, optional={})
+
+    def playing(self, record: dict[str, float]) -> tuple["Structure", dict[str, float]]:
+        """This structure holding a record's values (iGrGen names) as a grid simulator plays
+        them (:meth:`~rapid_cosim.exchange.tables.Model.played`: the record's fields win;
+        this structure's constants fill only what the record has no field for), nothing
+        optional, and the record's values of the parameters it estimates (bench names)."""
+        values = model_named(self.name).played(record, self.fixed)
+        missing = [n for n in self.estimate if n not in values]
+        if missing:
+            raise ConfigError(f"the record gives no value for {', '.join(missing)}, which {self.name} estimates",
+                              self.path, "estimate")
+        return (replace(self, fixed={k: v for k, v in values.items() if k not in self.estimate}, optional={}),
+                {n: values[n] for n in self.estimate})
 
     @classmethod
     def load(cls, path: str | Path) -> "Structure":
