@@ -48,6 +48,7 @@ def format_record(model: str, values: Mapping[str, float], *, bus: int, machine_
     table = model_named(model)
     if mva is None or not mva > 0:
         raise ParameterError(f"a .dyd record needs the machine's MVA base (mva > 0), got {mva!r}")
+    _power_controller(table, values.get("Kimw", 0.0), None, 0)
     numbers, dropped = record_numbers(table, values, extra)
     by_field = {f.pslf: number_text(v, f.integer) for f, v in numbers if f.pslf is not None}
     pairs = [f'"{name}" {by_field[name]}' for name in table.pslf_order]
@@ -89,6 +90,7 @@ def parse_records(text: str, file: str = "<text>") -> tuple[list[Record], list[s
         kv = _number(tokens[3], "kv", file, line, float)
         mva, fields = _fields(table, _TOKEN.findall(data), file, line)
         values, extra = values_from_numbers(table, fields, file, line, mva)
+        _power_controller(table, values.get("Kimw", 0.0), file, line)
         records.append(Record(table.name, values, bus, tokens[4].strip("\"'").strip(), mva, extra, file, line,
                               tokens[2].strip("\"'").strip(), kv))
     return records, others
@@ -180,3 +182,19 @@ def _number(text: str, name: str, file: str, line: int, kind):
         return kind(text)
     except ValueError:
         raise RecordError(f"not {'an integer' if kind is int else 'a number'}", file, line, name, text) from None
+
+
+def _power_controller(table: Model, kimw: float, file: str | None, line: int) -> None:
+    """ggov1's power controller (kimw > 0) drives the power to ``pmwset``, a set-point in
+    MW that PSLF takes from the record; iGrGen's follows each event's dispatch, as PSS/E's
+    does (it takes the set-point from the initial power). Where the controller acts the
+    two differ, and what PSLF makes of a record's ``pmwset`` 0 was not available to check
+    (GE's manual), so such a record is neither written nor read: a .dyr carries it."""
+    if table.name != "GGOV1" or kimw <= 0:
+        return
+    if file is None:
+        raise ParameterError(f"GGOV1 with Kimw = {kimw:g} (a power controller): a PSLF ggov1 record states its "
+                             "set-point pmwset in MW, where the fitted model follows each event's dispatch; write the "
+                             ".dyr (PSS/E takes the set-point from the initial power) or hold Kimw at 0")
+    raise RecordError("a power controller (kimw > 0) on PSLF's set-point pmwset is not converted: iGrGen's follows "
+                      "the dispatch (a PSS/E .dyr record carries it)", file, line, "kimw", kimw, "0")

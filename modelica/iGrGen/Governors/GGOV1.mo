@@ -21,7 +21,7 @@ block GGOV1 "General gas-turbine governor GGOV1 (WECC; IEEE PES-TR1 2013, sec. 3
   parameter Types.PerUnit Kpload(min=0, max=100) = 2 "load limiter proportional gain";
   parameter Types.PerUnitRate Kiload(min=0, max=100) = 0.67 "load limiter integral gain (1/s)";
   parameter Types.PerUnit Ldref(min=0, max=2) = 1 "load limiter reference, as mechanical power (pu)";
-  parameter Types.PerUnit Dm(min=-1, max=1) = 0 "mechanical damping coefficient (pu)";
+  parameter Types.PerUnit Dm(min=0, max=1) = 0 "mechanical damping coefficient (pu); PSS/E's negative Dm, a fuel limit falling with speed, is not modelled";
   parameter Types.PerUnitRate Ropen(min=1e-4, max=100) = 0.1 "largest valve opening rate (pu/s)";
   parameter Types.PerUnitRate Rclose(min=-100, max=-1e-4) = -0.1 "largest valve closing rate, negative (pu/s)";
   parameter Types.PerUnitRate Kimw(min=0, max=1) = 0 "power controller (reset) gain (1/s); 0: no power controller";
@@ -145,11 +145,13 @@ with the delay read as a lag DELT: an integrating control of the acceleration.</
 rounded as min/max(z) = (z -+ sqrt(z^2 + eps^2)) / 2, the gate as
 -eps log(sum exp(-x / eps)) (exact to exp(-margin / eps) when one input is clearly the
 smallest). Not modelled: the diesel transport lag Teng (0 for gas turbines), the ramp
-limits Rup/Rdown of the load limit reference (which a test holds constant), and Rselect
-= -2 (governor output as feedback, an algebraic loop through the PID).</p>
+limits Rup/Rdown of the load limit reference (which a test holds constant), Rselect
+= -2 (governor output as feedback, an algebraic loop through the PID), and a negative
+Dm (in PSS/E the maximum fuel flow then falls with speed, with no damping on the power:
+Dm is held at 0 or above).</p>
 <p>The electrical power is an input (pelec): on the stiff grid of a staged test the bench feeds it the mechanical power; on a recorded-frequency bench, Machines.SwingPower's P_e (the mechanical power less the rotor's inertial and damping power). Initial
 state: steady at the dispatch p_ref (valve and fuel flow v0 = p_ref / Kturb + Wfnl, the
 speed-load reference Pref = R x the feedback's value), which must lie within
 Vmin..Vmax and below the load limit. Units: pu on the machine base, s.</p></html>",
-    revisions="<html><ul><li>2026-11-24: first version.</li><li>2026-11-25: the electrical power is an input, pelec (issue 26).</li><li>2026-11-27: Rselect and Flag are Integer parameters, as PSS/E and OpenIPSL have them and MLS section 3.5 requires of a comparison with == (issue 35).</li></ul></html>"));
+    revisions="<html><ul><li>2026-11-24: first version.</li><li>2026-11-25: the electrical power is an input, pelec (issue 26).</li><li>2026-11-27: Rselect and Flag are Integer parameters, as PSS/E and OpenIPSL have them and MLS section 3.5 requires of a comparison with == (issue 35).</li><li>2026-11-27: Dm at 0 or above: PSS/E's negative Dm means a speed-dependent fuel limit, which is not modelled, so a record stating one is refused (issue 40).</li></ul></html>"));
 end GGOV1;
