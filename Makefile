@@ -18,11 +18,11 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
-		| awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
+		| awk -F':.*## ' '{printf "  make %-20s %s\n", $$1, $$2}'
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -84,6 +84,10 @@ identify-electrical: fmus  ## one identification from two ANDES grid events reco
 	$(RC) identify experiments/electrical/unit.toml --results $(RESULTS)/identify-electrical --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make identify-electrical: $$(( $$(date +%s) - $(T0) )) s wall time"
 
+identify-steam: fmus  ## one identification of a steam unit with a binding opening rate from three ANDES grid events (experiments/steam/unit.toml)
+	$(RC) identify experiments/steam/unit.toml --results $(RESULTS)/identify-steam --seed $(SEED) --n-jobs $(N_JOBS)
+	@echo "make identify-steam: $$(( $$(date +%s) - $(T0) )) s wall time"
+
 identify-png: fmus  ## the README's picture of make identify's report (docs/identify_report.png); runs make identify if needed
 	@test -f $(RESULTS)/identify/report.html || $(MAKE) --no-print-directory identify
 	$(PY) -c "from rapid_cosim.report.pdf import screenshot; \
@@ -121,6 +125,10 @@ fleet-png: fmus  ## the README's picture of make fleet's page (docs/fleet_report
 
 bench-fleet: fmus  ## 100 synthetic units on 2 workers (a 1- and 2-worker timing on 10 first): wrong records flagged, right ones passed, new records within their bands; then the same units recorded from 10 s before the event, checked only
 	$(PY) benchmarks/fleet_study.py --units $(or $(UNITS),100) --scaling 10 --work $(RESULTS)/bench-fleet
+
+bench-replay: fmus  ## delivered records put back into ANDES in closed loop: the steam unit (regular, jittered, PMU-style stamps), the electrical unit, a synthetic fleet's TGOV1/IEEEG1 units (FLEET_UNITS=20): RMSE/noise and largest error beside the plant's own record
+	$(PY) benchmarks/replay_study.py --work $(RESULTS)/bench-replay --fleet-units $(or $(FLEET_UNITS),20) \
+		--json $(RESULTS)/bench-replay/study.json
 
 bench-timebase: fmus  ## the committed ANDES events with only their time base changed (jitter, dropped frames, repeats, a gap, STAT flags): verdicts, estimates in SE, variance ratios, simulation cost; the electrical unit on untidy stamps
 	$(PY) benchmarks/timebase_study.py --work $(RESULTS)/bench-timebase --unit
