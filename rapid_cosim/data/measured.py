@@ -88,7 +88,9 @@ class MeasuredData:
     """One recording: a time base, columns with NaN where missing, and their masks.
 
     Arrays are stored read-only. ``rows`` holds the file row of each sample for CSV
-    files (for messages), else None. Build one from arrays with :meth:`from_arrays`.
+    files (for messages), else None. ``notes`` says what reading skipped in the file
+    besides stamps (a CSV's units row), so that it is never done silently. Build one
+    from arrays with :meth:`from_arrays`.
     """
 
     source: str
@@ -97,6 +99,7 @@ class MeasuredData:
     valid: dict[str, np.ndarray]
     rows: np.ndarray | None = field(default=None, compare=False)
     repairs: Repairs = field(default=Repairs(), compare=False)  # what loading did to the stamps
+    notes: tuple[str, ...] = field(default=(), compare=False)  # what reading skipped (a units row)
 
     def __post_init__(self):
         time = _readonly(np.asarray(self.time, dtype=np.float64))
@@ -149,7 +152,7 @@ class MeasuredData:
         The values stay as recorded: what masked them (a config's flags and limits) masks
         them again when the recording is read back from an archive, which keeps values only."""
         masks = {k: np.asarray(valid.get(k, v), dtype=bool) & v for k, v in self.valid.items()}
-        return MeasuredData(self.source, self.time, self.columns, masks, self.rows, self.repairs)
+        return MeasuredData(self.source, self.time, self.columns, masks, self.rows, self.repairs, self.notes)
 
     def __len__(self) -> int:
         return self.time.size
@@ -173,7 +176,7 @@ class MeasuredData:
             self.source, self.time[sl],
             {k: v[sl] for k, v in self.columns.items()},
             {k: v[sl] for k, v in self.valid.items()},
-            None if self.rows is None else self.rows[sl], self.repairs,
+            None if self.rows is None else self.rows[sl], self.repairs, self.notes,
         )
 
     def resample(self, times) -> "MeasuredData":
@@ -198,7 +201,7 @@ class MeasuredData:
                 values = np.where(w == 1, v[hi], np.where(w == 0, v[lo], (1 - w) * v[lo] + w * v[hi]))
             columns[name] = np.where(inside, values, np.nan)
             valid[name] = inside & np.isfinite(columns[name])
-        return MeasuredData(f"{self.source} (resampled)", times, columns, valid)
+        return MeasuredData(f"{self.source} (resampled)", times, columns, valid, notes=self.notes)
 
     def gaps(self, column: str | None = None) -> tuple[Gap, ...]:
         """Masked intervals of one column, or of every column when ``column`` is None."""
@@ -233,9 +236,9 @@ class MeasuredData:
 
 
 def from_recorded(time: np.ndarray, columns: dict[str, np.ndarray], source: str, time_column: str,
-            rows: np.ndarray | None = None) -> MeasuredData:
+            rows: np.ndarray | None = None, notes: tuple[str, ...] = ()) -> MeasuredData:
     """A reader's arrays -> :class:`MeasuredData`: stamps settled (:func:`.timebase.settle`),
-    non-finite values masked."""
+    non-finite values masked; ``notes`` say what the reader skipped."""
     time, columns, rows, repairs = settle(time, columns, rows, source, time_column)
     cols, valid = {}, {}
     for name, v in columns.items():
@@ -243,7 +246,7 @@ def from_recorded(time: np.ndarray, columns: dict[str, np.ndarray], source: str,
         ok = np.isfinite(v)
         v[~ok] = np.nan
         cols[name], valid[name] = v, ok
-    return MeasuredData(source, time, cols, valid, rows, repairs)
+    return MeasuredData(source, time, cols, valid, rows, repairs, tuple(notes))
 
 
 def first_bad_time(time: np.ndarray) -> int | None:

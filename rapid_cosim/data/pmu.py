@@ -13,7 +13,6 @@ longer than its sample rate allows.
 
 from __future__ import annotations
 
-import csv
 import re
 from datetime import datetime, timezone
 from decimal import Decimal
@@ -21,8 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .csv_table import read_csv_table
 from ..errors import DataError
-from .measured import MeasuredData, MissingColumn, from_recorded
+from .measured import MeasuredData, from_recorded
 
 _EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
 _NUMBER = re.compile(r"^[+-]?\d+(\.\d*)?$")
@@ -42,53 +42,37 @@ def parse_timestamp(text: str) -> int:
     return (delta.days * 86400 + delta.seconds) * 1_000_000 + delta.microseconds
 
 
-def read_pmu_csv(path: str | Path, timestamp: str, event_time: str | float | None = None) -> MeasuredData:
+def read_pmu_csv(path: str | Path, timestamp: str, event_time: str | float | None = None, *,
+                 delimiter: str | None = None, decimal: str = ".") -> MeasuredData:
     """Every numeric column of a PMU export, on seconds from ``event_time`` (a timestamp
-    as in the file, or epoch seconds; default: the first row's)."""
+    as in the file, or epoch seconds; default: the first row's). The CSV dialect is read
+    as :mod:`.readers` reads it (delimiter detected or given, decimal comma, units row)."""
+
     path = Path(path)
     source = str(path)
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        if header is None:
-            raise DataError("the file is empty", source)
-        names = [h.strip() for h in header]
-        if timestamp not in names:
-            raise MissingColumn(timestamp, [n for n in names if n != timestamp], source)
-        t_index = names.index(timestamp)
-        stamps, values, rows = [], [], []
-        for record in reader:
-            if not record or all(not c.strip() for c in record):
-                continue
-            row = reader.line_num
-            if len(record) != len(names):
-                raise DataError(f"expected {len(names)} fields ({', '.join(names)}), found {len(record)}", source, row)
-            try:
-                stamps.append(parse_timestamp(record[t_index]))
-            except ValueError as e:
-                raise DataError(f"column '{timestamp}': {record[t_index]!r} is not a timestamp ({e})", source,
-                                row) from None
-            parsed = []
-            for k, (name, cell) in enumerate(zip(names, record)):
-                if k == t_index:
-                    continue
-                cell = cell.strip()
-                try:
-                    parsed.append(float(cell) if cell else np.nan)
-                except ValueError:
-                    raise DataError(f"column '{name}': {cell!r} is not a number", source, row) from None
-            values.append(parsed)
-            rows.append(row)
-    if not stamps:
-        raise DataError("the file has a header but no samples", source)
+    table = read_csv_table(path, source, timestamp, delimiter, decimal, text_columns=(timestamp,))
+    stamps = _stamps(table.cells[:, table.names.index(timestamp)], table.rows, timestamp, decimal, source)
     if event_time is None:
-        origin = stamps[0]
+        origin = int(stamps[0])
     else:
         try:
             origin = parse_timestamp(str(event_time))
         except ValueError as e:
             raise DataError(f"event time {event_time!r} is not a timestamp ({e})", source) from None
-    time = (np.asarray(stamps, dtype=np.int64) - origin) / 1e6
-    table = np.asarray(values, dtype=float).reshape(len(values), -1)
-    others = [n for k, n in enumerate(names) if k != t_index]
-    return from_recorded(time, {n: table[:, k] for k, n in enumerate(others)}, source, timestamp, np.asarray(rows))
+    time = (stamps - origin) / 1e6
+    others = [n for n in table.names if n != timestamp]
+    values = table.numbers(others)
+    return from_recorded(time, {n: values[:, k] for k, n in enumerate(others)}, source, timestamp, table.rows,
+                         notes=table.notes)
+
+
+def _stamps(cells: np.ndarray, rows: np.ndarray, name: str, decimal: str, source: str) -> np.ndarray:
+    """Microseconds since the epoch of each cell; with a decimal comma, epoch seconds and
+    fractions of a second are written with one."""
+    stamps = np.empty(len(cells), dtype=np.int64)
+    for i, cell in enumerate(cells.tolist()):
+        try:
+            stamps[i] = parse_timestamp(cell.replace(",", ".") if decimal == "," else cell)
+        except ValueError as e:
+            raise DataError(f"column '{name}': {cell!r} is not a timestamp ({e})", source, int(rows[i])) from None
+    return stamps

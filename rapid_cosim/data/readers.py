@@ -5,9 +5,18 @@
 Formats, chosen by the file suffix:
 
 ``.csv``
-    A header row of column names, then one sample per row, comma separated. An empty
-    cell or ``nan`` is a missing sample (so is ``inf``: a recorder overflow is no
-    reading). Any other text that is not a number is a :class:`DataError`.
+    A header row of column names, then one sample per row. The delimiter (``,``, ``;``
+    or tab) is the one that splits the header and the first rows alike, or is given
+    (``delimiter``); where two would do, the file is refused at its row rather than
+    guessed. The decimal separator is ``.`` or, given, ``,`` (``decimal``; then the
+    delimiter is ``;`` or tab, and a ``.`` in a number is refused: it would be a
+    thousands separator or another export's number). A UTF-8 BOM and CRLF line ends are
+    read. A row right under the header with no number in it is a units row (``s;Hz;MW``,
+    as historians write): skipped and said (:class:`SkippedRowWarning`,
+    :attr:`MeasuredData.notes`), and a time unit it states must agree with
+    ``time_unit``. An empty cell or ``nan`` is a missing sample (so is ``inf``: a
+    recorder overflow is no reading). Any other text that is not a number is a
+    :class:`DataError`.
 ``.mat``
     As RaPId stores them: a ``time`` vector and a ``signal`` array, one column per
     output. A 1-D ``signal`` (or one column) becomes column ``signal``; k columns become
@@ -36,7 +45,6 @@ Time must be finite; repeated and late stamps are settled as :mod:`.timebase` sa
 
 from __future__ import annotations
 
-import csv
 import re
 import warnings
 from pathlib import Path
@@ -46,6 +54,7 @@ import numpy as np
 
 from ..errors import DataError
 from . import comtrade
+from .csv_table import SkippedRowWarning, check_dialect, read_csv_table
 from .measured import MaskedSamplesWarning, MeasuredData, MissingColumn, from_recorded
 from .pmu import read_pmu_csv
 from .timebase import TimeBaseWarning
@@ -55,8 +64,6 @@ TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
 CSV_SUFFIXES = (".csv",)
 MAT_SUFFIXES = (".mat",)
 HDF5_SUFFIXES = (".h5", ".hdf5", ".hdf")
-
-
 def split_hdf5_path(path: str | Path) -> tuple[Path, str]:
     """``'run.h5:/a/b'`` -> ``(Path('run.h5'), '/a/b')``; no group -> ``'/'``."""
     text = str(path)
@@ -69,19 +76,23 @@ def split_hdf5_path(path: str | Path) -> tuple[Path, str]:
 def load_measurements(path: str | Path, time_column: str = "time",
                       columns: Mapping[str, str] | None = None,
                       warn: bool = True, *, timestamp: str | None = None,
-                      event_time: str | float | None = None, time_unit: str = "s") -> MeasuredData:
+                      event_time: str | float | None = None, time_unit: str = "s",
+                      delimiter: str | None = None, decimal: str = ".") -> MeasuredData:
     """Read a recording (CSV, MAT, HDF5 or COMTRADE, by suffix) into a :class:`MeasuredData`.
 
     ``timestamp`` names a CSV column of absolute timestamps (a PMU export,
-    :mod:`.pmu`): time is then in seconds from ``event_time``.
+    :mod:`.pmu`): time is then in seconds from ``event_time``. ``delimiter`` (None:
+    detected) and ``decimal`` say how a CSV is written; other formats ignore them.
 
     ``columns`` maps the names wanted to the names in the file (``{"pm": "signal_0"}``);
     when given, only those columns are kept, and a missing one is a
-    :class:`MissingColumn` error listing what the file has. With ``warn`` a
-    :class:`MaskedSamplesWarning` reports masked samples.
+    :class:`MissingColumn` error listing what the file has. With ``warn``, warnings say
+    what reading skipped (:class:`SkippedRowWarning`), repaired and masked
+    (:class:`MaskedSamplesWarning`).
     """
     if time_unit not in TIME_UNITS:
         raise DataError(f"time unit {time_unit!r} is not known; allowed: {', '.join(TIME_UNITS)}", str(path))
+    check_dialect(delimiter, decimal, str(path))
     file, group = split_hdf5_path(path)
     suffix = file.suffix.lower()
     if group != "/" and suffix not in HDF5_SUFFIXES:
@@ -91,11 +102,11 @@ def load_measurements(path: str | Path, time_column: str = "time",
     source = str(path)
     skipped: dict[str, str] = {}
     if suffix in CSV_SUFFIXES and timestamp is not None:
-        data = read_pmu_csv(file, timestamp, event_time)
+        data = read_pmu_csv(file, timestamp, event_time, delimiter=delimiter, decimal=decimal)
     elif suffix in comtrade.SUFFIXES:
         data = comtrade.read_comtrade(file)
     elif suffix in CSV_SUFFIXES:
-        data = _read_csv(file, source, time_column, TIME_UNITS[time_unit])
+        data = _read_csv(file, source, time_column, time_unit, delimiter, decimal)
     elif suffix in MAT_SUFFIXES:
         data, skipped = _read_mat(file, source, time_column, TIME_UNITS[time_unit])
     elif suffix in HDF5_SUFFIXES:
@@ -109,7 +120,10 @@ def load_measurements(path: str | Path, time_column: str = "time",
                 raise MissingColumn(stored, list(data.names), source, skipped)
         data = MeasuredData(source, data.time,
                             {new: data.columns[old] for new, old in columns.items()},
-                            {new: data.valid[old] for new, old in columns.items()}, data.rows, data.repairs)
+                            {new: data.valid[old] for new, old in columns.items()}, data.rows, data.repairs,
+                            data.notes)
+    if warn and data.notes:
+        warnings.warn(f"{source}: " + "; ".join(data.notes), SkippedRowWarning, stacklevel=2)
     if warn and data.repairs:
         warnings.warn(f"{source}: " + "; ".join(data.repairs.words), TimeBaseWarning, stacklevel=2)
     if warn and data.gaps():
@@ -117,54 +131,15 @@ def load_measurements(path: str | Path, time_column: str = "time",
     return data
 
 
-def _read_csv(file: Path, source: str, time_column: str, time_scale: float = 1.0) -> MeasuredData:
-    with open(file, newline="", encoding="utf-8-sig") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        while header == []:  # leading blank lines
-            header = next(reader, None)
-        if header is None:
-            raise DataError("the file is empty", source)
-        names = [h.strip() for h in header]
-        header_row = reader.line_num
-        for k, name in enumerate(names):
-            if not name:
-                raise DataError(f"column {k + 1} of the header has no name", source, header_row)
-        dupes = sorted({n for n in names if names.count(n) > 1})
-        if dupes:
-            raise DataError(f"repeated column name(s) in the header: {', '.join(dupes)}",
-                            source, header_row)
-        if time_column not in names:
-            raise MissingColumn(time_column, [n for n in names if n != time_column], source)
-        values: list[list[float]] = []
-        rows: list[int] = []
-        for record in reader:
-            if not record or all(not c.strip() for c in record) and len(record) == 1:
-                continue  # a blank line carries no sample
-            row = reader.line_num
-            if len(record) != len(names):
-                raise DataError(f"expected {len(names)} fields ({', '.join(names)}), "
-                                f"found {len(record)}: {','.join(record)!r}", source, row)
-            parsed = []
-            for name, cell in zip(names, record):
-                text = cell.strip()
-                if not text:
-                    parsed.append(np.nan)
-                    continue
-                try:
-                    parsed.append(float(text))
-                except ValueError:
-                    raise DataError(f"column '{name}': '{text}' is not a number "
-                                    f"(leave the cell empty or write nan for a missing sample)",
-                                    source, row) from None
-            values.append(parsed)
-            rows.append(row)
-    if not values:
-        raise DataError("the file has a header but no samples", source)
-    table = np.array(values, dtype=np.float64)
-    t_index = names.index(time_column)
-    return from_recorded(table[:, t_index] * time_scale, {n: table[:, k] for k, n in enumerate(names) if k != t_index},
-                   source, time_column, np.asarray(rows))
+def _read_csv(file: Path, source: str, time_column: str, time_unit: str = "s", delimiter: str | None = None,
+              decimal: str = ".") -> MeasuredData:
+    table = read_csv_table(file, source, time_column, delimiter, decimal)
+    table.check_time_unit(time_column, time_unit)
+    values = table.numbers(table.names)
+    t = table.names.index(time_column)
+    return from_recorded(values[:, t] * TIME_UNITS[time_unit],
+                         {n: values[:, k] for k, n in enumerate(table.names) if k != t},
+                         source, time_column, table.rows, notes=table.notes)
 
 
 def _read_mat(file: Path, source: str, time_column: str,

@@ -18,6 +18,8 @@ Schema (keys not shown here are rejected, with a suggestion when one is close)::
     outputs = { pm = "pm" }                 # required: model output -> data column;
                                             # pe: electrical power (experiment.electrical)
     time_unit = "s"                         # or "ms", "us": the time column's unit
+    delimiter = ";"                         # CSV: ",", ";" or "\\t" (tab); default: detected
+    decimal = ","                           # CSV: "." (default) or "," (not with delimiter ",")
     flags = { column = "STAT", kind = "c37.118" }  # optional: frames marked invalid
     limits = { frequency = 5.0, power = 2.0 }      # values no recorder can mean
                                             # (experiment.recording: every key, the defaults)
@@ -84,6 +86,7 @@ are read together.
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import tomllib
@@ -94,6 +97,7 @@ import numpy as np
 
 from ..data import MeasuredData, MissingColumn, close_matches, describe_missing, load_measurements, noise_level
 from ..data import split_hdf5_path
+from ..data.csv_table import DECIMALS, DELIMITERS
 from ..data.readers import TIME_UNITS
 from ..errors import ConfigError, DataError
 from ..simulator.rocof import WINDOW
@@ -110,7 +114,7 @@ from .toml_writer import config_key, dotted_items
 _SECTIONS: dict[str, frozenset[str] | None] = {
     "experiment": frozenset({"name", "model", "fmu", "description"}),
     "data": frozenset({"file", "time", "outputs", "timestamp", "event_time", "resample", "time_unit", "flags",
-                       "limits"}),
+                       "limits", "delimiter", "decimal"}),
     "inputs": None,  # model input names
     "fixed": None,  # parameter names
     "estimate": None,
@@ -199,9 +203,10 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
     pre_step_end = cfg.number(f["pre_step_end"], "fitness.pre_step_end") if "pre_step_end" in f else None
     inputs = read_inputs(sections["inputs"], cfg, pre_step_end)
     recorded = read_spec(d, cfg)
+    dialect = _dialect(d, cfg)
     if data is None:
         data = _load_data(path, data_file, time_column, outputs, file, timestamp, event_time,
-                          time_unit=_time_unit(d, cfg))
+                          time_unit=_time_unit(d, cfg), dialect=dialect)
     else:
         for out, col in outputs.items():
             if col not in data.columns:
@@ -236,7 +241,7 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
     for spec in inputs:
         if spec.file is not None and spec.file not in files:
             loaded = _load_data(path, spec.file, spec.time, {spec.name: spec.column}, file, None, None,
-                                key=config_key("inputs", spec.name))
+                                key=config_key("inputs", spec.name), dialect=dialect)
             check_step(loaded, cfg, config_key("inputs", spec.name))
             files[spec.file], more = apply_limits(loaded, recorded, {spec.column: spec.frequency}
                                                   if spec.frequency else {}, {})
@@ -255,7 +260,9 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         pre_step_end=pre_step_end, simulation=simulation, time_column=time_column,
         conversions={o: s.conversion for o, s in output_specs.items() if not s.conversion.identity},
         inputs=inputs, files=files, noise_models=noise_models,
-        recording=Recording(timebases, tuple(blank), tuple(masked), tuple(bridged)),
+        recording=Recording(timebases, tuple(blank), tuple(masked), tuple(bridged),
+                            notes=tuple(f"{name}: {note}" for name, d in {data_file: data, **files}.items()
+                                        for note in d.notes)),
     )
     check_rocof_column(experiment, cfg)
     return with_rocof_noise(without_unfit(experiment))
@@ -312,9 +319,33 @@ def _time_unit(d: dict, cfg: "_Reader") -> str:
     return unit
 
 
+def _dialect(d: dict, cfg: "_Reader") -> tuple[str | None, str]:
+    """How the experiment's CSV files are written: the delimiter (None: detected) and
+    the decimal separator."""
+    delimiter = None
+    if "delimiter" in d:
+        delimiter = cfg.string(d, "data", "delimiter", allow_empty=True)  # a tab is blank
+        if delimiter not in DELIMITERS:
+            raise ConfigError(f"delimiter {_quoted(delimiter)} is not one of {', '.join(map(_quoted, DELIMITERS))}; "
+                              "leave it out to detect it", cfg.file, "data.delimiter")
+    decimal = cfg.string(d, "data", "decimal", default=".")
+    if decimal not in DECIMALS:
+        raise ConfigError(f"decimal {_quoted(decimal)} is not one of {', '.join(map(_quoted, DECIMALS))}",
+                          cfg.file, "data.decimal")
+    if decimal == "," == delimiter:
+        raise ConfigError('decimal = "," needs a delimiter other than "," (one comma cannot separate both fields '
+                          'and decimals): set delimiter = ";" or "\\t", or leave it out to detect it',
+                          cfg.file, "data.decimal")
+    return delimiter, decimal
+
+
+def _quoted(text: str) -> str:
+    return json.dumps(text)  # as TOML writes it: "\t" for a tab
+
+
 def _load_data(config: Path, data_file: str, time_column: str, outputs: dict[str, str],
                file: str, timestamp: str | None, event_time, key: str | None = None,
-               time_unit: str = "s") -> MeasuredData:
+               time_unit: str = "s", dialect: tuple[str | None, str] = (None, ".")) -> MeasuredData:
     fpath, group = split_hdf5_path(data_file)
     if not fpath.is_absolute():
         fpath = config.parent / fpath
@@ -323,7 +354,7 @@ def _load_data(config: Path, data_file: str, time_column: str, outputs: dict[str
     target = str(fpath) + (f":{group}" if group != "/" else "")
     try:
         data = load_measurements(target, time_column=time_column, timestamp=timestamp, event_time=event_time,
-                                 time_unit=time_unit)
+                                 time_unit=time_unit, delimiter=dialect[0], decimal=dialect[1])
     except MissingColumn as e:  # only the time column can be missing here
         raise ConfigError(f"{target}: {e.detail}", file, key or ("data.timestamp" if timestamp else "data.time")) \
             from None

@@ -92,10 +92,12 @@ class Recording:
     masked: tuple[Masked, ...] = ()
     bridges: tuple[Bridge, ...] = ()
     unfit: tuple[tuple[float, float, int], ...] = ()  # ROCOF windows with no fit: outputs left out
+    notes: tuple[str, ...] = ()  # what reading the files did (a units row under the header skipped)
 
     def lines(self) -> list[str]:
         """One line per fact, as the CLI and the report print them."""
         out = [f"time base of {name}: {base.describe()}" for name, base in self.timebases.items()]
+        out += list(self.notes)
         out += [m.describe() for m in (*self.blanks, *self.masked)]
         by_column: dict[str, list[Bridge]] = {}
         for b in self.bridges:
@@ -120,7 +122,7 @@ class Recording:
     def plain(self) -> bool:
         """Regular stamps, nothing repaired, masked, bridged or left without a ROCOF fit."""
         return (all(b.regular and not b.repairs for b in self.timebases.values())
-                and not (self.blanks or self.masked or self.bridges or self.unfit))
+                and not (self.blanks or self.masked or self.bridges or self.unfit or self.notes))
 
     def summary(self) -> dict:
         """:meth:`to_json` with the words and whether the recording is plain."""
@@ -132,7 +134,7 @@ class Recording:
                            for m in (*self.blanks, *self.masked)],
                 "bridged": [{"column": b.column, "before": b.before, "after": b.after, "seconds": b.seconds,
                              "excluded": list(b.excluded) if b.excluded else None} for b in self.bridges],
-                "rocof_unfit": [list(u) for u in self.unfit]}
+                "rocof_unfit": [list(u) for u in self.unfit], "notes": list(self.notes)}
 
 
 @dataclass(frozen=True)
