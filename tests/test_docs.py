@@ -42,8 +42,10 @@ def _slug(heading: str) -> str:
 
 
 def _anchors(path: Path) -> set[str]:
+    """Headings' anchors, and explicit ones (``<a id="data.delimiter"></a>``, docs/config.md's keys)."""
     text = re.sub(r"```.*?```", "", path.read_text(), flags=re.S)
-    return {_slug(m.group(1)) for m in re.finditer(r"^#+ (.+)$", text, flags=re.M)}
+    return ({_slug(m.group(1)) for m in re.finditer(r"^#+ (.+)$", text, flags=re.M)}
+            | set(re.findall(r'<a id="([^"]+)"></a>', text)))
 
 
 def test_the_readme_is_a_front_page_with_two_commands_first():

@@ -143,7 +143,7 @@ def test_a_bad_mva_is_refused_before_any_work(tmp_path, capsys, mva):
 
 @pytest.mark.parametrize("change, message", [
     (dict(mva="mva = -3"), r"unit\.mva.*1 to 5000"),
-    (dict(extra="colour = 'red'"), r"unknown key\(s\) colour"),
+    (dict(extra="colour = 'red'"), r"\[unit.colour\]: unknown key 'colour'; allowed: bus, machine_id, mva, name"),
 ])
 def test_a_bad_unit_file_names_its_field(tmp_path, change, message):
     config = tmp_path / "t1" / "config.toml"

@@ -18,9 +18,10 @@ import numpy as np
 from ..data import MeasuredData
 from ..errors import ConfigError
 from ..noise import RecorderNoise
+from .schema import NOISE_COMPONENT, NOISE_MODEL
 from .toml_writer import config_key
 
-_KEYS = frozenset({"white", "dt", "components"})
+_KEYS = NOISE_MODEL.names
 DT_TOLERANCE = 0.1  # the model's dt may differ this much (relative) from the data's median interval
 
 
@@ -53,7 +54,7 @@ def read_noise_models(table: dict, outputs: dict[str, str], weights: dict[str, f
         for k, c in enumerate(comps):
             ckey = f"{key}.components[{k}]"
             c = cfg.table(c, ckey)
-            cfg.check_keys(c, frozenset({"sigma", "tau"}), ckey)
+            cfg.check_keys(c, NOISE_COMPONENT.names, ckey)
             sigma = cfg.number(cfg.require(c, ckey, "sigma"), f"{ckey}.sigma")
             tau = cfg.number(cfg.require(c, ckey, "tau"), f"{ckey}.tau")
             if not sigma > 0 or not tau > 0:

@@ -38,6 +38,7 @@ import numpy as np
 from ..data import MeasuredData
 from ..data.timebase import TimeBase
 from ..errors import ConfigError
+from .schema import DATA_FLAGS, DATA_LIMITS, GAPS
 from .toml_writer import config_key
 
 FLAG_KINDS = ("c37.118", "valid")
@@ -46,7 +47,7 @@ LIMITS = {"frequency": 5.0, "rocof": 20.0, "power": 2.0, "power_step": 0.5}
 LIMIT_UNITS = {"frequency": "Hz about nominal", "rocof": "Hz/s", "power": "x rating", "power_step": "x rating per frame"}
 SHORT_GAP = 0.25  # s: an input hole bridged without being asked
 MAX_STEP = 1.0  # s: no recording of governor dynamics samples slower
-GAP_KEYS = frozenset({"max", "fill"})
+GAP_KEYS = GAPS.names
 FILLS = ("linear",)
 FREQUENCY_UNITS = {"Hz": 1.0, "mHz": 1e-3, "kHz": 1e3, "": 1.0}
 _LISTED = 5
@@ -149,7 +150,7 @@ def read_spec(d: dict, cfg) -> RecordingSpec:
     flags = None
     if "flags" in d:
         spec = cfg.table(d["flags"], "data.flags")
-        cfg.check_keys(spec, frozenset({"column", "kind"}), "data.flags")
+        cfg.check_keys(spec, DATA_FLAGS.names, "data.flags")
         kind = cfg.string(spec, "data.flags", "kind", default="c37.118")
         if kind not in FLAG_KINDS:
             raise ConfigError(f"kind {kind!r} is not one of {', '.join(FLAG_KINDS)}", cfg.file, "data.flags.kind")
@@ -157,7 +158,7 @@ def read_spec(d: dict, cfg) -> RecordingSpec:
     limits: dict[str, float | None] = dict(LIMITS)
     if "limits" in d:
         table = cfg.table(d["limits"], "data.limits")
-        cfg.check_keys(table, frozenset(LIMITS), "data.limits")
+        cfg.check_keys(table, DATA_LIMITS.names, "data.limits")
         for k, v in table.items():
             if v is False:
                 limits[k] = None

@@ -18,7 +18,8 @@ against the frequency's derivative, and derived from it when not given. The valu
     sign * scale * converted(column * unit factor) + offset     (minus a baseline)
 
 with ``convert`` one of ``"none"`` (the value itself), ``"deviation"`` (value minus
-``nominal``, same unit) and ``"deviation_pu"`` (``(value - nominal) / nominal``); ``unit``
+``nominal``, given in the unit's base: Hz for a column in mHz) and ``"deviation_pu"``
+(``(value - nominal) / nominal``); ``unit``
 scales the column to its dimension's base (``mHz`` to ``Hz``, ``kW`` to ``MW``); and
 ``baseline`` removes the mean (``"pre-event"``) or a straight line (``"detrend"``) of the
 samples before ``baseline_end`` (default: ``[fitness] pre_step_end``), so that a
@@ -35,15 +36,15 @@ import numpy as np
 from ..errors import ConfigError
 from .electrical import POWER_UNITS, check_rating
 from .recording import FREQUENCY_UNITS, SHORT_GAP, read_gaps
+from .schema import INPUT, OUTPUT
 from .toml_writer import config_key
 
 UNITS = {"": 1.0, "1": 1.0, "pu": 1.0, "Hz": 1.0, "mHz": 1e-3, "kHz": 1e3, "MW": 1.0, "kW": 1e-3, "W": 1e-6,
          "GW": 1e3, "Mvar": 1.0, "s": 1.0, "rad/s": 1.0, "Hz/s": 1.0, "mHz/s": 1e-3}
 CONVERSIONS = ("none", "deviation", "deviation_pu")
 BASELINES = ("none", "pre-event", "detrend")
-INPUT_KEYS = frozenset({"column", "file", "time", "unit", "convert", "nominal", "scale", "offset", "sign",
-                        "baseline", "baseline_end", "gaps"})
-OUTPUT_KEYS = frozenset({"column", "unit", "scale", "offset", "rating"})
+INPUT_KEYS = INPUT.names
+OUTPUT_KEYS = OUTPUT.names
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ class InputSpec:
         c = self.conversion
         if c.convert == "none" or c.nominal is None or c.unit not in FREQUENCY_UNITS:
             return None
-        nominal = c.nominal * FREQUENCY_UNITS[c.unit]
+        nominal = c.nominal  # in the unit's base, Hz, as the conversion subtracts it
         return (FREQUENCY_UNITS[c.unit], nominal) if 40.0 <= nominal <= 70.0 else None
 
 
@@ -158,7 +159,7 @@ def read_inputs(table: dict, cfg, pre_step_end: float | None) -> tuple[InputSpec
 
 def _conversion(spec: dict, cfg, key: str, pre_step_end: float | None) -> Conversion:
     unit = spec.get("unit", "")
-    if unit not in UNITS:
+    if not isinstance(unit, str) or unit not in UNITS:
         raise ConfigError(f"unit {unit!r} is not known; units: {', '.join(u for u in UNITS if u)}", cfg.file,
                           f"{key}.unit")
     convert = cfg.string(spec, key, "convert", default="none")

@@ -21,8 +21,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..experiment.schema import FLEET_FILE
 
-KEYS = {"name", "units", "records", "tolerances"}
+KEYS = FLEET_FILE.accepted()["fleet"]  # as docs/config.md lists them
 OWN_RECORDS = ("record.dyr", "record.dyd")
 
 

@@ -12,8 +12,8 @@ in the grid operator's case::
     configs = ["test1", "test2", "event1"]   # staged tests, recorded events (CSV, COMTRADE, PMU CSV)
     holdout = ["test2"]     # names of experiments kept out of the fits to confirm the verdict
 
-    [structures]            # the standard models a record may take (default: the four below)
-    files = ["structures/TGOV1.toml", "structures/IEEEG1.toml"]
+    [structures]            # the standard models a record may take; default: the four standard
+    files = ["structures/TGOV1.toml", "structures/IEEEG1.toml"]   # ones, structures/<name>.toml
 
 The tests' configs hold the documented constants of TG Type I (the explanation's base);
 each structure file holds its own (given directly or as ``documented = "unit.dyr"``, a
@@ -27,10 +27,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..diagnose.catalogue import STANDARD
+from ..data import close_matches
 from ..errors import ConfigError
+from ..experiment.schema import UNIT_FILE
 
 MVA_RANGE = (1.0, 5000.0)
-KEYS = {"unit": {"name", "mva", "bus", "machine_id"}, "tests": {"configs", "holdout"}, "structures": {"files"}}
+KEYS = UNIT_FILE.accepted()  # section -> its keys, as docs/config.md lists them
 
 
 def check_mva(mva, source: str | None = None, key: str | None = None, *, given: str = "") -> float:
@@ -69,8 +71,9 @@ class Unit:
         for section, keys in KEYS.items():
             unknown = sorted(set(raw.get(section, {})) - keys)
             if unknown:
-                raise ConfigError(f"unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(keys))}",
-                                  str(path), section)
+                close = close_matches(unknown[0], sorted(keys), n=1)
+                raise ConfigError(f"unknown key '{unknown[0]}'" + (f" (did you mean '{close[0]}'?)" if close else "")
+                                  + f"; allowed: {', '.join(sorted(keys))}", str(path), f"{section}.{unknown[0]}")
         extra = sorted(set(raw) - set(KEYS))
         if extra:
             raise ConfigError(f"unknown section(s) {', '.join(extra)}; allowed: {', '.join(KEYS)}", str(path))
@@ -79,7 +82,7 @@ class Unit:
         if mva is not None:
             mva = check_mva(mva, str(path), "unit.mva")
         bus = head.get("bus", 1)
-        if not isinstance(bus, int) or not 1 <= bus <= 999999:
+        if isinstance(bus, bool) or not isinstance(bus, int) or not 1 <= bus <= 999999:
             raise ConfigError(f"bus = {bus!r}: a bus number from 1 to 999999", str(path), "unit.bus")
         configs = tests.get("configs")
         if not isinstance(configs, list) or not configs or not all(isinstance(c, str) for c in configs):
@@ -94,7 +97,11 @@ class Unit:
                 raise ConfigError(f"{c}: no such experiment config ({p})", str(path), "tests.configs")
             found.append(p)
         default = [folder / "structures" / f"{s}.toml" for s in STANDARD]
-        files = [folder / f for f in raw.get("structures", {}).get("files", [])] or default
+        listed = raw.get("structures", {}).get("files", [])
+        if not isinstance(listed, list) or not all(isinstance(f, str) for f in listed):
+            raise ConfigError(f"files must list structure files, e.g. [\"structures/TGOV1.toml\"], got {listed!r}",
+                              str(path), "structures.files")
+        files = [folder / f for f in listed] or default
         missing = [str(f) for f in files if not f.is_file()]
         if missing:
             raise ConfigError(f"no such structure file: {', '.join(missing)}", str(path), "structures.files")

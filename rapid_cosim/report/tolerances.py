@@ -60,20 +60,14 @@ from pathlib import Path
 from typing import Mapping
 
 from ..errors import ConfigError
+from ..experiment.schema import METRIC_TERMS
 from .validation import ValidationMetrics
 
+# METRIC_TERMS (each metric's terms) lives in experiment.schema, with every key docs/config.md lists.
 # term -> (lowest, highest) accepted value: a band of zero would fail every model, and a
 # share above 1 or a thousand noise levels would pass any.
 TERM_RANGES: dict[str, tuple[float, float]] = {"relative": (0.0, 1.0), "noise": (0.0, 100.0),
                                                "absolute": (0.0, 10.0), "seconds": (0.0, 600.0)}
-METRIC_TERMS: dict[str, tuple[str, ...]] = {
-    "rmse": ("relative", "noise", "absolute"),
-    "peak_change": ("relative", "noise", "absolute"),
-    "settled_change": ("relative", "noise", "absolute"),
-    "rise_time": ("relative", "seconds"),
-    "time_to_peak": ("relative", "seconds"),
-    "settling_time": ("relative", "seconds"),
-}
 LABELS = {"rmse": "RMSE", "peak_change": "peak change", "settled_change": "settled change",
           "rise_time": "rise time (90 %)", "time_to_peak": "time to peak", "settling_time": "settling time"}
 DEFAULT_BANDS: dict[str, dict[str, float]] = {
