@@ -11,6 +11,10 @@ RESULTS ?= results
 ARCHIVE ?=
 MVA     ?=
 
+# The repository's fmus/ is a developer's view of the FMUs an installed rapid-cosim builds
+# into the user's cache: every target here builds into and reads from it.
+export RAPID_COSIM_FMUS ?= $(CURDIR)/fmus
+
 STAGED_TESTS := $(addprefix test,1 2 3 4 5 6 7 8 9 10)
 TABLE1_TESTS := $(addprefix experiments/test,1 2 3 4 5 6 7 8)
 RUN_OPTS     := --results $(RESULTS) --seed $(SEED) --n-jobs $(N_JOBS)

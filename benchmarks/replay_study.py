@@ -44,6 +44,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import re
 import shutil
 import sys
 import time
@@ -56,6 +57,7 @@ sys.path.insert(0, str(ROOT / "experiments" / "electrical"))
 
 VARIANTS = ("regular", "jitter3", "pmu")
 OLD_K3 = 0.3  # what the writer put in K3 before issue 40 where K3_rest was 1 (the table's default)
+GENERATOR_BUS = 1
 
 
 # --- ANDES -------------------------------------------------------------------------------
@@ -70,6 +72,12 @@ def steam_generator():
         sys.modules["steam_generate"] = module
         spec.loader.exec_module(module)
     return sys.modules["steam_generate"]
+
+
+def on_generator_1(record: str) -> str:
+    """The record moved to bus 1 (generator 1 of Kundur's case: a fleet unit's record names
+    its own bus), its numbers untouched."""
+    return re.sub(r"^\s*\d+", str(GENERATOR_BUS), record, count=1)
 
 
 def _cache(record: str, event, work: Path) -> Path:
@@ -88,12 +96,14 @@ def replays(pairs: list[tuple[str, object]], work: Path) -> None:
     """ANDES's runs of every (record, event) not cached yet, two at a time (one a core)."""
     import joblib
 
+    pairs = [(on_generator_1(r), e) for r, e in pairs]
     todo = {_cache(r, e, work): (r, e) for r, e in pairs if not _cache(r, e, work).exists()}
     joblib.Parallel(n_jobs=2)(joblib.delayed(_run_into)(r, e, c) for c, (r, e) in todo.items())
 
 
 def replay(record: str, event, work: Path) -> dict[str, np.ndarray]:
     """ANDES's closed-loop run of ``event`` with ``record`` on generator 1 (cached)."""
+    record = on_generator_1(record)
     cache = _cache(record, event, work)
     if not cache.exists():
         _run_into(record, event, cache)

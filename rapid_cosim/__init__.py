@@ -12,6 +12,7 @@ The public API, in the manner of scipy.optimize::
 ``diagnose`` finds what a model misses; ``simulate`` runs one model or FMU; ``export``
 writes a calibration of a standard governor as a PSS/E ``.dyr`` or PSLF ``.dyd`` record;
 ``identify`` delivers one unit's record, ``fleet`` checks and identifies many;
+``check`` loads and checks what any of them would run on, before it runs;
 :class:`Experiment` is made from a config file or in code.
 
 The package follows the way data flows, each module knowing only those before it
@@ -19,7 +20,7 @@ The package follows the way data flows, each module knowing only those before it
 
     modelica/iGrGen -> compiler -> simulator -> data -> noise -> experiment -> fitting
         -> estimators -> archive -> calibration -> diagnose -> structures -> identify
-        -> report -> api -> fleet -> cli
+        -> report -> api -> fleet -> check -> cli
 
 ``errors`` and ``version`` are leaves; nothing inside imports this face.
 """
@@ -34,9 +35,10 @@ from .version import __version__  # noqa: E402
 from . import diagnose as _diagnose, fleet as _fleet, identify as _identify  # noqa: E402, F401
 from .api import Calibration, calibrate, diagnose, export, identify, load, rerun, resume, simulate  # noqa: E402
 from .fleet import run_fleet as fleet  # noqa: E402
+from .check import check  # noqa: E402
 from .experiment import Experiment, experiment_from_arrays, experiment_from_frame, load_experiment  # noqa: E402
 from .simulator import Trajectory  # noqa: E402
 
-__all__ = ["Calibration", "Experiment", "Trajectory", "experiment_from_arrays", "experiment_from_frame", "load_experiment", "calibrate", "diagnose", "export", "fleet", "identify", "load",
-           "rerun",
-           "resume", "simulate", "__version__"]
+__all__ = ["Calibration", "Experiment", "Trajectory", "experiment_from_arrays", "experiment_from_frame",
+           "load_experiment", "calibrate", "check", "diagnose", "export", "fleet", "identify", "load", "rerun", "resume",
+           "simulate", "__version__"]

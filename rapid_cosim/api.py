@@ -34,8 +34,8 @@ from .estimators.uncertainty import Uncertainty
 from .experiment import Experiment, load_experiment
 from .simulator import DEFAULT_RUNNER, BatchResult, Trajectory, get_simulator
 
-PACKAGE = "modelica/iGrGen"
-FMU_DIR = "fmus"
+PACKAGE = None  # the iGrGen shipped inside rapid_cosim ($RAPID_COSIM_PACKAGE): compiler.default_package
+FMU_DIR = None  # the user's cache ($RAPID_COSIM_FMUS): compiler.default_fmu_dir
 DELIVERABLES = ("unit.dyr", "unit.dyd", "report.html", "report.pdf")  # what identify writes into its workdir
 
 
@@ -141,7 +141,7 @@ def calibrate(experiments: Sequence[str | Path | Experiment] | str | Path | Expe
               *, seed: int = 1, n_jobs: int = 1, archive: str | Path | None = None,
               options: Mapping[str, Mapping[str, object]] | None = None, runner: str = DEFAULT_RUNNER,
               joblib_backend: str = "loky", scheduler: str | None = None, progress: bool = False,
-              package: str | Path = PACKAGE, fmu_dir: str | Path = FMU_DIR, compiler: str = "auto") -> Calibration:
+              package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, compiler: str = "auto") -> Calibration:
     """Estimate the experiments' ``[estimate]`` parameters jointly with ``method`` (a chain
     such as ``"pf:10+nm"``, ``"pso:10+nm"``, ``"smc"``). Every iteration is archived in
     ``archive`` (default: a new file in a temporary folder, named by the result), so the
@@ -213,7 +213,7 @@ def _partial_result(view: RunArchive) -> EstimationResult:
 
 def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[str | Path | Experiment] = (),
              workdir: str | Path | None = None, seed: int = 1, n_jobs: int = 1, write_model: bool = False,
-             package: str | Path = PACKAGE, fmu_dir: str | Path = FMU_DIR, log=print, **options):
+             package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, log=print, **options):
     """Find what the base model misses on the ``training`` experiments (confirmed on the
     ``heldout`` ones): see :mod:`rapid_cosim.diagnose`. Returns its
     :class:`~rapid_cosim.diagnose.workflow.Diagnosis`; ``options`` are those of
@@ -227,7 +227,7 @@ def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[s
 
 
 def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int = 1, n_jobs: int = 1,
-             package: str | Path = PACKAGE, fmu_dir: str | Path = FMU_DIR, backend: str = "loky",
+             package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, backend: str = "loky",
              scheduler: str | None = None, mva: float | None = None, report: bool = True, pdf: bool = True,
              log=print):
     """One identification of the unit described by ``unit`` (a ``unit.toml`` or its
@@ -288,8 +288,8 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
 def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None, *,
              stop_time: float | None = None, output_interval: float | None = None, output_times=None,
              outputs: Sequence[str] | None = None, input_time=None, inputs: Mapping[str, np.ndarray] | None = None,
-             runner: str = DEFAULT_RUNNER, timeout: float | None = None, package: str | Path = PACKAGE,
-             fmu_dir: str | Path = FMU_DIR, compiler: str = "auto",
+             runner: str = DEFAULT_RUNNER, timeout: float | None = None, package: str | Path | None = PACKAGE,
+             fmu_dir: str | Path | None = FMU_DIR, compiler: str = "auto",
              communication_step: float | None = None) -> Trajectory | BatchResult:
     """Simulate a model of the package (a class name, built if needed) or any FMI 2.0 or
     3.0 FMU, Model Exchange or Co-Simulation (a path ending in ``.fmu``).

@@ -3,6 +3,8 @@ mistake from a failed simulation without parsing messages."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 
 class RapidCosimError(Exception):
     """Base of every error the toolkit raises on purpose."""
@@ -119,3 +121,46 @@ class RecordError(RapidCosimError):
 class DeliveryError(RapidCosimError):
     """A record that, read back as a grid simulator reads it, does not simulate what the
     fit it was written from simulates: it is not handed over."""
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One thing wrong with a run's inputs, located where the user fixes it: the file, and
+    its key, row or line."""
+
+    file: str | None
+    where: str | None
+    message: str
+
+    def __str__(self) -> str:
+        place = (self.file or "") + (f" [{self.where}]" if self.where else "")
+        return f"{place}: {self.message}" if place else self.message
+
+
+def finding(error: Exception) -> Finding:
+    """The :class:`Finding` an error names: its file and key (ConfigError), row (DataError)
+    or line and field (RecordError, ModelicaError); else its message alone."""
+    if isinstance(error, ConfigError):
+        return Finding(error.file, error.key, error.detail)
+    if isinstance(error, DataError):
+        return Finding(error.file, f"row {error.row}" if error.row is not None else None, error.detail)
+    if isinstance(error, RecordError):
+        what = f"field {error.field} = {error.value!r}: " if error.field is not None else ""
+        tail = f" (allowed: {error.allowed})" if error.allowed else ""
+        return Finding(error.file, f"line {error.line}" if error.line else None, what + error.detail + tail)
+    if isinstance(error, ModelicaError):
+        return Finding(error.file, f"line {error.line}" if error.line else None, error.detail)
+    return Finding(None, None, str(error))
+
+
+class CheckFailed(RapidCosimError):
+    """What a run would stop on, found before it starts: every problem at once."""
+
+    def __init__(self, what: str, findings: list[Finding]):
+        self.what, self.findings = what, list(findings)
+        listed = "\n".join(f"  {f}" for f in self.findings)
+        super().__init__(f"{what}: {len(self.findings)} problem(s), nothing was run:\n{listed}")
+
+    def one_line(self) -> str:
+        """The problems on one line (a table's row)."""
+        return f"{len(self.findings)} problem(s), nothing was run: " + "; ".join(map(str, self.findings))

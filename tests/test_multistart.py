@@ -113,8 +113,8 @@ def test_an_ms_run_is_archived_reruns_identically_and_resumes(fmus, tmp_path):
     import tomllib
 
     from conftest import synthetic_config
-    from rapid_cosim.calibration import RunOptions, inputs_from_configs, rerun, resume_run, start_run
-    from rapid_cosim.experiment import load_experiment, parse_experiment, render_config
+    from rapid_cosim.calibration import RunOptions, inputs_from_configs, rerun, start_run
+    from rapid_cosim.experiment import load_experiment, render_config
     from rapid_cosim.noise import RecorderNoise
 
     exp = load_experiment(synthetic_config(fmus["StagedTest"], tmp_path / "s", seed=4))

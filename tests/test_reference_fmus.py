@@ -162,6 +162,10 @@ def test_what_is_refused_names_the_fmi_feature_it_needs(reference):
     traj = _quiet(space.simulate, {}, stop_time=1.0, output_interval=0.5, outputs=["y", "x[2]"])
     assert list(traj.outputs) == ["y[1]", "y[2]", "y[3]", "x[2]"]
     np.testing.assert_allclose(traj["y[3]"], 3.0 * np.exp(traj.time), rtol=1e-12)
+    assert traj["y"].shape == (traj.time.size, 3)  # by the array's name: one (times, 3) array, as fmpy gives it
+    np.testing.assert_array_equal(traj["y"][:, 2], traj["y[3]"])
+    with pytest.raises(KeyError, match=r"'z': no such output; recorded: y\[1\], y\[2\], y\[3\], x\[2\]"):
+        traj["z"]
 
 
 def _rss_mb() -> float:

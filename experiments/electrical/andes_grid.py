@@ -8,7 +8,7 @@ generate.py's events), so the rotor swing closes the loop through the network. W
 tests and ``make bench-replay`` compare is what ANDES does with the file.
 
 Where ANDES departs from the PSS/E block diagram a record is written for, the values
-ANDES read are converted before the run, each named (``../shared/notes/andes.md`` has the
+ANDES read are converted before the run, each named (``ANDES.md`` beside this file has the
 measurements behind them; :func:`departures` applies them):
 
 - **IEEEG1's UO and UC** are not converted to the system base (K, PMAX, PMIN are): a

@@ -8,7 +8,7 @@ Generator 1's governor gets this script's parameters (machine base); a 200 MW
 constant-power load at bus 7 is switched on (an under-frequency event) or off (over-
 frequency; the load PQ_0 is lowered by as much, so the dispatch before the event is the
 same) 10 s into a 60 s run at 5 ms steps (the events that converge:
-../shared/notes/andes.md). The rotor swing closes the loop through the network.
+ANDES.md beside this file). The rotor swing closes the loop through the network.
 
 The plant's recorder: generator 1's electrical power GENROU.Pe (x Sb/Sn to the machine
 base, in MW) and its speed as the frequency (Hz), both at 30 frames/s (a C37.118 rate at

@@ -1,7 +1,7 @@
 """Make the event1 recording: a synthetic unit riding through an under-frequency event.
 
 The plant is invented for this example, close to the staged tests' unit but not taken
-from it: TG Type I with the documented constants of ../shared/staged_tests (Tc 0.4 s,
+from it: TG Type I with the documented constants of experiments/staged_tests.md (Tc 0.4 s,
 T3 0.2 s, T4 1.5 s, T5 6.0 s, limits 0..1 pu) at 60 % of a 400 MW rating, droop
 R = 0.055 and governor time constant Ts = 1.6 s. The grid (rapid_cosim.experiment.synthetic.
 under_frequency_event) loses 3 % of its generation 20 s into the record: frequency

@@ -44,6 +44,7 @@ class RunArchive:
         self.path = os.fspath(path)
         if not os.path.exists(self.path):
             raise ArchiveError(f"{self.path}: no such archive")
+        _not_text(self.path)
         try:
             reason = seal.check(self.path)  # before HDF5 sees the file: see .seal
         except seal.Unsealed:
@@ -328,3 +329,26 @@ def _num(v) -> float | None:
     """A float for JSON: NaN and infinities (not valid JSON) become None."""
     v = float(v)
     return v if np.isfinite(v) else None
+
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def _not_text(path: str) -> None:
+    """Refuse a text file given for an archive (a config, a CSV) as such: without HDF5's
+    signature and with no NUL byte in its first 4 KB it was never an archive, and calling
+    it a damaged one sends a user looking for damage."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return
+    if HDF5_SIGNATURE in head[:8] or b"\x00" in head:
+        return
+    try:
+        first = head.decode("utf-8").strip().splitlines()[0][:60] if head.strip() else "nothing"
+    except UnicodeDecodeError:
+        return
+    raise ArchiveError(f"{path}: not an archive (the HDF5 file a run writes, e.g. results/test1/pf10+nm.h5): it is text, "
+                       f"starting {first!r}")
+

@@ -13,7 +13,7 @@ from ..archive import RunArchive
 from ..compiler import ensure_fmu
 from ..data import MeasuredData
 from ..data.timebase import Repairs
-from ..errors import ConfigError, FmuError
+from ..errors import BuildError, ConfigError, FmuError
 from ..experiment import Experiment, load_experiment, parse_experiment
 from ..fitting.fitness import combination_weights, gaussian_log_likelihood
 from ..fitting.problem import Problem, build_problem, check_parameters, check_signals
@@ -33,8 +33,8 @@ class RunInputs:
         return self.problem.experiments
 
 
-def inputs_from_configs(paths: Sequence[str | Path], *, package: str | Path = "modelica/iGrGen",
-                        fmu_dir: str | Path = "fmus", compiler: str = "auto") -> RunInputs:
+def inputs_from_configs(paths: Sequence[str | Path], *, package: str | Path | None = None,
+                        fmu_dir: str | Path | None = None, compiler: str = "auto") -> RunInputs:
     """Experiments from config files; see :func:`inputs_from_experiments`."""
     if not paths:
         raise ConfigError("give at least one experiment config")
@@ -42,8 +42,8 @@ def inputs_from_configs(paths: Sequence[str | Path], *, package: str | Path = "m
                                    compiler=compiler)
 
 
-def inputs_from_experiments(experiments: Sequence[Experiment], *, package: str | Path = "modelica/iGrGen",
-                            fmu_dir: str | Path = "fmus", compiler: str = "auto",
+def inputs_from_experiments(experiments: Sequence[Experiment], *, package: str | Path | None = None,
+                            fmu_dir: str | Path | None = None, compiler: str = "auto",
                             fmus: Mapping[str, FmuRef] | None = None) -> RunInputs:
     """A run's inputs from experiments in memory: their FMUs built if needed (or taken
     from ``fmus``, by model name) and checked against the experiments (unknown
@@ -53,8 +53,14 @@ def inputs_from_experiments(experiments: Sequence[Experiment], *, package: str |
     refs = dict(fmus or {})
     for exp in experiments:
         if exp.model not in refs:
-            refs[exp.model] = FmuRef.from_path(ensure_fmu(exp.model, package=package, fmu_dir=fmu_dir,
-                                                          compiler=compiler), exp.model)
+            try:
+                fmu = ensure_fmu(exp.model, package=package, fmu_dir=fmu_dir, compiler=compiler)
+            except BuildError as e:  # a misspelt bench is the config's mistake: named by its key
+                if not str(e).startswith("unknown model"):
+                    raise
+                key = "experiment.fmu" if exp.model.endswith(".fmu") else "experiment.model"
+                raise ConfigError(str(e), str(exp.config_path), key) from None
+            refs[exp.model] = FmuRef.from_path(fmu, exp.model)
     return RunInputs(_checked_problem(experiments, refs), {m: refs[m] for m in {e.model for e in experiments}})
 
 

@@ -24,6 +24,7 @@ from ..version import __version__
 from ..archive import ArchiveWriter, RunArchive, data_sha256
 from ..errors import ArchiveDamaged, ArchiveError, ConfigError, EngineLost, RunInterrupted
 from ..estimators import parse_method, run_chain
+from ..estimators.chain import REGISTRY
 from ..estimators.base import EstimationResult, Iteration
 from ..experiment import Experiment
 from ..fitting.objective import ProblemObjective
@@ -34,22 +35,36 @@ from .replay import RecordingObjective, same_iteration
 
 
 class _Progress:
-    """A tqdm bar over iterations showing the best fitness and simulations so far."""
+    """A tqdm bar over iterations showing the best fitness and simulations so far. Its
+    total is every stage's cap (``A:n``, else the method's own ``max_iter``); a stage that
+    converges early moves the bar to its end, so the bar ends with the run."""
 
-    def __init__(self, method: str, enabled: bool):
-        self.bar = None
+    def __init__(self, options: RunOptions, enabled: bool):
+        self.bar, self.caps, self.stage, self.done = None, [], -1, 0
         if enabled:
             from tqdm.auto import tqdm
 
-            total = sum(s.max_iter for s in parse_method(method) if s.max_iter) or None
-            self.bar = tqdm(total=total, desc=method, unit="it", dynamic_ncols=True)
+            own = stage_options(options)
+            for s in parse_method(options.method):
+                cap = s.max_iter or getattr(own.get(s.name) or REGISTRY[s.name][1](), "max_iter", None)
+                self.caps.append((s.name, int(cap) if cap else 1))
+            self.bar = tqdm(total=sum(c for _, c in self.caps), desc=options.method, unit="it", dynamic_ncols=True)
 
     def update(self, it: Iteration) -> None:
+        if self.bar is None:
+            return
+        if self.stage < 0 or it.stage != self.caps[self.stage][0]:  # the next stage: the last one's allotment done
+            if self.stage >= 0:
+                self.done += self.caps[self.stage][1]
+                self.bar.n = self.done
+            self.stage = min(self.stage + 1, len(self.caps) - 1)
+        self.bar.set_postfix_str(f"{it.stage} best {it.best_fitness:.4g}, {it.n_sims} sims")
+        self.bar.update(1 if self.bar.n < self.done + self.caps[self.stage][1] else 0)
+
+    def finish(self) -> None:
         if self.bar is not None:
-            if self.bar.total is not None and self.bar.n >= self.bar.total:
-                self.bar.total = None
-            self.bar.set_postfix_str(f"{it.stage} best {it.best_fitness:.4g}, {it.n_sims} sims")
-            self.bar.update(1)
+            self.bar.n = self.bar.total
+            self.bar.refresh()
 
     def close(self) -> None:
         if self.bar is not None:
@@ -104,7 +119,7 @@ def _execute(inputs: RunInputs, options: RunOptions, objective: RecordingObjecti
     log_likelihood = log_likelihood_for(problem)
     if any(s.name == "smc" for s in parse_method(options.method)) and log_likelihood is None:
         raise ConfigError("method smc needs a noise level in every experiment: set [fitness] noise")
-    bar = _Progress(options.method, progress)
+    bar = _Progress(options, progress)
     events = getattr(objective.objective.engine, "events", [])
     seen = len(events)
 
@@ -117,9 +132,11 @@ def _execute(inputs: RunInputs, options: RunOptions, objective: RecordingObjecti
         bar.update(it)
 
     try:
-        return run_chain(objective, problem.space, options.method, options=stage_options(options),
-                         rng=np.random.default_rng(options.seed), callback=callback, x0=problem.x0,
-                         log_likelihood=log_likelihood)
+        result = run_chain(objective, problem.space, options.method, options=stage_options(options),
+                           rng=np.random.default_rng(options.seed), callback=callback, x0=problem.x0,
+                           log_likelihood=log_likelihood)
+        bar.finish()
+        return result
     finally:
         bar.close()
 

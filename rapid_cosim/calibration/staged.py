@@ -128,7 +128,7 @@ class StagedRun:
 
 def run_staged_test(config: str | Path, *, results: str | Path = "results", seed: int = 1, n_jobs: int = 2,
                     methods: Sequence[Method] = METHODS, progress: bool = True,
-                    fmu_dir: str | Path = "fmus", package: str | Path = "modelica/iGrGen",
+                    fmu_dir: str | Path | None = None, package: str | Path | None = None,
                     compiler: str = "auto") -> list[StagedRun]:
     """Both chains on one staged test, make-like (a finished archive of the same run is
     reused, an interrupted one resumed)."""
@@ -151,7 +151,7 @@ def run_staged_test(config: str | Path, *, results: str | Path = "results", seed
 
 def run_joint(configs: Sequence[str | Path], *, results: str | Path = "results", seed: int = 1, n_jobs: int = 2,
               options: dict[str, dict[str, Any]] | None = None, progress: bool = True,
-              fmu_dir: str | Path = "fmus", package: str | Path = "modelica/iGrGen",
+              fmu_dir: str | Path | None = None, package: str | Path | None = None,
               compiler: str = "auto") -> tuple[Path, EstimationResult, str]:
     """One SMC fit of shared R, Ts over the given tests (offsets profiled per test),
     archived (make-like) in ``<results>/joint/smc.h5``; ``options`` override

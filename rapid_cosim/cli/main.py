@@ -17,6 +17,9 @@ from pathlib import Path
 from ..version import __version__
 from ..errors import RapidCosimError, RunInterrupted
 
+PACKAGE_HELP = "Modelica package folder (default: the iGrGen shipped with rapid-cosim, or $RAPID_COSIM_PACKAGE)"
+FMUS_HELP = "folder the FMUs are built into (default: the user's cache, or $RAPID_COSIM_FMUS)"
+
 
 def _assignments(items: list[str]) -> dict[str, float]:
     values = {}
@@ -36,9 +39,9 @@ def _models(args) -> dict:
 
 
 def cmd_build(args) -> int:
-    from ..compiler import build_models
+    from ..compiler import build_models, resolve_models
 
-    print(f"building into {args.fmus} (compiler {args.compiler})")
+    print(f"building into {resolve_models(args.package, args.fmus)[1]} (compiler {args.compiler})")
     build_models(args.models or None, package=args.package, fmu_dir=args.fmus, compiler=args.compiler,
                  force=args.force)
     return 0
@@ -76,7 +79,7 @@ def cmd_estimate(args) -> int:
     experiments = as_experiments(args.configs)  # every option and config checked before anything is announced
     archive = Path(args.archive) if args.archive else default_archive(args.results)
     print(f"estimating on {', '.join(e.name for e in experiments)} with {args.method} (seed {args.seed}, "
-          f"n_jobs {args.n_jobs}); archive: {archive}")
+          f"n_jobs {args.n_jobs})")
     for words in filter(None, map(describe_recording, experiments)):
         print(f"  {words}")
     for exp in experiments:
@@ -281,6 +284,14 @@ def cmd_fleet(args) -> int:
     return 100 + min(result.failed, 155) if result.failed else 0
 
 
+def cmd_check(args) -> int:
+    from ..check import check
+
+    reports = [check(path, method=args.method, package=args.package, fmu_dir=args.fmus) for path in args.paths]
+    print("\n".join(r.text() for r in reports))
+    return 0 if all(r.ok for r in reports) else 2
+
+
 def cmd_export(args) -> int:
     from ..api import export
 
@@ -316,8 +327,8 @@ def build_parser() -> argparse.ArgumentParser:
         return p
 
     def model_options(p):
-        p.add_argument("--package", default="modelica/iGrGen", help="Modelica package directory (default %(default)s)")
-        p.add_argument("--fmus", default="fmus", help="FMU directory (default %(default)s)")
+        p.add_argument("--package", help=PACKAGE_HELP)
+        p.add_argument("--fmus", help=FMUS_HELP)
         p.add_argument("--compiler", default="auto", choices=["auto", "openmodelica", "embedded"],
                        help="Modelica-to-FMU compiler; auto = OpenModelica where omc exists (default %(default)s)")
 
@@ -421,8 +432,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--bus", type=int, default=1, help="bus number in the records (default %(default)s)")
     p.add_argument("--id", default="1", help="machine id in the records (default %(default)s)")
     p.add_argument("--mva", type=float, help="the machine's MVA base, for the PSLF .dyd record")
-    p.add_argument("--package", default="modelica/iGrGen", help="Modelica package, for held-out tests' benches")
-    p.add_argument("--fmus", default="fmus", help="FMU folder (default %(default)s)")
+    p.add_argument("--package", help=PACKAGE_HELP + "; for the held-out tests' benches")
+    p.add_argument("--fmus", help=FMUS_HELP)
 
     p = command("benches", cmd_benches, "build the FMUs and plot every test bench's step response")
     p.add_argument("--results", default="results", help="output directory (default %(default)s)")
@@ -504,8 +515,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     model_options(p)
 
+    p = command("check", cmd_check, "load and check everything a run would (configs and their recordings, a unit's "
+                "structure files, a fleet's units and records on file) and say what it would do and cost; every "
+                "problem at once, each naming its file and key or row; exit status 2 if any")
+    p.add_argument("paths", nargs="+", metavar="PATH", help="an experiment config (or its folder), a unit.toml (or "
+                   "its folder) or a fleet file")
+    p.add_argument("--method", default="pf:10+nm", help="for a config: the estimator chain a calibration would run "
+                   "(default %(default)s)")
+    model_options(p)
+
     p = command("export", cmd_export, "write a calibration of TGOV1, IEEEG1, GGOV1 or HYGOV as a PSS/E .dyr or "
-                "PSLF .dyd record (values on the machine base; conversions in the README)")
+                "PSLF .dyd record (values on the machine base; conversions: docs/identify.md, 'Export and import')")
     p.add_argument("archive", help="the calibration's archive (.h5)")
     p.add_argument("--out", required=True, help="record file to write, .dyr or .dyd")
     p.add_argument("--format", choices=["dyr", "dyd"], help="default: by the suffix of --out")
@@ -523,8 +543,32 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    print(f"warning: {message}", file=sys.stderr)
+class _Warnings:
+    """Each warning said once, as a sentence (not the source line that raised it); how
+    often each recurred is said when the command ends."""
+
+    def __init__(self):
+        self.seen: dict[tuple[str, type], int] = {}
+
+    def show(self, message, category, filename, lineno, file=None, line=None) -> None:
+        key = (str(message), category)
+        self.seen[key] = self.seen.get(key, 0) + 1
+        if self.seen[key] == 1:
+            print(f"warning: {message}", file=sys.stderr)
+
+    def recurred(self) -> None:
+        again = [(text, n) for (text, _), n in self.seen.items() if n > 1]
+        for text, n in again:
+            print(f"warning said {n} times: {text[:100]}{'...' if len(text) > 100 else ''}", file=sys.stderr)
+
+
+def _reference(error: RapidCosimError) -> str:
+    """Where the reference explains the key an error names (docs/config.md), if it does."""
+    from ..errors import ConfigError
+    from ..experiment.schema import reference
+
+    link = reference(error.key) if isinstance(error, ConfigError) and error.key else None
+    return f"\n  (the key: {link})" if link else ""
 
 
 def _terminate(signum, frame):
@@ -539,22 +583,23 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
+    said = _Warnings()
     with warnings.catch_warnings():  # restores the filters and showwarning on exit
-        # a user wants each warning once, as a sentence, not the source line that raised it
-        warnings.filterwarnings("once", category=UserWarning)
-        warnings.showwarning = _show_warning
+        warnings.filterwarnings("always", category=UserWarning)  # counted and said once by _Warnings
+        warnings.showwarning = said.show
         try:
             return args.func(args)
         except RunInterrupted as e:
             print(f"rapid-cosim {args.command}: {e}", file=sys.stderr)
             return 130
         except RapidCosimError as e:
-            print(f"rapid-cosim {args.command}: error: {e}", file=sys.stderr)
+            print(f"rapid-cosim {args.command}: error: {e}{_reference(e)}", file=sys.stderr)
             return 2
         except KeyboardInterrupt:
             print("interrupted", file=sys.stderr)
             return 130
         finally:
+            said.recurred()
             if main_thread:
                 signal.signal(signal.SIGTERM, previous)
 

@@ -9,7 +9,13 @@ package rebuilds nothing else.
 Built FMUs are also kept in a cache shared by every FMU folder of the user
 (``<cache_dir>/fmus``), under the hash of model, sources and tool chain: a diagnosis
 that compiles its candidate benches into a fresh work folder, or a study that runs many
-of them, compiles each distinct model once.
+of them, compiles each distinct model once. A lock per model and FMU folder makes a
+second process wait while the first builds, then take its FMU.
+
+No default depends on the current folder: the package is the iGrGen shipped inside
+rapid_cosim (:func:`default_package`), the FMUs go into the user's cache
+(:func:`default_fmu_dir`); ``$RAPID_COSIM_PACKAGE`` and ``$RAPID_COSIM_FMUS`` name others
+(the repository's Makefile sets the second to its ``fmus/``, a developer's view).
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ import os
 import shutil
 import subprocess
 import time
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -32,8 +39,29 @@ from .modelica_source import PackageSource, class_index, load_package, model_sha
 from .openmodelica import find_omc
 
 COMPILERS = ("auto", "openmodelica", "embedded")
-DEFAULT_PACKAGE = Path(os.environ.get("RAPID_COSIM_PACKAGE", "modelica/iGrGen"))
-DEFAULT_FMU_DIR = Path(os.environ.get("RAPID_COSIM_FMUS", "fmus"))
+LOCK_TIMEOUT_S = 600.0  # a build waited for longer than this is an error (a build takes seconds)
+
+
+def default_package() -> Path:
+    """``$RAPID_COSIM_PACKAGE``, else the iGrGen package shipped inside rapid_cosim."""
+    configured = os.environ.get("RAPID_COSIM_PACKAGE")
+    if configured:
+        return Path(configured)
+    from importlib.resources import files
+
+    return Path(str(files("rapid_cosim") / "modelica" / "iGrGen"))
+
+
+def default_fmu_dir() -> Path:
+    """``$RAPID_COSIM_FMUS``, else a folder of the user's cache."""
+    configured = os.environ.get("RAPID_COSIM_FMUS")
+    return Path(configured) if configured else cache_dir() / "fmu"
+
+
+def resolve_models(package: str | Path | None, fmu_dir: str | Path | None) -> tuple[Path, Path]:
+    """``package`` and ``fmu_dir`` as paths, the defaults where None."""
+    return (Path(package) if package is not None else default_package(),
+            Path(fmu_dir) if fmu_dir is not None else default_fmu_dir())
 
 
 @dataclass(frozen=True)
@@ -67,8 +95,21 @@ def resolve_compiler(compiler: str) -> str:
     return compiler
 
 
-def fmu_path(model: str, fmu_dir: str | Path = DEFAULT_FMU_DIR) -> Path:
-    return Path(fmu_dir) / f"{model}.fmu"
+def package_digest(package: str | Path | None = None) -> str:
+    """A digest of every source file of a Modelica package (names relative to it and
+    contents): what results made from its models depend on, wherever it lies."""
+    root = resolve_models(package, None)[0]
+    h = hashlib.blake2b(digest_size=16)
+    files = [root] if root.is_file() else sorted(p for p in root.rglob("*") if p.suffix == ".mo"
+                                                  or p.name == "package.order")
+    for f in files:
+        h.update(str(f.relative_to(root) if root.is_dir() else f.name).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def fmu_path(model: str, fmu_dir: str | Path | None = None) -> Path:
+    return (Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()) / f"{model}.fmu"
 
 
 def manifest_path(fmu: Path) -> Path:
@@ -134,58 +175,89 @@ def read_manifest(fmu: Path) -> Manifest | None:
         return None
 
 
-def build_models(models: list[str] | None = None, *, package: str | Path = DEFAULT_PACKAGE,
-                 fmu_dir: str | Path = DEFAULT_FMU_DIR, compiler: str = "auto", force: bool = False,
+def build_models(models: list[str] | None = None, *, package: str | Path | None = None,
+                 fmu_dir: str | Path | None = None, compiler: str = "auto", force: bool = False,
                  log=print) -> list[BuildOutcome]:
     """Build (or confirm up to date) the FMUs of ``models``; default: every test bench."""
-    source, known = _parsed(Path(package))
+    package, fmu_dir = resolve_models(package, fmu_dir)
+    if not package.exists():
+        raise BuildError(f"no Modelica package at {package} (--package, package= of the API, $RAPID_COSIM_PACKAGE)")
+    source, known = _parsed(package)
     chosen = resolve_compiler(compiler)
     models = models or test_benches(source)
     unknown = [m for m in models if m not in known]
     if unknown:
-        raise BuildError(f"unknown model(s) {', '.join(unknown)}; test benches: {', '.join(test_benches(source))}")
+        import difflib
+
+        close = difflib.get_close_matches(unknown[0], [n for n, e in known.items() if e.kind == "model"], n=1)
+        hint = f" (did you mean {close[0]}?)" if close else ""
+        raise BuildError(f"unknown model(s) {', '.join(unknown)}{hint}; test benches: "
+                         f"{', '.join(test_benches(source))}")
     compiler_id, tools = _embedded_identity() if chosen == "embedded" else _openmodelica_identity()
     outcomes, omc_builder, tree = [], None, None
     try:
         for model in models:
             source_hash = model_sha256(source, model, known)
             fmu = fmu_path(model, fmu_dir)
-            old = read_manifest(fmu)
-            if not force and _fresh(old, fmu, source_hash, chosen, compiler_id):
-                outcomes.append(BuildOutcome(model, fmu, False, old))
-                log(f"  {model}: up to date ({chosen})")
-                continue
-            cached = None if force else _from_cache(model, fmu, source_hash, chosen, compiler_id)
-            if cached is not None:
-                outcomes.append(BuildOutcome(model, fmu, False, cached))
-                log(f"  {model}: up to date ({chosen}, from the cache)")
-                continue
-            t0 = time.perf_counter()
-            if chosen == "embedded":
-                from .embedded.fmu_writer import write_fmu
-                from .embedded.frontend import parse, translate
+            with _build_lock(fmu):  # another process building it: wait, then find it fresh
+                old = read_manifest(fmu)
+                if not force and _fresh(old, fmu, source_hash, chosen, compiler_id):
+                    outcomes.append(BuildOutcome(model, fmu, False, old))
+                    log(f"  {model}: up to date ({chosen})")
+                    continue
+                cached = None if force else _from_cache(model, fmu, source_hash, chosen, compiler_id)
+                if cached is not None:
+                    outcomes.append(BuildOutcome(model, fmu, False, cached))
+                    log(f"  {model}: up to date ({chosen}, from the cache)")
+                    continue
+                t0 = time.perf_counter()
+                if chosen == "embedded":
+                    from .embedded.fmu_writer import write_fmu
+                    from .embedded.frontend import parse, translate
 
-                tree = tree if tree is not None else parse(source)
-                generation_tool = f"rapid-cosim {__version__} embedded (pymoca {tools['pymoca']}, casadi {tools['casadi']})"
-                write_fmu(translate(source, model, tree), fmu, generation_tool=generation_tool, source_hash=source_hash)
-            else:
-                from .openmodelica import OpenModelicaBuilder
+                    tree = tree if tree is not None else parse(source)
+                    generation_tool = (f"rapid-cosim {__version__} embedded (pymoca {tools['pymoca']}, "
+                                       f"casadi {tools['casadi']})")
+                    write_fmu(translate(source, model, tree), fmu, generation_tool=generation_tool,
+                              source_hash=source_hash)
+                else:
+                    from .openmodelica import OpenModelicaBuilder
 
-                omc_builder = omc_builder or OpenModelicaBuilder(source.top_file)
-                omc_builder.build(model, fmu)
-            seconds = time.perf_counter() - t0
-            manifest = Manifest(
-                model=model, fmu=fmu.name, compiler=chosen, compiler_id=compiler_id, source_hash=source_hash,
-                fmu_sha256=_sha256(fmu), fmi_version="2.0", fmi_type="ModelExchange", tools=tools,
-                built=datetime.now(timezone.utc).isoformat(timespec="seconds"), build_seconds=round(seconds, 3))
-            manifest_path(fmu).write_text(json.dumps(asdict(manifest), indent=2) + "\n")
-            _to_cache(fmu, manifest)
-            outcomes.append(BuildOutcome(model, fmu, True, manifest))
-            log(f"  {model}: built ({chosen}, {seconds:.2f} s)")
+                    omc_builder = omc_builder or OpenModelicaBuilder(source.top_file)
+                    omc_builder.build(model, fmu)
+                seconds = time.perf_counter() - t0
+                manifest = Manifest(
+                    model=model, fmu=fmu.name, compiler=chosen, compiler_id=compiler_id, source_hash=source_hash,
+                    fmu_sha256=_sha256(fmu), fmi_version="2.0", fmi_type="ModelExchange", tools=tools,
+                    built=datetime.now(timezone.utc).isoformat(timespec="seconds"), build_seconds=round(seconds, 3))
+                manifest_path(fmu).write_text(json.dumps(asdict(manifest), indent=2) + "\n")
+                _to_cache(fmu, manifest)
+                outcomes.append(BuildOutcome(model, fmu, True, manifest))
+                log(f"  {model}: built ({chosen}, {seconds:.2f} s)")
     finally:
         if omc_builder is not None:
             omc_builder.close()
     return outcomes
+
+
+@contextmanager
+def _build_lock(fmu: Path):
+    """Held while ``fmu`` is checked and built: one process at a time, across processes
+    (a file in ``.locks`` beside it)."""
+    from filelock import FileLock, Timeout
+
+    locks = fmu.parent / ".locks"
+    locks.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(locks / f"{fmu.name}.lock")
+    try:
+        lock.acquire(timeout=LOCK_TIMEOUT_S)
+    except Timeout:
+        raise BuildError(f"{fmu}: another process has been building it for {LOCK_TIMEOUT_S:.0f} s "
+                         f"(lock {lock.lock_file}); remove the lock file if no build is running") from None
+    try:
+        yield
+    finally:
+        lock.release()
 
 
 def _cache_path(model: str, source_hash: str, compiler: str, compiler_id: str) -> Path:
@@ -272,7 +344,7 @@ def _parsed(package: Path):
 _CURRENT: dict[tuple, tuple[tuple, Path]] = {}
 
 
-def ensure_fmu(model: str, *, package: str | Path = DEFAULT_PACKAGE, fmu_dir: str | Path = DEFAULT_FMU_DIR,
+def ensure_fmu(model: str, *, package: str | Path | None = None, fmu_dir: str | Path | None = None,
                compiler: str = "auto") -> Path:
     """Path of an up-to-date FMU for ``model`` (a class name or a path to an .fmu)."""
     if model.endswith(".fmu"):
@@ -280,12 +352,14 @@ def ensure_fmu(model: str, *, package: str | Path = DEFAULT_PACKAGE, fmu_dir: st
         if not path.exists():
             raise BuildError(f"FMU {path} does not exist")
         return path
-    if not Path(package).exists():
+    package, fmu_dir = resolve_models(package, fmu_dir)
+    if not package.exists():
         fmu = fmu_path(model, fmu_dir)
         if fmu.exists():
             return fmu
-        raise BuildError(f"no FMU {fmu} and no Modelica package at {package} to build it from")
-    key = (model, str(Path(package).resolve()), str(Path(fmu_dir).resolve()), compiler)
+        raise BuildError(f"no FMU {fmu} and no Modelica package at {package} to build it from: name the package "
+                         "(--package, package= of the API) or a folder holding the FMU (--fmus, fmu_dir=)")
+    key = (model, str(package.resolve()), str(fmu_dir.resolve()), compiler)
     signature = _signature(Path(package), fmu_path(model, fmu_dir))
     known = _CURRENT.get(key)
     if known is not None and known[0] == signature:

@@ -9,6 +9,7 @@ criterion and adequacy judge it by.
 
 from __future__ import annotations
 
+import re
 import shutil
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -17,9 +18,10 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..calibration import RunOptions
-from ..compiler import build_models
+from ..compiler import build_models, resolve_models
 from ..fitting.engine import JOBLIB_BACKENDS, JoblibEngine
-from ..errors import RapidCosimError
+from ..errors import ConfigError, RapidCosimError
+from ..data import close_matches
 from ..experiment import Experiment
 from ..noise import campaign_noise
 from ..simulator import DEFAULT_RUNNER
@@ -66,6 +68,10 @@ class DiagnoseOptions:
             raise RapidCosimError(f"unknown backend {self.backend!r}; choose one of {', '.join(JOBLIB_BACKENDS)}")
         if self.scheduler is not None and self.backend != "dask":
             raise RapidCosimError("a scheduler address needs the dask backend (--joblib-backend dask)")
+        if self.model_name is not None and not re.fullmatch(r"iGrGen\.Diagnosed\.[A-Za-z_][A-Za-z0-9_]*",
+                                                             self.model_name):
+            raise ConfigError(f"model name {self.model_name!r}: iGrGen.Diagnosed.<Identifier> (a Modelica class "
+                              "of the package's Diagnosed folder)", None, "--model-name")
 
 
 def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> tuple[list, list]:
@@ -73,7 +79,9 @@ def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> 
     names = [e.name for e in experiments]
     unknown = [h for h in holdout if h not in names]
     if unknown:
-        raise RapidCosimError(f"held-out {', '.join(unknown)}: not among the experiments ({', '.join(names)})")
+        close = close_matches(unknown[0], names, n=1)
+        raise ConfigError(f"held-out {', '.join(unknown)}: not among the experiments ({', '.join(names)})"
+                          + (f"; did you mean {close[0]!r}?" if close else ""), None, "--holdout")
     return ([e for e in experiments if e.name not in holdout], [e for e in experiments if e.name in holdout])
 
 
@@ -94,7 +102,7 @@ class Context:
                  log: Callable[[str], None], noise_fits: dict | None = None):
         self.training, self.heldout = list(training), list(heldout)
         self.workdir, self.options = Path(workdir), options
-        self.user_package, self.user_fmu_dir, self.log = Path(package), Path(fmu_dir), log
+        (self.user_package, self.user_fmu_dir), self.log = resolve_models(package, fmu_dir), log
         self.package = self.workdir / "package" / self.user_package.name
         self.fmu_dir = self.workdir / "fmus"
         shutil.copytree(self.user_package, self.package, dirs_exist_ok=True)  # refreshed on every run

@@ -10,9 +10,10 @@ catalogue, built like any other bench.
 
 from __future__ import annotations
 
-import re
+import os
 from dataclasses import asdict, replace
 from datetime import datetime, timezone
+from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
@@ -42,8 +43,8 @@ REACHED_MARGIN_BIC = 2.0
 
 
 def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (), *, workdir: str | Path,
-             options: DiagnoseOptions = DiagnoseOptions(), package: str | Path = "modelica/iGrGen",
-             fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print,
+             options: DiagnoseOptions = DiagnoseOptions(), package: str | Path | None = None,
+             fmu_dir: str | Path | None = None, log: Callable[[str], None] = print,
              noise_fits: dict | None = None) -> Diagnosis:
     """Name what the base model misses on ``training`` (confirmed on ``heldout``), or say
     that nothing in the catalogue does; see the package docstring for the steps.
@@ -260,10 +261,12 @@ def _write_and_recalibrate(ctx: Context, chosen: CandidateFit, options: Diagnose
     effects = chosen.spec.effects
     held = sorted({governor(b) for b in ctx.bases} - {"TGTypeI"})  # a standard structure's name in the class
     name = options.model_name or "iGrGen.Diagnosed.Calibrated" + "".join(held) + "".join(camel(e) for e in effects)
-    if not re.fullmatch(r"iGrGen\.Diagnosed\.[A-Za-z_][A-Za-z0-9_]*", name):
-        raise ValueError(f"model name {name!r} must be iGrGen.Diagnosed.<Identifier>")
     values = dict(chosen.parameters)
     package_dir = ctx.user_package
+    if not os.access(package_dir / "Diagnosed", os.W_OK):  # an installed package: its copy in the work folder
+        package_dir = ctx.package
+        ctx.log(f"  {ctx.user_package} cannot be written: the model goes into the work folder's copy, {package_dir} "
+                "(--package names a package of yours)")
     # one class per base bench: the staged test's keeps the name, a recorded-frequency one adds "Input"
     names = {base: name + ("" if is_staged(base) else "Input") for base in ctx.bases}
     targets = []

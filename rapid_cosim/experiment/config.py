@@ -90,6 +90,7 @@ import json
 import math
 import re
 import tomllib
+import warnings
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -106,24 +107,15 @@ from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, E
                          SimulationSettings)
 from .electrical import check_machine, check_rocof_column, with_rocof_noise, without_unfit
 from .recorder import read_noise_models
-from .recording import (Bridge, Recording, apply_flags, apply_limits, blanks, bridges, check_step, exclude,
-                        read_spec)
+from .recording import (Bridge, Recording, RecordingWarning, apply_flags, apply_limits, blanks, bridges, check_step,
+                        exclude, read_spec)
+from .schema import CONFIG, ESTIMATE_ENTRY
 from .signals import read_inputs, read_outputs
 from .toml_writer import config_key, dotted_items
 
-_SECTIONS: dict[str, frozenset[str] | None] = {
-    "experiment": frozenset({"name", "model", "fmu", "description"}),
-    "data": frozenset({"file", "time", "outputs", "timestamp", "event_time", "resample", "time_unit", "flags",
-                       "limits", "delimiter", "decimal"}),
-    "inputs": None,  # model input names
-    "fixed": None,  # parameter names
-    "estimate": None,
-    "fitness": frozenset({"window", "weights", "offset", "noise", "pre_step_end"}),
-    "simulation": frozenset({"start_time", "stop_time", "output_interval", "timeout", "communication_step"}),
-    "noise": None,  # output names (rapid_cosim.experiment.recorder)
-}
+_SECTIONS: dict[str, frozenset[str] | None] = CONFIG.accepted()  # None: names the user chooses (.schema)
 _REQUIRED_SECTIONS = ("experiment", "data")
-_SPEC_KEYS = frozenset({"min", "max", "label", "scale", "start", "per_experiment"})
+_SPEC_KEYS = ESTIMATE_ENTRY.names
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
 
 
@@ -204,6 +196,7 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
     inputs = read_inputs(sections["inputs"], cfg, pre_step_end)
     recorded = read_spec(d, cfg)
     dialect = _dialect(d, cfg)
+    given = data is not None
     if data is None:
         data = _load_data(path, data_file, time_column, outputs, file, timestamp, event_time,
                           time_unit=_time_unit(d, cfg), dialect=dialect)
@@ -213,9 +206,13 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
                 raise ConfigError(describe_missing(col, list(data.names)), file, config_key("data.outputs", out))
     check_step(data, cfg, "data.time")
     blank = blanks(data, [*outputs.values(), *(s.column for s in inputs if s.file is None)])
-    data, masked = apply_flags(data, recorded, cfg)
-    data, more = apply_limits(data, recorded, {s.column: s.frequency for s in inputs if s.file is None and s.frequency},
-                              {spec.column: spec.rating for spec in output_specs.values() if spec.rating})
+    with warnings.catch_warnings():
+        if given:  # the recording was inspected and said when it was read: a config made from it says it once
+            warnings.simplefilter("ignore", RecordingWarning)
+        data, masked = apply_flags(data, recorded, cfg)
+        data, more = apply_limits(data, recorded, {s.column: s.frequency for s in inputs if s.file is None and
+                                                   s.frequency},
+                                  {spec.column: spec.rating for spec in output_specs.values() if spec.rating})
     masked += more
     if "resample" in d:
         if recorded.flags is not None:
@@ -376,14 +373,14 @@ def _read_fixed(table: dict, cfg: "_Reader") -> dict[str, float]:
     return fixed
 
 
-def _read_estimate(table: dict, cfg: "_Reader") -> tuple[EstimateSpec, ...]:
+def _read_estimate(table: dict, cfg: "_Reader", section: str = "estimate") -> tuple[EstimateSpec, ...]:
     def is_spec(v):
         return (not isinstance(v, dict) or not v or bool(_SPEC_KEYS & v.keys())
                 or any(not isinstance(x, dict) for x in v.values()))
 
     specs: dict[str, EstimateSpec] = {}
     for name, value in dotted_items(table, is_spec):
-        key = config_key("estimate", name)
+        key = config_key(section, name)
         cfg.parameter_name(name, key)
         if name in specs:
             raise ConfigError(f"'{name}' is given twice (quoted and as dotted keys)", cfg.file, key)
@@ -412,6 +409,15 @@ def _read_estimate(table: dict, cfg: "_Reader") -> tuple[EstimateSpec, ...]:
             per_experiment=cfg.boolean(value, key, "per_experiment", default=False),
             scale=scale, start=start)
     return tuple(specs.values())
+
+
+def check_parameter_tables(fixed: dict, estimate: dict, file: str, section: str = "estimate") -> None:
+    """A structure file's ``[fixed]`` and ``[estimate]`` (or ``[optional]``) checked as a
+    config's are, every error naming ``file`` and its key: the tables become the tests'
+    configs, and an error named by a test's config sends the user to the wrong file."""
+    cfg = _Reader(file)
+    _read_fixed({k: v for k, v in fixed.items() if k != documented.KEY}, cfg)
+    _read_estimate(estimate, cfg, section)
 
 
 def _read_window(f: dict, data: MeasuredData, cfg: "_Reader") -> tuple[float, float]:

@@ -24,6 +24,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from ..compiler import package_digest, resolve_models
 from ..errors import ConfigError
 from ..version import __version__
 from .playback import RULES
@@ -80,13 +81,16 @@ def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
         if path.is_file():
             h.update(str(path.name).encode())
             h.update(path.read_bytes())
-    h.update(json.dumps({k: v for k, v in asdict(options).items() if k != "results"}, sort_keys=True).encode())
+    # the models by their sources, not by where they lie: a fleet run again from another folder keeps its units
+    h.update(json.dumps({k: v for k, v in asdict(options).items() if k not in ("results", "package", "fmu_dir")},
+                        sort_keys=True).encode())
+    h.update(package_digest(options.package).encode())
     h.update(f"{__version__}; {RULES}".encode())  # another version or rule may judge or identify differently
     return h.hexdigest()
 
 
 def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, scheduler: str | None = None,
-              seed: int = 1, package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus", pdf: bool = False,
+              seed: int = 1, package: str | Path | None = None, fmu_dir: str | Path | None = None, pdf: bool = False,
               check_only: bool = False, progress: bool = True, log: Callable[[str], None] = print) -> FleetResult:
     """Run (or resume) the fleet of ``fleet`` into ``results``: each unit's result in
     ``results/units/<unit>.json`` as it finishes, then the fleet's report
@@ -101,7 +105,8 @@ def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, sched
     results = Path(results)
     folder = results / "units"
     folder.mkdir(parents=True, exist_ok=True)
-    options = FleetOptions(str(results.resolve()), seed, str(Path(package).resolve()), str(Path(fmu_dir).resolve()),
+    package, fmu_dir = resolve_models(package, fmu_dir)  # the workers' paths, whatever their folder
+    options = FleetOptions(str(results.resolve()), seed, str(package.resolve()), str(fmu_dir.resolve()),
                            pdf, str(spec.tolerances) if spec.tolerances else None, check_only)
     t0 = time.perf_counter()
     done, todo = {}, []

@@ -242,7 +242,7 @@ def _record_values(plan: UnitPlan, structures: list[Path]) -> dict[str, float]:
     return {**fixed, **plan.record}
 
 
-def make_fleet(folder: str | Path, units: int | list[int], *, seed: int = 1, fmu_dir: str | Path = "fmus",
+def make_fleet(folder: str | Path, units: int | list[int], *, seed: int = 1, fmu_dir: str | Path | None = None,
                name: str | None = None, pre_event: float = PRE_EVENT_S) -> Path:
     """Units ``0 .. units - 1`` (or those of a list) under ``folder/units`` and
     ``folder/fleet.toml``."""

@@ -26,12 +26,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from ..calibration.delivery import archived_reproduction
-from ..errors import DeliveryError, RapidCosimError
+from ..errors import CheckFailed, DeliveryError, RapidCosimError
 from ..exchange import read_record
-from ..experiment import load_experiment
-from ..identify import Unit
 from ..noise import campaign_noise, quiet_windows
 from ..report.tolerances import Tolerances
+from .check import check_entry
 from .playback import play_back
 from .spec import UnitEntry
 
@@ -50,8 +49,8 @@ class FleetOptions:
 
     results: str
     seed: int = 1
-    package: str = "modelica/iGrGen"
-    fmu_dir: str = "fmus"
+    package: str | None = None
+    fmu_dir: str | None = None
     pdf: bool = False
     tolerances: str | None = None
     check_only: bool = False  # play the records on file back and judge them; identify nothing
@@ -85,6 +84,8 @@ def run_unit(entry: UnitEntry, options: FleetOptions) -> dict:
             shutil.rmtree(work)
         work.mkdir(parents=True)
         _run(entry, options, result, work)
+    except CheckFailed as e:
+        result.path, result.error = FAILED, e.one_line()
     except RapidCosimError as e:
         result.path, result.error = FAILED, str(e)
     except Exception as e:  # a crash is one unit's row, not the fleet's end
@@ -97,9 +98,12 @@ def run_unit(entry: UnitEntry, options: FleetOptions) -> dict:
 def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path) -> None:
     from ..api import identify  # the same function as rapid-cosim identify
 
-    unit = Unit.load(entry.folder)
+    checked = check_entry(entry, package=options.package, fmu_dir=options.fmu_dir)
+    if not checked.ok:  # every problem of the unit's files, and nothing of it run
+        raise CheckFailed(entry.name, checked.problems)
+    unit = checked.unit.unit
     tolerances = _tolerances(options)
-    experiments = [load_experiment(c) for c in unit.configs]
+    experiments = checked.unit.experiments
     noise = campaign_noise(experiments)
     common = dict(package=options.package, fmu_dir=options.fmu_dir, noise_fits=noise, seed=options.seed)
     on_file = None
@@ -107,9 +111,8 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
     if short:
         result.flags.append(f"under {QUIET_ADVISED_S:.0f} s before the event ({', '.join(short)}): "
                             "the noise tests may pass a record a little off")
-    if entry.record is not None:
-        record = read_record(entry.record, bus=unit.bus, machine_id=unit.machine_id, mva=unit.mva)
-        on_file = play_back(record, experiments, list(unit.structures), tolerances, **common)
+    if checked.record is not None:
+        on_file = play_back(checked.record, experiments, list(unit.structures), tolerances, **common)
         result.on_file = on_file.to_json()
         if on_file.passed or options.check_only:
             result.path = PASSED if on_file.passed else FAILS

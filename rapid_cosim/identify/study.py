@@ -22,7 +22,7 @@ its own data exactly:
 * HYGOV: R 0.04-0.07, temporary droop r 0.2-0.6, reset Tr 2-8 s, water inertia TW 0.5-2 s.
 
 Each campaign is the field's ten staged tests (:data:`STEPS`: dispatch, step, return,
-length and recorder rate of ``../shared/staged_tests``), tests 4 and 8 held out as
+length and recorder rate of the field campaign, ``experiments/staged_tests.md``), tests 4 and 8 held out as
 ``make identify`` holds them out, recorded with the realistic recorders of the diagnosis
 study (:func:`rapid_cosim.diagnose.campaigns.recorder`: white plus a slow OU component,
 an offset, jittered stamps, 16-bit quantisation), one recorder for the 10 Hz tests and
@@ -59,7 +59,7 @@ from ..diagnose.context import METHOD
 from ..diagnose.selection import noise_floors
 from ..structures.select import Structure, StructureVerdict, on_structure
 
-# The field campaign's ten tests (../shared/staged_tests): (dispatch in pu, step in Hz,
+# The field campaign's ten tests (experiments/staged_tests.md): (dispatch in pu, step in Hz,
 # return time in s or None for a step held to the end, length in s, recorder rate in Hz),
 # the step at T_STEP; tests 4 and 8 held out, as make identify holds them out.
 STEPS = ((0.6, -0.2, None, 90.0, 10.0), (0.6, -0.2, 60.0, 110.0, 10.0), (0.6, 0.2, None, 90.0, 10.0),

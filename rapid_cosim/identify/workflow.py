@@ -6,9 +6,10 @@ with one noise model.
 * **The deliverable** is a standard record. Every standard structure the unit allows is
   calibrated by the same whitened multistart least squares and judged by the same
   computed null (:func:`rapid_cosim.structures.select.select_structure`); a structure
-  with optional parts (IEEEG1's valve rates ``Uo``/``Uc``) is also fitted with them
-  free, and that fit is kept only where it wins by the selection threshold (the data
-  call for them). Each record's fidelity is stated per test in noise units beside the
+  with optional parts (IEEEG1's valve rates ``Uo``/``Uc``) is also fitted with each set
+  of them free (both, the opening alone, the closing alone: a rate the tests never reach
+  is left at its default, not at a value the data cannot see), and the best of those
+  fits is kept only where it wins by the selection threshold (the data call for them). Each record's fidelity is stated per test in noise units beside the
   explanation's, with what it cannot carry in plain words.
 * **The recommendation** follows the criterion: the first record by BIC (with its optional
   parts where they won). A simpler record is recommended only where it ties with it
@@ -38,22 +39,28 @@ from ..diagnose.selection import THRESHOLD
 from ..structures.select import Structure, StructureFit, StructureVerdict, on_structure, select_structure
 from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
 from ..exchange import MODELS
-from ..experiment import Experiment, load_experiment
+from ..errors import CheckFailed
+from ..experiment import Experiment
 from ..noise import campaign_noise
+from .check import check_unit, say
 from .deliver import write_configs
 from .result import CARRIES, Identification, StandardRecord, cannot_carry
 from .unit import Unit
 
 
 def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_jobs: int = 1,
-             package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus", backend: str = "loky",
+             package: str | Path | None = None, fmu_dir: str | Path | None = None, backend: str = "loky",
              scheduler: str | None = None, log: Callable[[str], None] = print) -> Identification:
     """The unit's explanation, each standard record's calibration and fidelity, and the
     recommended record (see the module docstring)."""
     t0 = time.perf_counter()
-    unit = unit if isinstance(unit, Unit) else Unit.load(unit)
-    structures = [Structure.load(f) for f in unit.structures]  # every file checked before a run starts
-    training, heldout = split_holdout([load_experiment(c) for c in unit.configs], unit.holdout)
+    check = check_unit(unit.path if isinstance(unit, Unit) else unit, package=package, fmu_dir=fmu_dir)
+    if not check.ok:  # every problem of the unit's files at once, before the first fit
+        raise CheckFailed(f"{check.unit.path if check.unit else unit}", check.findings)
+    unit = unit if isinstance(unit, Unit) else check.unit
+    structures = check.structures
+    training, heldout = split_holdout(check.experiments, unit.holdout)
+    say(check.notes)  # what reading the recordings warned of, once
     workdir = Path(workdir)
     log(f"identifying {unit.name}: {len(training)} training and {len(heldout)} held-out experiments")
     fitted_noise = campaign_noise([*training, *heldout])  # one noise model for both parts
@@ -96,8 +103,8 @@ class Delivery:
 
 
 def deliver(structures: Sequence[Structure], training: Sequence[Experiment], heldout: Sequence[Experiment],
-            explanation=None, *, workdir: str | Path, options: RunOptions, package: str | Path = "modelica/iGrGen",
-            fmu_dir: str | Path = "fmus", log: Callable[[str], None] = print,
+            explanation=None, *, workdir: str | Path, options: RunOptions, package: str | Path | None = None,
+            fmu_dir: str | Path | None = None, log: Callable[[str], None] = print,
             fitted_noise: dict | None = None) -> Delivery:
     """Every standard record by identify's rules (optional parts kept only where they win
     by the threshold; the record the criterion prefers recommended, a simpler one only in
@@ -105,7 +112,7 @@ def deliver(structures: Sequence[Structure], training: Sequence[Experiment], hel
     grid simulator's record holds, TG Type I, is ranked but gets no record). ``identify``
     gives it the explanation, whose effects say what each record cannot carry;
     ``rapid-cosim structures`` runs this part alone (no explanation)."""
-    candidates = [*structures, *(s.with_optional() for s in structures if s.optional)]
+    candidates = [*structures, *(v for s in structures for v in s.optional_variants())]
     fitted_noise = fitted_noise or campaign_noise([*training, *heldout])  # kept to predict the held-out tests
     verdict = select_structure(candidates, training, heldout, workdir=workdir, options=options,
                                package=package, fmu_dir=fmu_dir, fitted_noise=fitted_noise, log=log)
@@ -117,10 +124,11 @@ def deliver(structures: Sequence[Structure], training: Sequence[Experiment], hel
 
 
 def _record(structure: Structure, fits: dict[str, StructureFit], explanation) -> StandardRecord:
-    """The structure's kept fit: with its optional parts free only if that wins by the
-    threshold."""
+    """The structure's kept fit: with the set of its optional parts that fits best by BIC,
+    free only if that wins by the threshold."""
     plain = fits[structure.name]
-    freed = fits.get(structure.with_optional().name) if structure.optional else None
+    variants = [fits[v.name] for v in structure.optional_variants() if v.name in fits]
+    freed = min(variants, key=lambda f: f.bic) if variants else None  # the parts the data call for
     use = freed if freed is not None and freed.bic <= plain.bic - THRESHOLD else plain
     effects = list(explanation.effects) if explanation is not None else []
     missing = cannot_carry(structure.name, effects, freed=use is freed)

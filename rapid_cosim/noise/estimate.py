@@ -24,7 +24,7 @@ from scipy import optimize
 
 
 from .model import FAMILIES, RecorderNoise, n_components
-from .quiet import QuietStretch, quiet_stretches, recorder_groups
+from .quiet import QuietStretch, Recorded, quiet_stretches, recorder_groups
 
 LAGS = 12  # autocorrelation lags reported against the model's
 DRAW_FACTOR = 3.0  # noise models drawn for the adequacy null stay within this factor of the estimate
@@ -366,7 +366,7 @@ def fit_noise(stretches: Sequence[QuietStretch], families: Sequence[str] = FAMIL
                     {f: likelihood_of(f, stretches, dt, fits[f][1]) for f in {best, richest}})
 
 
-def campaign_noise(experiments: Sequence["Experiment"], *, tails: bool = True,
+def campaign_noise(experiments: Sequence[Recorded], *, tails: bool = True,
                    families: Sequence[str] = FAMILIES) -> dict[str, NoiseFit]:
     """One noise model per recorder (tests grouped by sample interval), from all of its
     tests' quiet stretches; returned per test name."""

@@ -24,9 +24,27 @@ error three times as large). A longer masked run (:data:`MAX_MASKED_RUN`) still 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Protocol, Sequence
 
 import numpy as np
+
+
+class Recorded(Protocol):
+    """What the noise model reads of an experiment (a
+    :class:`rapid_cosim.experiment.Experiment` is one), named without importing it: the
+    noise model sits below the experiments whose configs hold one."""
+
+    name: str
+    data: Any
+    fixed: dict
+    inputs: tuple
+    measured: Any
+    outputs: dict
+    pre_step_end: float | None
+    weights: dict
+    window: tuple
+
+    def windowed_data(self) -> Any: ...
 
 SETTLE_S = 30.0  # after a move, the response is taken as settled this much later
 TAIL_CHUNK_S = 20.0
@@ -61,7 +79,7 @@ class QuietStretch:
         return self.values - X @ coef
 
 
-def output_of(exp: "Experiment") -> str:
+def output_of(exp: Recorded) -> str:
     weighted = [o for o in exp.outputs if exp.weights[o] > 0]
     if len(weighted) != 1:
         raise ValueError(f"{exp.name}: the noise model is estimated for one compared output; it has "
@@ -69,7 +87,7 @@ def output_of(exp: "Experiment") -> str:
     return weighted[0]
 
 
-def quiet_windows(exp: "Experiment", settle: float = SETTLE_S) -> list[tuple[str, float, float, int]]:
+def quiet_windows(exp: Recorded, settle: float = SETTLE_S) -> list[tuple[str, float, float, int]]:
     """(kind, start, end, trend order) of the test's quiet windows, in seconds."""
     data = exp.windowed_data()
     t0, t1 = float(data.time[0]), float(data.time[-1]) + 1e-9
@@ -96,7 +114,7 @@ def quiet_windows(exp: "Experiment", settle: float = SETTLE_S) -> list[tuple[str
     return windows
 
 
-def quiet_stretches(experiments: Sequence["Experiment"], settle: float = SETTLE_S,
+def quiet_stretches(experiments: Sequence[Recorded], settle: float = SETTLE_S,
                     tails: bool = True) -> list[QuietStretch]:
     """Every quiet stretch of the experiments (``tails=False``: the pre-step ones only)."""
     out = []
@@ -118,7 +136,7 @@ def quiet_stretches(experiments: Sequence["Experiment"], settle: float = SETTLE_
     return out
 
 
-def recorder_groups(experiments: Sequence["Experiment"], tolerance: float = 0.1) -> list[list[str]]:
+def recorder_groups(experiments: Sequence[Recorded], tolerance: float = 0.1) -> list[list[str]]:
     """Tests grouped by recorder: the same median sample interval within ``tolerance``
     (the field campaign's 10 Hz and 25 Hz recorders, say)."""
     groups: list[tuple[float, list[str]]] = []

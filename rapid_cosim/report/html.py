@@ -50,8 +50,8 @@ class PageOptions:
     bus: int = 1
     machine_id: str = "1"
     mva: float | None = None
-    package: str | Path = "modelica/iGrGen"
-    fmu_dir: str | Path = "fmus"
+    package: str | Path | None = None
+    fmu_dir: str | Path | None = None
     record_note: str = ""  # above the record: whose it is and why (rapid-cosim identify's recommendation)
 
 
@@ -130,8 +130,8 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
 def validation_page(archive: str | Path, out: str | Path | None = None, *, n_jobs: int = 1,
                     tolerances: str | Path | None = None, heldout: Sequence[str | Path | Experiment] = (),
                     diagnosis: str | Path | None = None, pdf: str | Path | bool | None = None, bus: int = 1,
-                    machine_id: str = "1", mva: float | None = None, package: str | Path = "modelica/iGrGen",
-                    fmu_dir: str | Path = "fmus", record_note: str = ""):
+                    machine_id: str = "1", mva: float | None = None, package: str | Path | None = None,
+                    fmu_dir: str | Path | None = None, record_note: str = ""):
     """The unit's validation report (this module's page) for a finished run, at
     ``out`` (default: the archive's name with .html): ``tolerances`` a TOML file with a
     ``[validation]`` table (default bands otherwise), ``heldout`` experiment configs

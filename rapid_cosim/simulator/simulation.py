@@ -78,11 +78,28 @@ class InputsHeld(UserWarning):
 
 @dataclass(frozen=True)
 class Trajectory:
+    """Outputs on one time base, by name. An FMI 3.0 array output is kept element by
+    element (``y[1]``, ``y[2]``, as its scalar variables are recorded); asked for by its own
+    name (``traj["y"]``) it is one array of shape (times, *dims), as fmpy returns it."""
+
     time: np.ndarray
     outputs: dict[str, np.ndarray]
 
     def __getitem__(self, name: str) -> np.ndarray:
-        return self.outputs[name]
+        if name in self.outputs:
+            return self.outputs[name]
+        elements = {}
+        for key in self.outputs:
+            m = re.fullmatch(re.escape(name) + r"\[([\d,\s]+)\]", key)
+            if m:
+                elements[tuple(int(i) for i in m.group(1).split(","))] = self.outputs[key]
+        if not elements:
+            raise KeyError(f"{name!r}: no such output; recorded: {', '.join(self.outputs)}")
+        dims = tuple(max(ix[k] for ix in elements) for k in range(len(next(iter(elements)))))
+        out = np.full((self.time.size, *dims), np.nan)
+        for ix, values in elements.items():
+            out[(slice(None), *(i - 1 for i in ix))] = values
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,6 +137,8 @@ def time_base(start_time: float, stop_time: float | None, output_interval: float
         return t
     if stop_time is None or output_interval is None or not output_interval > 0:
         raise ParameterError("give stop_time and a positive output_interval, or output_times")
+    if not stop_time > start_time:
+        raise ParameterError(f"stop_time {stop_time:g} s must be after start_time {start_time:g} s")
     n_points = max(math.ceil((stop_time - start_time) / output_interval - 1e-9), 1)
     return start_time + output_interval * np.arange(n_points + 1)
 

@@ -44,15 +44,18 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import asdict, dataclass, field, replace
+from itertools import combinations
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
 from ..calibration import RunOptions, best_run, inputs_from_experiments
-from ..errors import ConfigError
+from ..errors import ConfigError, Finding
 from ..exchange import model_named
 from ..experiment import Experiment, documented, parse_experiment, render_config
+from ..experiment.config import check_parameter_tables
+from ..experiment.schema import STRUCTURE_FILE
 from ..simulator import get_simulator
 from ..noise import campaign_noise
 from ..diagnose.adequacy import adequacy
@@ -77,9 +80,25 @@ class Structure:
     carries: str = ""  # what the optional parts carry (an effect of the catalogue), e.g. "rate_limit"
 
     def with_optional(self) -> "Structure":
-        """This structure with its optional parts estimated too (IEEEG1's valve rates)."""
-        return replace(self, name=f"{self.name}+{self.carries or 'optional'}",
-                       estimate={**self.estimate, **self.optional}, optional={})
+        """This structure with all its optional parts estimated too (IEEEG1's valve rates)."""
+        return self.optional_variants()[0]
+
+    def optional_variants(self) -> list["Structure"]:
+        """This structure with each non-empty set of its optional parts estimated too, the
+        whole set first (IEEEG1's valve rates: both, the opening alone, the closing alone),
+        named ``IEEEG1+rate_limit`` and ``IEEEG1+rate_limit(Uo)``. Why each apart: a rate
+        the tests never reach is not determined by them, and a fit that frees it leaves it
+        anywhere it does not bind there, a limit the record would then state for other
+        events (a closing rate of 0.004 pu/s from a load switched on, say); the criterion
+        keeps a part only where the data call for it."""
+        names, label = list(self.optional), self.carries or "optional"
+        out = []
+        for k in range(len(names), 0, -1):
+            for chosen in combinations(names, k):
+                tail = "" if k == len(names) else "(" + ",".join(n.removeprefix("gov.") for n in chosen) + ")"
+                out.append(replace(self, name=f"{self.name}+{label}{tail}", optional={},
+                                   estimate={**self.estimate, **{n: self.optional[n] for n in chosen}}))
+        return out
 
     def playing(self, record: dict[str, float]) -> tuple["Structure", dict[str, float]]:
         """This structure holding a record's values (iGrGen names) as a grid simulator plays
@@ -102,19 +121,30 @@ class Structure:
         except (OSError, tomllib.TOMLDecodeError) as e:
             raise ConfigError(f"cannot read the structure file: {e}", str(path)) from None
         head = raw.get("structure")
+        accepted = STRUCTURE_FILE.accepted()
+        extra = sorted(set(raw) - set(accepted))
+        if extra:
+            raise ConfigError(f"unknown section(s) {', '.join(extra)}; allowed: {', '.join(accepted)}", str(path),
+                              extra[0])
         if not isinstance(head, dict) or "name" not in head or "bench" not in head:
             raise ConfigError("needs [structure] with name and bench", str(path), "structure")
+        unknown = sorted(set(head) - accepted["structure"])
+        if unknown:
+            raise ConfigError(f"unknown key '{unknown[0]}'; allowed: {', '.join(sorted(accepted['structure']))}",
+                              str(path), f"structure.{unknown[0]}")
         if not raw.get("estimate"):
             raise ConfigError("estimates nothing: give [estimate] with the parameters the tests must determine",
                               str(path), "estimate")
         fixed, estimate = dict(raw.get("fixed", {})), dict(raw["estimate"])
+        check_parameter_tables(fixed, estimate, str(path))  # errors name this file, not a test's config
         if documented.KEY in fixed:  # a .dyr/.dyd record of the unit, relative to the structure file
             _, added, starts, _ = documented.record_constants(fixed.pop(documented.KEY), fixed, estimate,
                                                               path.parent, str(path))
             fixed = {**added, **fixed}
             estimate = {k: {**v, "start": starts[k]} if k in starts else v for k, v in estimate.items()}
-        optional = {k: dict(v) for k, v in raw.get("optional", {}).items()}
-        carried = {v.pop("carries", "") for v in optional.values()}
+        optional = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.get("optional", {}).items()}
+        carried = {v.pop("carries", "") for v in optional.values() if isinstance(v, dict)}
+        check_parameter_tables({}, optional, str(path), "optional")
         if len(carried) > 1:
             raise ConfigError(f"the optional parts carry {sorted(carried)}: one effect per structure file",
                               str(path), "optional")
@@ -123,6 +153,44 @@ class Structure:
             raise ConfigError(f"{', '.join(clash)}: optional and also fixed or estimated", str(path), "optional")
         return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate, str(path),
                    optional, carried.pop() if carried else "")
+
+    def check(self, *, package=None, fmu_dir=None) -> list[Finding]:
+        """Every problem of this structure file that a run would meet, each naming this file
+        and its key: a bench that cannot be built, a parameter its bench lacks or cannot
+        take, a value outside the range the model declares."""
+        from ..compiler import ensure_fmu
+        from ..errors import BuildError
+
+        out = []
+        for key, bench in (("structure.bench", self.bench), ("structure.input_bench", self.input_bench)):
+            if bench is None:
+                continue
+            try:
+                params = get_simulator(ensure_fmu(bench, package=package, fmu_dir=fmu_dir)).parameters
+            except (BuildError, ConfigError) as e:
+                out.append(Finding(self.path, key, str(e)))
+                continue
+            tables = [("fixed", n, [v]) for n, v in self.fixed.items()]
+            tables += [(section, n, [spec.get("min"), spec.get("max")]) for section, table in
+                       (("estimate", self.estimate), ("optional", self.optional)) for n, spec in table.items()]
+            for section, name, values in tables:
+                where = f'{section}."{name}"'
+                info = params.get(name)
+                if info is None or not info.settable:
+                    close = [k for k in params if k.rsplit(".", 1)[-1].lower() == name.rsplit(".", 1)[-1].lower()]
+                    out.append(Finding(self.path, where, f"{bench} has no settable parameter '{name}'"
+                                       + (f" (close: {', '.join(close)})" if close else "")))
+                    continue
+                lo = -np.inf if info.min is None else info.min
+                hi = np.inf if info.max is None else info.max
+                bad = [v for v in values if isinstance(v, (int, float)) and not lo <= v <= hi]
+                if bad:
+                    out.append(Finding(self.path, where, f"{bad[0]:g} is outside the range {bench} declares for "
+                                       f"'{name}': [{lo:g}, {hi:g}]"))
+        first = {}  # one problem per key, though both benches meet it
+        for f in out:
+            first.setdefault((f.file, f.where), f)
+        return list(first.values())
 
     def experiment(self, exp: Experiment, noise=None) -> Experiment:
         """``exp`` with this structure as its model (``noise``: the recorder's model, for
@@ -214,7 +282,7 @@ def on_structure(structure: Structure, experiments: Sequence[Experiment], fitted
 
 def select_structure(structures: Sequence[Structure], training: Sequence[Experiment],
                      heldout: Sequence[Experiment] = (), *, workdir: str | Path, options: RunOptions,
-                     package: str | Path = "modelica/iGrGen", fmu_dir: str | Path = "fmus",
+                     package: str | Path | None = None, fmu_dir: str | Path | None = None,
                      threshold: float = THRESHOLD, searches: Sequence[str] = (), fitted_noise: dict | None = None,
                      log: Callable[[str], None] = print) -> StructureVerdict:
     """Calibrate every structure on ``training`` by ``options.method`` and each of

@@ -7,12 +7,15 @@ from pathlib import Path
 
 def cache_dir() -> Path:
     """Where built artefacts shared by every folder and process of this user live: the
-    compiled runner and the FMU cache. ``$RAPID_COSIM_CACHE``, else ``~/.cache/rapid-cosim``
-    (or the temporary folder where the home is not writable)."""
+    compiled runner, the FMUs built for the shipped models and the FMU cache.
+    ``$RAPID_COSIM_CACHE``, else the user's cache folder (platformdirs: ``~/.cache/rapid-cosim``
+    on Linux), else the temporary folder where that cannot be written."""
     configured = os.environ.get("RAPID_COSIM_CACHE")
     if configured:
         return Path(configured)
-    home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rapid-cosim"
+    from platformdirs import user_cache_dir
+
+    home = Path(user_cache_dir("rapid-cosim", appauthor=False))
     try:
         home.mkdir(parents=True, exist_ok=True)
         return home

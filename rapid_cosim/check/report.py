@@ -1,0 +1,172 @@
+"""The checks of a config, a unit and a fleet, and the report they give: every problem
+located, what was loaded, what the run will do and about what it costs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+from ..errors import Finding, RapidCosimError, finding
+from ..experiment.schema import reference
+from .cost import PLAYBACK_EXTRA, duration, identify_simulations, method_simulations, seconds_per_simulation
+
+
+@dataclass
+class CheckReport:
+    """What ``rapid-cosim check`` found: ``problems`` (each located), the ``lines`` it
+    says about what was loaded and what the run will do, and the run's cost."""
+
+    path: str
+    kind: str  # config, unit or fleet
+    problems: list[Finding] = field(default_factory=list)
+    lines: list[str] = field(default_factory=list)
+    simulations: int = 0
+    seconds: float = 0.0  # about, on this machine
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+    def text(self) -> str:
+        out = [f"{self.path} ({self.kind}): " + ("ok" if self.ok else f"{len(self.problems)} problem(s)")]
+        out += [f"  {line}" for line in self.lines]
+        if self.simulations:
+            took = duration(self.seconds)
+            out.append(f"  about {self.simulations:,} simulations: {'about ' if took[0].isdigit() else ''}{took} of "
+                       "simulation on this machine in one process (counts are rough: the methods stop when they "
+                       "converge)")
+        for p in self.problems:
+            link = reference(p.where) if p.where and not p.where.startswith(("row ", "line ", "--")) else None
+            out.append(f"  problem: {p}" + (f" (the key: {link})" if link else ""))
+        return "\n".join(out)
+
+
+def _estimates(exp) -> str:
+    return ", ".join(f"{s.label} [{s.min:g}, {s.max:g}]" + (" log" if s.scale == "log" else "")
+                     for s in exp.estimate) or "nothing"
+
+
+def _cost(report: CheckReport, experiments: Sequence, simulations: int, package, fmu_dir) -> None:
+    try:
+        per = seconds_per_simulation(experiments, package=package, fmu_dir=fmu_dir)
+    except RapidCosimError as e:
+        report.problems.append(finding(e))
+        return
+    report.simulations, report.seconds = simulations, simulations * per
+    report.lines.append(f"one simulation of every test: {1e3 * per:.2g} ms on this machine (batched)")
+
+
+def check_configs(paths: Sequence[Path], *, method: str, package=None, fmu_dir=None) -> CheckReport:
+    """Configs as ``rapid-cosim estimate`` loads them, jointly fitted by ``method``."""
+    from ..calibration import inputs_from_experiments
+    from ..estimators.chain import parse_method
+    from ..experiment import load_experiment
+    from ..identify.check import quietly
+
+    report = CheckReport(", ".join(map(str, paths)), "config")
+    notes: list[str] = []
+    experiments = []
+    for path in paths:
+        try:
+            experiments.append(quietly(lambda: load_experiment(path), notes))
+        except RapidCosimError as e:
+            report.problems.append(finding(e))
+    if not experiments:
+        return report
+    try:
+        inputs = inputs_from_experiments(experiments, package=package, fmu_dir=fmu_dir)
+    except RapidCosimError as e:
+        report.problems.append(finding(e))
+        return report
+    for exp in experiments:
+        report.lines += [f"{exp.name}: {line}" for line in exp.recording.lines()]
+        report.lines.append(f"{exp.name}: {exp.model}, estimates {_estimates(exp)}")
+    try:
+        stages = parse_method(method)
+    except ValueError as e:
+        report.problems.append(Finding(None, "--method", str(e)))
+        return report
+    report.lines.append("stages: " + " then ".join(f"{s.name}" + (f" ({s.max_iter} iterations)" if s.max_iter else "")
+                                                 for s in stages) + f" on {inputs.problem.space.dim} parameters")
+    _cost(report, experiments, method_simulations(method, inputs.problem.space.dim), package, fmu_dir)
+    return report
+
+
+def _unit_lines(checked, report: CheckReport) -> None:
+    from ..diagnose.catalogue import CATALOGUE
+
+    unit = checked.unit
+    held = set(unit.holdout)
+    for exp in checked.experiments:
+        report.lines += [f"{exp.name}{' (held out)' if exp.name in held else ''}: {line}"
+                         for line in exp.recording.lines()]
+    report.lines.append(f"explanation: TG Type I and the effect catalogue ({len(CATALOGUE)} effects: "
+                        f"{', '.join(CATALOGUE)}), then pairs with the best")
+    for s in checked.structures:
+        optional = (f"; with {', '.join(k.removeprefix('gov.') for k in s.optional)} free too "
+                    f"({s.carries or 'optional'})" if s.optional else "")
+        report.lines.append(f"structure {s.name}: estimates {', '.join(k.removeprefix('gov.') for k in s.estimate)}"
+                            f"{optional}")
+
+
+def check_unit_report(path: Path, *, package=None, fmu_dir=None) -> CheckReport:
+    """A unit as ``rapid-cosim identify`` loads it."""
+    from ..diagnose.catalogue import CATALOGUE
+    from ..identify.check import check_unit
+
+    checked = check_unit(path, package=package, fmu_dir=fmu_dir)
+    report = CheckReport(str(path), "unit", list(checked.findings))
+    if checked.unit is None:
+        return report
+    _unit_lines(checked, report)
+    if checked.ok:
+        fits = sum(1 + len(s.optional_variants()) for s in checked.structures)
+        training = [e for e in checked.experiments if e.name not in checked.unit.holdout]
+        _cost(report, training, identify_simulations(len(CATALOGUE), fits), package, fmu_dir)
+    return report
+
+
+def check_fleet(path: Path, *, package=None, fmu_dir=None) -> CheckReport:
+    """A fleet as ``rapid-cosim fleet`` loads it: its file, every unit and its record on file."""
+    from ..diagnose.catalogue import CATALOGUE
+    from ..fleet.check import check_entry
+    from ..fleet.spec import load_fleet
+
+    report = CheckReport(str(path), "fleet")
+    try:
+        spec = load_fleet(path)
+    except RapidCosimError as e:
+        report.problems.append(finding(e))
+        return report
+    per_unit, playback = [], 0
+    for entry in spec.units:
+        checked = check_entry(entry, package=package, fmu_dir=fmu_dir)
+        report.problems += checked.problems
+        if not checked.ok:
+            report.lines.append(f"{entry.name}: {len(checked.problems)} problem(s)")
+            continue
+        tests = checked.unit.experiments
+        record = (f"record on file {checked.record.model} ({Path(checked.record.file).name}, line "
+                  f"{checked.record.line})" if checked.record else "no record on file: identified")
+        report.lines.append(f"{entry.name}: {len(tests)} test(s), {record}"
+                            + ("" if all(e.recording.plain for e in tests) else
+                               "; " + "; ".join(line for e in tests for line in e.recording.lines()
+                                                if not line.startswith("time base") or "regular" not in line)))
+        fits = sum(1 + len(s.optional_variants()) for s in checked.unit.structures)
+        dim = max((len(s.estimate) for s in checked.unit.structures), default=1)
+        playback += PLAYBACK_EXTRA * (dim + 1)
+        per_unit.append((tests, identify_simulations(len(CATALOGUE), fits)))
+    if per_unit:
+        tests, each = per_unit[0]
+        try:
+            per = seconds_per_simulation(tests, package=package, fmu_dir=fmu_dir)
+        except RapidCosimError as e:
+            report.problems.append(finding(e))
+            return report
+        report.simulations = playback + sum(n for _, n in per_unit)
+        report.seconds = report.simulations * per
+        report.lines.append(f"checking every record on file: about {playback:,} simulations; identifying a unit "
+                            f"whose record fails: about {each:,} ({duration(each * per)} each on one worker); the "
+                            "total below is for every unit identified")
+    return report
