@@ -62,11 +62,16 @@ def gated_objective(gate, open_calls: int) -> str:
     ``gate`` exists (300 s at most): a run in a subprocess then stays in the middle until
     the test has done what it waits to do (send a signal, read the live archive), however
     loaded the machine. A fixed delay per call raced: on a busy machine the archive was
-    first read once the run had finished, and the signal met an exit with status 0."""
+    first read once the run had finished, and the signal met an exit with status 0. On
+    reaching the gate the run writes ``gate.held``: a signal sent before that can land
+    inside a simulation's callback, where Python drops it (ctypes ignores an exception
+    raised in a callback), and the run then waits at the gate for good."""
     return (f"import os, time\nfrom rapid_cosim.fitting.objective import ProblemObjective\n"
             f"_call, _n = ProblemObjective.__call__, [0]\n"
             f"def _gated(self, X):\n"
             f"    _n[0] += 1\n"
+            f"    if _n[0] == {open_calls + 1}:\n"
+            f"        open({str(gate) + '.held'!r}, 'w').close()  # held from here on: the test may act\n"
             f"    deadline = time.time() + 300\n"
             f"    while _n[0] > {open_calls} and os.path.exists({str(gate)!r}) and time.time() < deadline:\n"
             f"        time.sleep(0.02)\n"

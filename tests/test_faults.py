@@ -52,6 +52,16 @@ def _same(result, expected):
     assert (result.nfev, result.nit) == (expected.nfev, expected.nit)
 
 
+def _wait_until_held(gate, proc, timeout=60):
+    """Until the run holds at its gate (conftest.gated_objective writes gate.held)."""
+    held = gate.with_name(gate.name + ".held")
+    deadline = time.time() + timeout
+    while time.time() < deadline and proc.poll() is None and not held.exists():
+        time.sleep(0.02)
+    if not held.exists():
+        raise AssertionError(f"the run did not reach its gate ({held})")
+
+
 def _wait_for_iterations(archive, n, proc, timeout=60):
     deadline = time.time() + timeout
     while time.time() < deadline and proc.poll() is None:
@@ -73,7 +83,8 @@ def test_an_interrupt_closes_the_archive_and_says_how_to_resume(config, expected
     proc = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         _wait_for_iterations(archive, 3, proc)
-        proc.send_signal(sig)  # the run holds at the gate: it cannot have finished
+        _wait_until_held(gate, proc)
+        proc.send_signal(sig)  # the run holds at the gate: it cannot have finished, nor be in a simulation
         out, err = proc.communicate(timeout=60)
     finally:
         gate.unlink(missing_ok=True)
