@@ -14,6 +14,7 @@ line is a thin layer over these functions.
 
 from __future__ import annotations
 
+import functools
 import tempfile
 import warnings
 from dataclasses import dataclass, field, replace
@@ -32,7 +33,18 @@ from .errors import ArchiveError, ConfigError, ParameterError, RapidCosimError
 from .estimators.base import EstimationResult
 from .estimators.uncertainty import Uncertainty
 from .experiment import Experiment, load_experiment
+from .fitting.engine import pinned_threads
 from .simulator import DEFAULT_RUNNER, BatchResult, Trajectory, get_simulator
+
+def pinned(func):
+    """The API function run with one BLAS and OpenMP thread (:func:`~rapid_cosim.fitting.engine.pinned_threads`)."""
+    @functools.wraps(func)
+    def run(*args, **kwargs):
+        with pinned_threads():
+            return func(*args, **kwargs)
+
+    return run
+
 
 PACKAGE = None  # the iGrGen shipped inside rapid_cosim ($RAPID_COSIM_PACKAGE): compiler.default_package
 FMU_DIR = None  # the user's cache ($RAPID_COSIM_FMUS): compiler.default_fmu_dir
@@ -137,6 +149,7 @@ def default_archive(folder: str | Path | None = None) -> Path:
     return folder / f"run-{datetime.now():%Y%m%d-%H%M%S-%f}.h5"
 
 
+@pinned
 def calibrate(experiments: Sequence[str | Path | Experiment] | str | Path | Experiment, method: str = "pf:10+nm",
               *, seed: int = 1, n_jobs: int = 1, archive: str | Path | None = None,
               options: Mapping[str, Mapping[str, object]] | None = None, runner: str = DEFAULT_RUNNER,
@@ -157,6 +170,7 @@ def calibrate(experiments: Sequence[str | Path | Experiment] | str | Path | Expe
     return _calibration(result, inputs, path, "finished")
 
 
+@pinned
 def resume(path: str | Path, *, n_jobs: int | None = None, joblib_backend: str | None = None,
            scheduler: str | None = None, progress: bool = False) -> Calibration:
     """Continue an interrupted run from its archive, on the archived workers or others
@@ -165,6 +179,7 @@ def resume(path: str | Path, *, n_jobs: int | None = None, joblib_backend: str |
     return _calibration(result, _inputs(path), Path(path), "finished")
 
 
+@pinned
 def rerun(path: str | Path, *, n_jobs: int | None = None, joblib_backend: str | None = None,
           scheduler: str | None = None, progress: bool = False) -> Calibration:
     """Execute an archived run again from the archive alone and compare it bit for bit
@@ -211,6 +226,7 @@ def _partial_result(view: RunArchive) -> EstimationResult:
                             int(view.evaluations().failed.sum()))
 
 
+@pinned
 def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[str | Path | Experiment] = (),
              workdir: str | Path | None = None, seed: int = 1, n_jobs: int = 1, write_model: bool = False,
              package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, log=print, **options):
@@ -226,6 +242,7 @@ def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[s
                          options=opts, package=package, fmu_dir=fmu_dir, log=log)
 
 
+@pinned
 def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int = 1, n_jobs: int = 1,
              package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, backend: str = "loky",
              scheduler: str | None = None, mva: float | None = None, report: bool = True, pdf: bool = True,
@@ -342,6 +359,7 @@ def _as_batch(parameters) -> tuple[list[str], np.ndarray] | None:
     return names, np.array([[float(p[n]) for n in names] for p in sets])
 
 
+@pinned
 def export(archive: str | Path, out: str | Path, *, format: str | None = None, bus: int = 1, machine_id: str = "1",
            mva: float | None = None, bus_name: str = "", kv: float = 0.0):
     """Write the calibration in ``archive`` as the grid simulators' record of its standard

@@ -9,7 +9,9 @@ engine, the number of workers or the chunking.
 
 from __future__ import annotations
 
+import functools
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol, Sequence
 
@@ -18,6 +20,31 @@ import numpy as np
 from ..errors import EngineLost, RapidCosimError
 
 JOBLIB_BACKENDS = ("loky", "multiprocessing", "sequential", "dask")
+
+
+@contextmanager
+def pinned_threads():
+    """The BLAS and OpenMP thread pools at one thread while a run works, in this process
+    and in every worker. Why: the numerical work between simulations is small matrices
+    (a noise model's Cholesky factor, a Levenberg-Marquardt step), which a multi-threaded
+    BLAS makes slower, not faster, once a run's processes fill the cores (a 181-sample
+    Cholesky took 35 ms against 2 ms with the other core busy); and a pool's size changes
+    the last bits of a sum, so a unit gave other numbers on a bare dask worker (the
+    machine's threads) than on a local cluster (a nanny sets one)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        yield
+
+
+def pinned(fn):
+    """``fn`` run with :func:`pinned_threads` (what an engine sends its workers)."""
+    return functools.partial(_pinned_call, fn)
+
+
+def _pinned_call(fn, *args, **kwargs):
+    with pinned_threads():
+        return fn(*args, **kwargs)
 LOST_WORKER_RETRIES = 3  # times a batch is run again on a fresh pool after a worker died
 
 
@@ -70,7 +97,7 @@ class JoblibEngine:
         for attempt in range(self.retries + 1):
             try:
                 with joblib.parallel_config(backend=self.backend, n_jobs=self.n_jobs):
-                    return joblib.Parallel()(joblib.delayed(fn)(payload, c) for c in chunks)
+                    return joblib.Parallel()(joblib.delayed(pinned(fn))(payload, c) for c in chunks)
             except (TerminatedWorkerError, BrokenProcessPool) as e:
                 reason = str(e).strip().splitlines()[0][:200]
                 if attempt == self.retries:
@@ -124,7 +151,7 @@ class DaskEngine:
         try:
             # The payload (experiments, data, FMU bytes) goes with each task rather than
             # scattered once: a task whose worker died then runs again anywhere.
-            futures = [client.submit(fn, payload, c, pure=False) for c in chunks]
+            futures = [client.submit(pinned(fn), payload, c, pure=False) for c in chunks]
             return client.gather(futures)
         except Exception as e:
             if client.status == "running" and "connection" not in str(e).lower():

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from ..calibration.delivery import archived_reproduction
+from ..fitting.engine import pinned_threads
 from ..errors import CheckFailed, DeliveryError, RapidCosimError
 from ..exchange import read_record
 from ..noise import campaign_noise, quiet_windows
@@ -83,7 +84,8 @@ def run_unit(entry: UnitEntry, options: FleetOptions) -> dict:
         if work.exists():
             shutil.rmtree(work)
         work.mkdir(parents=True)
-        _run(entry, options, result, work)
+        with pinned_threads():  # the same numbers on any worker, whatever its threads
+            _run(entry, options, result, work)
     except CheckFailed as e:
         result.path, result.error = FAILED, e.one_line()
     except RapidCosimError as e:
