@@ -22,7 +22,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay bench-identify profile-identify fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -133,6 +133,12 @@ bench-fleet: fmus  ## 100 synthetic units on 2 workers (a 1- and 2-worker timing
 bench-replay: fmus  ## delivered records put back into ANDES in closed loop: the steam unit (regular, jittered, PMU-style stamps), the electrical unit, a synthetic fleet's TGOV1/IEEEG1 units (FLEET_UNITS=20): RMSE/noise and largest error beside the plant's own record
 	$(PY) benchmarks/replay_study.py --work $(RESULTS)/bench-replay --fleet-units $(or $(FLEET_UNITS),20) \
 		--json $(RESULTS)/bench-replay/study.json
+
+profile-identify: fmus  ## where an identification spends its time, by stage and kind of work: the steam unit, the electrical unit, the field unit, a fleet unit
+	$(PY) benchmarks/profile_identify.py --work $(RESULTS)/profile-identify --json $(RESULTS)/profile-identify/profile.json
+
+bench-identify: fmus  ## identifications timed before and after the speed work in one run (per stage, simulations, answers side by side), and 10 fleet units on 2 workers
+	$(PY) benchmarks/identify_bench.py --work $(RESULTS)/bench-identify --json $(RESULTS)/bench-identify/study.json
 
 bench-timebase: fmus  ## the committed ANDES events with only their time base changed (jitter, dropped frames, repeats, a gap, STAT flags): verdicts, estimates in SE, variance ratios, simulation cost; the electrical unit on untidy stamps
 	$(PY) benchmarks/timebase_study.py --work $(RESULTS)/bench-timebase --unit
