@@ -193,3 +193,18 @@ def test_a_masked_sample_or_two_does_not_cut_a_quiet_stretch_and_a_longer_run_do
     assert pre_step([30, 31]) == [98]  # two in a row: one stretch
     assert pre_step([30, 60]) == [98]  # two apart: one stretch
     assert pre_step(range(40, 40 + MAX_MASKED_RUN + 1)) == [40, 57]  # three in a row: cut
+
+
+def test_a_recording_with_no_quiet_stretch_is_a_data_error_naming_it():
+    """Stepped 1 s in (10 samples before it) and never settled: nothing to estimate the
+    recorder's noise from. The user's error type, with the test's name, not a ValueError."""
+    from rapid_cosim.errors import DataError
+    from rapid_cosim.noise import campaign_noise
+
+    t = np.arange(300) * 0.1
+    pm = 0.6 + 0.08 * (t >= 1.0) + 0.001 * np.random.default_rng(3).standard_normal(t.size)
+    exp = experiment_from_arrays("short", "iGrGen.TestBenches.StagedTest", t, {"pm": pm},
+                                 fixed={"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 1.0, "src.t_return": 100.0},
+                                 estimate={"gov.R": (0.02, 0.12)}, fitness={"offset": True, "pre_step_end": 1.0})
+    with pytest.raises(DataError, match="short: no quiet stretch"):
+        campaign_noise([exp])

@@ -23,6 +23,7 @@ import numpy as np
 from scipy import optimize
 
 
+from ..errors import DataError
 from .model import FAMILIES, RecorderNoise, n_components
 from .quiet import QuietStretch, Recorded, quiet_stretches, recorder_groups
 
@@ -375,8 +376,9 @@ def campaign_noise(experiments: Sequence[Recorded], *, tails: bool = True,
     for names in recorder_groups(experiments):
         stretches = quiet_stretches([by_name[n] for n in names], tails=tails)
         if not stretches:
-            raise ValueError(f"{', '.join(names)}: no quiet stretch (before a step or an event, or settled) "
-                             "of at least 20 valid samples to estimate the recorder's noise from")
+            raise DataError(f"{', '.join(names)}: no quiet stretch (before a step or an event, or settled) "
+                            "of at least 20 valid samples to estimate the recorder's noise from; record from "
+                            "before the test starts, or hold the end long enough to settle")
         fit = fit_noise(stretches, families)
         for name in names:
             out[name] = fit

@@ -28,15 +28,28 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from scipy import signal
 
 from .runs import RunWhitening
 
-if TYPE_CHECKING:
-    from .model import RecorderNoise
+
+
+class StationaryNoise(Protocol):
+    """What a filtered part and the Levinson whitener need of a noise (a
+    :class:`~.model.RecorderNoise` is one): named here so that this module does not import
+    the model that holds it (model -> filtered, one way)."""
+
+    @property
+    def dt(self) -> float: ...
+
+    def autocovariance(self, lags: np.ndarray) -> np.ndarray: ...
+
+    def sample(self, times: np.ndarray, rng: np.random.Generator, size: int | None = None) -> np.ndarray: ...
+
+    def describe(self) -> str: ...
 
 MAX_ORDER = 800  # samples: 27 s at 30 frames/s, beyond any slow component a window can estimate
 _PACF_TOL = 1e-9  # partial correlations smaller than this for _QUIET_ORDERS orders in a row: converged
@@ -47,7 +60,7 @@ _QUIET_ORDERS = 8
 class FilteredNoise:
     """``taps`` (scale included) applied to noise ``source``, on ``source``'s grid."""
 
-    source: "RecorderNoise"
+    source: StationaryNoise
     taps: tuple[float, ...]
 
     def __post_init__(self):
@@ -89,7 +102,7 @@ class LevinsonWhitener(RunWhitening):
     docstring); ``s`` holds the innovation variances of the first ``m`` samples of a run,
     ``s_inf`` the variance after them."""
 
-    model: "RecorderNoise"
+    model: StationaryNoise
     m: int = field(init=False)
     s: np.ndarray = field(init=False)
     s_inf: float = field(init=False)

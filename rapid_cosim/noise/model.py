@@ -29,15 +29,12 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import linalg, signal
 
+from .filtered import FilteredNoise, LevinsonWhitener
 from .runs import RunWhitening
-
-if TYPE_CHECKING:
-    from .filtered import FilteredNoise, LevinsonWhitener
 
 FAMILIES = ("white", "ar1", "white+ar1", "white+2ar1")
 _GAIN_TOL = 1e-13  # the gains have converged when they change less than this (relative)
@@ -57,7 +54,7 @@ class RecorderNoise:
     sigma_white: float
     components: tuple[tuple[float, float], ...] = ()
     dt: float = 0.1
-    filtered: tuple["FilteredNoise", ...] = ()  # other noises through known filters (not estimated here)
+    filtered: tuple[FilteredNoise, ...] = ()  # other noises through known filters (not estimated here)
 
     def __post_init__(self):
         comps = tuple((float(s), float(t)) for s, t in self.components)
@@ -132,14 +129,8 @@ class RecorderNoise:
         if self.components:
             dt = np.diff(t)
             for s, tau in self.components:
-                a = np.exp(-dt / tau)
-                b = s * np.sqrt(1.0 - a * a)
                 z = rng.standard_normal((rows, t.size))
-                x = np.empty((rows, t.size))
-                x[:, 0] = s * z[:, 0]
-                for k in range(1, t.size):  # vectorised over replicates; one pass over time
-                    x[:, k] = a[k - 1] * x[:, k - 1] + b[k - 1] * z[:, k]
-                out += x
+                out += _ou_paths(np.exp(-dt / tau)[:, None], np.array([s]), z.T).T
         for f in self.filtered:
             out += f.sample(t.size, rng, rows)
         return out[0] if size is None else out
@@ -196,19 +187,26 @@ def sample_draws(models: "list[RecorderNoise]", times: np.ndarray, rng: np.rando
     for j in range(k):
         s = np.array([m.components[j][0] for m in models])
         tau = np.array([m.components[j][1] for m in models])
-        a = np.exp(-dt[:, None] / tau[None, :])  # (n - 1, rows): time first, so each step is contiguous
-        b = s[None, :] * np.sqrt(1.0 - a * a)
-        z = rng.standard_normal((t.size, rows))
-        x = np.empty((t.size, rows))
-        x[0] = s * z[0]
-        for i in range(1, t.size):
-            x[i] = a[i - 1] * x[i - 1] + b[i - 1] * z[i]
-        out += x.T
+        out += _ou_paths(np.exp(-dt[:, None] / tau[None, :]), s, rng.standard_normal((t.size, rows))).T
     if any(m.filtered != models[0].filtered for m in models):
         raise ValueError("sample_draws needs models with the same filtered components")
     for f in models[0].filtered:
         out += f.sample(t.size, rng, rows)
     return out
+
+
+def _ou_paths(a: np.ndarray, s: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Ornstein-Uhlenbeck paths, exact between irregular stamps: ``x_0 = s z_0``,
+    ``x_k = a_k x_{k-1} + s sqrt(1 - a_k^2) z_k``, time first (``z`` (n, rows); ``a``
+    (n - 1, rows or 1), the decay over each step; ``s`` (rows or 1), the stationary std).
+    The steps' decays differ, so no fixed filter runs it: one pass over time, each step
+    vectorised over the paths (the only loop of the kind in noise/)."""
+    b = s * np.sqrt(1.0 - a * a)
+    x = np.empty_like(z)
+    x[0] = s * z[0]
+    for k in range(1, z.shape[0]):
+        x[k] = a[k - 1] * x[k - 1] + b[k - 1] * z[k]
+    return x
 
 
 def n_components(family: str) -> int:
@@ -220,8 +218,6 @@ def n_components(family: str) -> int:
 @functools.lru_cache(maxsize=64)
 def _whitener(model: RecorderNoise) -> "Whitener | LevinsonWhitener":
     if model.filtered:  # no small state space: whitened from the autocovariance
-        from .filtered import LevinsonWhitener
-
         return LevinsonWhitener(model)
     return Whitener(model)
 
