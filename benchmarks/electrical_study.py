@@ -338,7 +338,7 @@ def candidate_structures():
     the shaft, 1 - K1 (K3_rest: the stages sum to one, as every event's plant's do)."""
     from generate import ESTIMATE, IEEEG1_FIXED, TGOV1_FIXED, TGTYPEI_FIXED
 
-    from rapid_cosim.structures.select import Structure
+    from rapid_cosim.structures.structure import Structure
 
     bench = "iGrGen.TestBenches.FrequencyInput"
     tg = Structure("TGTypeI", "iGrGen.TestBenches.StagedTest", bench, {f"gov.{k}": v for k, v in TGTYPEI_FIXED.items()},

@@ -65,7 +65,8 @@ def run(folder: Path, units: int | list[int], workers: int, results: Path, *, pr
     from rapid_cosim.fleet import run_fleet
     from rapid_cosim.fleet.synthetic import PRE_EVENT_S, make_fleet
 
-    spec = make_fleet(folder, units, seed=1, fmu_dir=ROOT / "fmus", pre_event=pre_event or PRE_EVENT_S)
+    spec = make_fleet(folder, units, experiments=ROOT / "experiments", seed=1, fmu_dir=ROOT / "fmus",
+                      pre_event=pre_event or PRE_EVENT_S)
     if results.exists():
         shutil.rmtree(results)
     t0 = time.perf_counter()
@@ -76,7 +77,7 @@ def run(folder: Path, units: int | list[int], workers: int, results: Path, *, pr
 
 
 def judge(folder: Path, result) -> dict:
-    rows = {u["unit"]: u for u in result.units}
+    rows = {u.unit: u.to_json() for u in result.units}
     out = {"wrong_flagged": 0, "wrong": 0, "right_passed": 0, "right": 0, "false_alarms": [], "missed": [],
            "new_records_pass": 0, "new_records_within_noise": 0, "identified": 0, "new_records_failing": [],
            "failed": [],
@@ -84,8 +85,8 @@ def judge(folder: Path, result) -> dict:
            "wrong_flagged_off": [], "wrong_missed_off": [], "right_p": []}
     for name, r in rows.items():
         truth = json.loads((folder / "units" / name / "truth.json").read_text())
-        flagged = r["path"] != "record on file passes"
-        if r["path"] == "failed":
+        flagged = r["route"] != "record on file passes"
+        if r["route"] == "failed":
             out["failed"].append(f"{name}: {r['error']}")
             continue
         on = r["on_file"]
@@ -111,7 +112,7 @@ def judge(folder: Path, result) -> dict:
                 out["missed"].append(f"{name} ({truth['structure']}, {truth['wrong']}: its response "
                                      f"{off:.2f} noise levels RMS from the plant's, noise-free; noise tests p "
                                      f"{on['p']:.2g})")
-        if r["path"] == "identified":
+        if r["route"] == "identified":
             out["identified"] += 1
             back = (r.get("recommended") or {}).get("playback")
             ok = bool(back and all(v["passed"] for v in back["tests"].values()))  # its bands
@@ -134,17 +135,17 @@ def main(argv=None) -> int:
         subset = list(range(args.scaling))
         one, t1, _ = run(work / "scaling", subset, 1, work / "scaling" / "results1")
         two, t2, _ = run(work / "scaling", subset, 2, work / "scaling" / "results2")
-        same = all({k: v for k, v in a.items() if k != "seconds"} == {k: v for k, v in b.items() if k != "seconds"}
-                   for a, b in zip(one.units, two.units))
+        same = all({k: v for k, v in a.to_json().items() if k != "seconds"}
+                   == {k: v for k, v in b.to_json().items() if k != "seconds"} for a, b in zip(one.units, two.units))
         figures["scaling"] = {"units": len(subset), "one_worker_s": t1, "two_workers_s": t2, "ratio": t1 / t2,
                               "identical": same}
         print(f"{len(subset)} units: 1 worker {t1:.0f} s, 2 workers {t2:.0f} s: {t1 / t2:.2f} times faster; "
               f"results identical: {same}")
     result, seconds, peak_mb = run(work / "fleet", args.units, 2, work / "fleet" / "results")
     j = judge(work / "fleet", result)
-    per_unit = [u["seconds"] for u in result.units]
-    passed = [u["seconds"] for u in result.units if u["path"] == "record on file passes"]
-    ident = [u["seconds"] for u in result.units if u["path"] == "identified"]
+    per_unit = [u.seconds for u in result.units]
+    passed = [u.seconds for u in result.units if u.route.value == "record on file passes"]
+    ident = [u.seconds for u in result.units if u.route.value == "identified"]
     figures["fleet"] = {"units": args.units, "seconds": seconds, "worker_peak_mb": peak_mb, **j,
                         "unit_seconds": {"passing_median": sorted(passed)[len(passed) // 2] if passed else None,
                                          "identified_median": sorted(ident)[len(ident) // 2] if ident else None,

@@ -111,7 +111,7 @@ def main(argv=None) -> None:
 
         spec = work / "fleet" / "fleet.toml"
         if not spec.exists():
-            make_fleet(work / "fleet", args.fleet, seed=1, fmu_dir=ROOT / "fmus")
+            make_fleet(work / "fleet", args.fleet, experiments=ROOT / "experiments", seed=1, fmu_dir=ROOT / "fmus")
         fleets = {k: run_fleet(tree, spec, work) for k, tree in trees.items()}
     lines = []
     for name in units:

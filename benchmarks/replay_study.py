@@ -281,17 +281,18 @@ def fleet_rows(work: Path, units: int) -> list[dict]:
 
     import rapid_cosim as rc
     from rapid_cosim.fleet.synthetic import PRE_EVENT_S, make_fleet
-    from rapid_cosim.structures.select import Structure
+    from rapid_cosim.structures.structure import Structure
 
     folder = work / "fleet"
     spec = folder / "fleet.toml"
     if not spec.exists():
-        make_fleet(folder, units, seed=1, fmu_dir=ROOT / "fmus")
+        make_fleet(folder, units, experiments=ROOT / "experiments", seed=1, fmu_dir=ROOT / "fmus")
     result = rc.fleet(spec, results=folder / "results", workers=2, progress=False)
     event = andes_grid.GridEvent(load=+1, t_event=PRE_EVENT_S, duration=60.0 - 10.0 + PRE_EVENT_S)
     out = []
     for u in result.units:
-        if u["path"] != "identified" or not u.get("recommended"):
+        u = u.to_json()
+        if u["route"] != "identified" or not u.get("recommended"):
             continue
         home = Path(u["folder"])
         truth = json.loads((home / "truth.json").read_text())

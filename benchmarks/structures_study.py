@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(argv: list[str]) -> int:
     from rapid_cosim.compiler import build_models
-    from rapid_cosim.identify.study import STANDARD, Structure, STRUCTURES_DIR, case_line, miss_lines, \
+    from rapid_cosim.identify.study import STANDARD, Structure, case_line, miss_lines, \
         run_structure_case, summary_text
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -46,7 +46,8 @@ def main(argv: list[str]) -> int:
 
     work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="rapid_cosim_structures_"))
     package, fmu_dir = ROOT / "modelica" / "iGrGen", ROOT / "fmus"
-    build_models([Structure.load(STRUCTURES_DIR / f"{s}.toml").bench for s in STANDARD], package=package,
+    structures_dir = ROOT / "experiments" / "structures"
+    build_models([Structure.load(structures_dir / f"{s}.toml").bench for s in STANDARD], package=package,
                  fmu_dir=fmu_dir, log=lambda *_: None)
     jobs = [(t, s) for s in range(1, args.seeds + 1) for t in truths]  # every structure early in the log
     print(f"{len(jobs)} campaigns, {len(STANDARD)} structures and IEEEG1 with Uo/Uc fitted on each, "
@@ -54,7 +55,8 @@ def main(argv: list[str]) -> int:
     t0 = time.perf_counter()
     cases = []
     for case in joblib.Parallel(n_jobs=args.n_jobs, return_as="generator")(
-            joblib.delayed(run_structure_case)(t, s, work / "cases", package=package, fmu_dir=fmu_dir)
+            joblib.delayed(run_structure_case)(t, s, work / "cases", package=package, fmu_dir=fmu_dir,
+                                              structures_dir=structures_dir)
             for t, s in jobs):
         cases.append(case)
         print(case_line(case), flush=True)

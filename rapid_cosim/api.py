@@ -80,6 +80,12 @@ class Calibration:
     inputs: RunInputs | None = field(default=None, repr=False)
 
     @property
+    def finished(self) -> bool:
+        """Whether the run it holds ran to its end (a rerun of an unfinished archive, or a
+        partial load, did not)."""
+        return self.status == "finished"
+
+    @property
     def parameters(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.names, self.x)}
 
@@ -162,7 +168,17 @@ def calibrate(experiments: Sequence[str | Path | Experiment] | str | Path | Expe
     ``{"pf": {"n_particles": 100}}``."""
     run_options = RunOptions(method=method, seed=seed, n_jobs=n_jobs, backend=joblib_backend, runner=runner,
                              scheduler=scheduler, estimator_options={m: dict(o) for m, o in (options or {}).items()})
-    run_options.check()
+    return calibrate_with(experiments, run_options.check(), archive=archive, progress=progress, package=package,
+                          fmu_dir=fmu_dir, compiler=compiler)
+
+
+@pinned
+def calibrate_with(experiments: Sequence[str | Path | Experiment] | str | Path | Experiment, run_options: RunOptions,
+                   *, archive: str | Path | None = None, progress: bool = False,
+                   package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR,
+                   compiler: str = "auto") -> Calibration:
+    """:func:`calibrate` with its options already built and checked (the CLI checks them
+    once, before it reads a recording or announces a run)."""
     inputs = inputs_from_experiments(as_experiments(experiments), package=package, fmu_dir=fmu_dir,
                                      compiler=compiler)
     path = Path(archive) if archive is not None else default_archive()
@@ -185,7 +201,8 @@ def rerun(path: str | Path, *, n_jobs: int | None = None, joblib_backend: str | 
     """Execute an archived run again from the archive alone and compare it bit for bit
     (``identical``; ``message`` names the first difference when there is one)."""
     report = _rerun(path, n_jobs=n_jobs, backend=joblib_backend, scheduler=scheduler, progress=progress)
-    calib = _calibration(report.result, _inputs(path), Path(path), "finished", identical=report.identical)
+    calib = _calibration(report.result, _inputs(path), Path(path), "finished" if report.finished else "unfinished",
+                         identical=report.identical)
     if not report.identical:
         calib = replace(calib, message=f"different from the archive: {report.first_difference}")
     elif not report.finished:
@@ -234,12 +251,23 @@ def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[s
     ``heldout`` ones): see :mod:`rapid_cosim.diagnose`. Returns its
     :class:`~rapid_cosim.diagnose.workflow.Diagnosis`; ``options`` are those of
     :class:`~rapid_cosim.diagnose.workflow.DiagnoseOptions`."""
-    from .diagnose.workflow import DiagnoseOptions, diagnose as run_diagnosis
+    from .diagnose.workflow import DiagnoseOptions
+
+    return diagnose_with(training, DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=write_model, **options),
+                         heldout=heldout, workdir=workdir, package=package, fmu_dir=fmu_dir, log=log)
+
+
+@pinned
+def diagnose_with(training: Sequence[str | Path | Experiment], options, *,
+                  heldout: Sequence[str | Path | Experiment] = (), workdir: str | Path | None = None,
+                  package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, log=print):
+    """:func:`diagnose` with its :class:`~rapid_cosim.diagnose.workflow.DiagnoseOptions`
+    already built (and so checked: the CLI builds them once, before it reads anything)."""
+    from .diagnose.workflow import diagnose as run_diagnosis
 
     folder = Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="rapid_cosim_diagnose_"))
-    opts = DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=write_model, **options)
     return run_diagnosis(as_experiments(training), as_experiments(heldout) if heldout else [], workdir=folder,
-                         options=opts, package=package, fmu_dir=fmu_dir, log=log)
+                         options=options, package=package, fmu_dir=fmu_dir, log=log)
 
 
 @pinned

@@ -213,7 +213,7 @@ def test_a_structure_file_refuses_what_the_page_does_not_list_naming_itself(fold
     """The structure loader reads the listed sections and keys and refuses others; its
     [fixed], [estimate] and [optional] entries are checked as a config's are when the
     file is read, each error naming the structure file (not a test's config)."""
-    from rapid_cosim.structures.select import Structure
+    from rapid_cosim.structures.structure import Structure
 
     structure = schema.STRUCTURE_FILE.section("structure")
     assert structure.strict and schema.STRUCTURE_FILE.strict

@@ -32,7 +32,12 @@ def _free_port() -> int:
 
 
 class Cluster:
-    def __init__(self, folder: Path):
+    """``threads``: the BLAS and OpenMP pools a bare worker starts with (its environment;
+    a worker without a nanny keeps what it is given, where a nanny sets one)."""
+
+    def __init__(self, folder: Path, threads: int | None = None):
+        env = {**os.environ, **({v: str(threads) for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
+                                                           "MKL_NUM_THREADS")} if threads else {})}
         self.port = _free_port()
         self.address = f"tcp://127.0.0.1:{self.port}"
         log = open(folder / "cluster.log", "w")
@@ -40,7 +45,7 @@ class Cluster:
                                            "--no-dashboard"], stdout=log, stderr=subprocess.STDOUT)
         self.workers = [subprocess.Popen([DASK, "worker", self.address, "--no-nanny", "--nthreads", "1",
                                           "--no-dashboard", "--local-directory", str(folder / f"w{k}")],
-                                         stdout=log, stderr=subprocess.STDOUT) for k in range(2)]
+                                         stdout=log, stderr=subprocess.STDOUT, env=env) for k in range(2)]
         self._wait_for_workers(2)
 
     def _wait_for_workers(self, n: int, timeout: float = 60.0) -> None:

@@ -133,7 +133,7 @@ def test_a_record_whose_stages_do_not_sum_to_one_is_played_as_written(fmus, repo
     from reference_standard import Standard
 
     from rapid_cosim.exchange import psse_dyr
-    from rapid_cosim.structures.select import Structure
+    from rapid_cosim.structures.structure import Structure
 
     text = ("7 'IEEEG1' 1 0 0 20.0 0.0 0.0 0.1 1.0 -1.0 1.0 0.0 0.3 0.3 0.0 7.0 0.4 0.0 1.5 0.3 0.0 0.05 "
             "0.0 0.0 /\n")
@@ -164,11 +164,12 @@ def test_the_fleets_check_of_its_own_record_fails_when_the_file_is_not_the_fit(r
     from rapid_cosim.exchange.tables import Model
     from rapid_cosim.fleet.spec import load_fleet
     from rapid_cosim.fleet.synthetic import draw_unit, make_fleet
-    from rapid_cosim.fleet.unit_job import FAILED, FleetOptions, run_unit
+    from rapid_cosim.fleet import Route
+    from rapid_cosim.fleet.unit_job import FleetOptions, run_unit
 
     plan = draw_unit(6, 1)
     assert plan.structure == "IEEEG1" and not plan.record_right  # its record on file fails: it is identified
-    spec = make_fleet(tmp_path / "fleet", [6], seed=1, fmu_dir=repo / "fmus")
+    spec = make_fleet(tmp_path / "fleet", [6], experiments=repo / "experiments", seed=1, fmu_dir=repo / "fmus")
 
     def unchecked(inputs, parameters, x, out, *, kind, source, bus, machine_id, mva=None, **_):
         record = standard_record(inputs, parameters, x, source=source)
@@ -182,8 +183,8 @@ def test_the_fleets_check_of_its_own_record_fails_when_the_file_is_not_the_fit(r
     entry = load_fleet(spec).units[0]
     result = run_unit(entry, FleetOptions(results=str(tmp_path / "results"), package=str(repo / "modelica" / "iGrGen"),
                                           fmu_dir=str(repo / "fmus")))
-    assert result["path"] == FAILED
+    assert result.route is Route.FAILED
     assert re.search(r"unit\.dyr: the record written does not reproduce the fit it was written from \(.* pu off",
-                     result["error"]), result["error"]
+                     result.error), result.error
     written = read_record(tmp_path / "results" / "units" / entry.name / "unit.dyr")
     assert written.model == "IEEEG1" and written.values["K3"] == 0.3  # the defect, on file

@@ -80,7 +80,7 @@ def test_a_detectable_but_immaterial_deadband_leaves_the_verdict_none():
     assert chosen is None and verdict.effect == NONE and verdict.effects == []
     assert report["deadband"]["material"] is False
     assert report["deadband"]["size_share"] == pytest.approx(0.002 / 0.03, abs=0.01)
-    assert "detectable but immaterial" in verdict.reason
+    assert "detectable but immaterial" in verdict.said
     ctx, base, fit = context(0.1 * structure)
     chosen, verdict, report = check_material(ctx, base, fit, Verdict("deadband", ["deadband"], reason="ΔBIC 40"))
     assert chosen is fit and verdict.effects == ["deadband"] and report["deadband"]["gap_share"] > MIN_GAP_SHARE

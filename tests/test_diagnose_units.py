@@ -64,14 +64,14 @@ def test_heldout_evidence_settles_a_training_tie_only_when_it_adds_up():
     ranking = _ranked(none=0.0, delay=-120.0, measurement_lag=-115.0)
     # delay ahead by 5 on training and by 7 on held-out data: 12 in all, named
     v = settle_on_heldout(decide(ranking), ranking, {"delay": 300.0, "measurement_lag": 307.0})
-    assert v.effect == "delay" and v.effects == ["delay"] and "held-out" in v.reason
+    assert v.effect == "delay" and v.effects == ["delay"] and "held-out" in v.said
     # the held-out tests favour the other by 16: measurement_lag leads by 11 in all
     v = settle_on_heldout(decide(ranking), ranking, {"delay": 316.0, "measurement_lag": 300.0})
     assert v.effect == "measurement_lag"
     # 5 + 3 = 8 is under the threshold: still ambiguous, and it says why
     v = settle_on_heldout(decide(ranking), ranking, {"delay": 300.0, "measurement_lag": 303.0})
     assert v.effect == "ambiguous" and set(v.candidates) == {"delay", "measurement_lag"}
-    assert "do not separate" in v.reason
+    assert "do not separate" in v.said
     # none, with a caveat, is not a tie to settle: left alone
     tie = _ranked(none=0.0, backlash=-4.0, deadband=-2.0)
     v = decide(tie, not_excluded=["deadband"])
@@ -82,21 +82,21 @@ def test_an_effect_that_barely_beats_none_is_not_named():
     ranking = _ranked(none=0.0, backlash=-4.0, deadband=-2.0)
     assert decide(ranking).effect == "none"
     v = decide(ranking, not_excluded=["deadband"])  # a material deadband fits as well: a caveat, not a verdict
-    assert v.effect == "none" and v.candidates == [] and "cannot exclude deadband at a material size" in v.reason
+    assert v.effect == "none" and v.candidates == [] and "cannot exclude deadband at a material size" in v.said
 
 
 def test_verdict_none_with_what_it_cannot_exclude():
     ranking = _ranked(none=0.0, deadband=7.0, delay=8.0)
     assert decide(ranking).effect == "none"
     v = decide(ranking, not_excluded=["deadband"])
-    assert v.effect == "none" and "cannot exclude deadband" in v.reason
+    assert v.effect == "none" and "cannot exclude deadband" in v.said
 
 
 def test_ambiguous_only_between_effects_that_each_beat_none():
     """delay beats none by 12, measurement_lag by 4: within 10 of each other, but only one
     is decisive against none, so it is named; both decisive, and within 10: ambiguous."""
     v = decide(_ranked(none=0.0, delay=-12.0, measurement_lag=-4.0))
-    assert v.effect == "delay" and "does not itself beat none" in v.reason
+    assert v.effect == "delay" and "does not itself beat none" in v.said
     v = decide(_ranked(none=0.0, delay=-22.0, measurement_lag=-14.0))
     assert v.effect == "ambiguous" and set(v.candidates) == {"delay", "measurement_lag"}
 

@@ -28,7 +28,7 @@ def _targets() -> set[str]:
 
 
 def _commands() -> set[str]:
-    from rapid_cosim.cli.main import build_parser
+    from rapid_cosim.cli.parser import build_parser
 
     parser = build_parser()
     (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]

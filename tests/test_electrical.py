@@ -335,7 +335,7 @@ def test_an_estimated_inertia_is_pointed_to_the_generators_record(repo, fmus, tm
 @pytest.mark.parametrize("kind", ["H fixed", "H estimated"])
 def test_a_structure_keeps_the_events_machine(repo, kind):
     """Structure selection swaps the governor, not the machine: H stays as the event gave it."""
-    from rapid_cosim.structures.select import Structure
+    from rapid_cosim.structures.structure import Structure
 
     exp = _variant(repo / "experiments" / "electrical" / "tgov1_on", kind)
     swapped = Structure.load(repo / "experiments" / "structures" / "IEEEG1.toml").experiment(exp)
@@ -371,7 +371,7 @@ def test_the_adequacy_null_of_electrical_power_carries_the_rocofs_noise(repo):
     ROCOF's; the null's replicates must hold both, whitened alike: variance ratio 1 (0.82
     with the recorder's noise alone)."""
     from rapid_cosim.diagnose.null import replicates_for
-    from rapid_cosim.structures.select import Structure
+    from rapid_cosim.structures.structure import Structure
     from rapid_cosim.noise import campaign_noise
     from rapid_cosim.noise.estimate import NoiseFit
 

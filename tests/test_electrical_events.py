@@ -60,7 +60,7 @@ def test_one_unit_is_identified_from_two_grid_events_recorded_as_electrical_powe
     assert abs(found["gov.R"] / truth["gov.R"] - 1) < 0.02
     assert all(abs(found[k] / truth[k] - 1) < 0.15 for k in ("gov.Ts", "gov.T5"))
     record = result.record(result.recommended)
-    assert record.tests["tgtypei_off_same"]["rmse_over_noise"] < 1.3
+    assert record.tests["tgtypei_off_same"].rmse_over_noise < 1.3
     written = read_record(result.files["dyr"])
     assert written.model == result.recommended
     assert all(abs(written.values[k.removeprefix("gov.")] - v) <= 1e-6 * abs(v) for k, v in record.parameters.items())

@@ -331,7 +331,7 @@ def test_export_refuses_a_bench_without_a_standard_governor(fmus, tmp_path):
 
 
 def test_a_config_takes_its_documented_constants_from_a_record(tgov1_run, tmp_path):
-    from rapid_cosim.structures.select import Structure
+    from rapid_cosim.structures.structure import Structure
     from rapid_cosim.errors import ConfigError
     from rapid_cosim.experiment import load_experiment, parse_experiment
 

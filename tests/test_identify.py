@@ -205,16 +205,18 @@ def test_the_recommendation_follows_the_criterion():
     is still recommended, and said to be so (issue 32)."""
     from rapid_cosim.identify.workflow import _recommend
 
-    model, why = _recommend([_record("TGOV1", 124.0, 4), _record("IEEEG1", 0.0, 7)])
+    model, why, tied = _recommend([_record("TGOV1", 124.0, 4), _record("IEEEG1", 0.0, 7)])
     assert model == "IEEEG1" and why.startswith("first by BIC (IEEEG1, 7 estimated parameters; 124.0 ahead of TGOV1)")
-    model, why = _recommend([_record("TGOV1", 6.0, 4), _record("IEEEG1", 0.0, 5), _record("GGOV1", 50.0, 6)])
+    assert tied is None
+    model, why, tied = _recommend([_record("TGOV1", 6.0, 4), _record("IEEEG1", 0.0, 5), _record("GGOV1", 50.0, 6)])
     assert model == "TGOV1" and "it ties with IEEEG1, the first by BIC (6.0 behind, within 10)" in why
-    model, why = _recommend([_record("TGOV1", 30.0, 4), _record("IEEEG1", 0.0, 7, adequate=False)])
+    assert tied == "IEEEG1"  # the outcome as data: the fleet flags the tie from this, not from the sentence
+    model, why, _ = _recommend([_record("TGOV1", 30.0, 4), _record("IEEEG1", 0.0, 7, adequate=False)])
     assert model == "IEEEG1" and "NOT within the noise (not within the noise on test1" in why
     short = _record("TGOV1", 7.3, 4)
     short.cannot_carry = ["rate_limit"]  # the explanation found a rate limit TGOV1 has no part for
-    model, why = _recommend([short, _record("IEEEG1", 0.0, 7)])
-    assert model == "IEEEG1" and "TGOV1 ties with it but cannot carry rate_limit" in why
+    model, why, tied = _recommend([short, _record("IEEEG1", 0.0, 7)])
+    assert model == "IEEEG1" and "TGOV1 ties with it but cannot carry rate_limit" in why and tied is None
 
 
 def test_a_tie_held_by_its_bounds_or_outside_the_noise_is_not_recommended_over_a_clean_first():
@@ -225,11 +227,12 @@ def test_a_tie_held_by_its_bounds_or_outside_the_noise_is_not_recommended_over_a
 
     held = _record("GGOV1", 1.1, 6)
     held.at_bounds = ["gov.Kpgov = 40 at its upper bound", "gov.Tb = 0.05 at its lower bound"]
-    model, why = _recommend([held, _record("IEEEG1", 0.0, 7)])
+    model, why, tied = _recommend([held, _record("IEEEG1", 0.0, 7)])
     assert model == "IEEEG1" and "GGOV1 ties with IEEEG1 but its gov.Kpgov, gov.Tb on their bounds" in why
+    assert tied is None
     first = _record("IEEEG1", 0.0, 7)
     first.at_bounds = ["gov.T2 = 0 at its lower bound"]
-    model, why = _recommend([held, first])
-    assert model == "GGOV1" and "it ties with IEEEG1" in why
-    model, why = _recommend([_record("TGOV1", 3.0, 4, adequate=False), _record("IEEEG1", 0.0, 7)])
+    model, why, tied = _recommend([held, first])
+    assert model == "GGOV1" and "it ties with IEEEG1" in why and tied == "IEEEG1"
+    model, why, _ = _recommend([_record("TGOV1", 3.0, 4, adequate=False), _record("IEEEG1", 0.0, 7)])
     assert model == "IEEEG1" and "TGOV1 ties with IEEEG1 but it is not within the noise" in why

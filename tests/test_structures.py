@@ -19,7 +19,8 @@ from rapid_cosim.cli.campaign import structures as campaign_structures
 from rapid_cosim.diagnose.catalogue import bench_name, bench_source, composable, write_bench
 from rapid_cosim.structures.identifiability import best_separating_step, identifiability
 from rapid_cosim.diagnose.selection import noise_floors
-from rapid_cosim.structures.select import Structure, StructureFit, _verdict, select_structure
+from rapid_cosim.structures.structure import Structure
+from rapid_cosim.structures.select import StructureFit, _verdict, select_structure
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.report.structures import markdown as structures_markdown
 from rapid_cosim.experiment import load_experiment
@@ -244,7 +245,8 @@ def test_the_study_names_ieeeg1_with_binding_rates_and_its_record_reproduces_the
     from rapid_cosim.identify.study import STEPS, run_structure_case
 
     case = run_structure_case("IEEEG1", 2, tmp_path, package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus",
-                              steps=(STEPS[1], STEPS[9], STEPS[3]), held_out=(2,), standard=("TGOV1", "IEEEG1"))
+                              steps=(STEPS[1], STEPS[9], STEPS[3]), held_out=(2,), standard=("TGOV1", "IEEEG1"),
+                              structures_dir=repo / "experiments" / "structures")
     assert case.binding and case.plant["gov.Uo"] < 0.02
     assert case.verdict.structure == "IEEEG1+rate_limit", case.verdict.reason
     assert case.recommended == "IEEEG1" and case.freed

@@ -1,4 +1,4 @@
-"""The command line: ``main`` (``rapid-cosim``'s parser and commands, thin over the
+"""The command line: ``main`` (``rapid-cosim``: its ``parser`` and ``commands``, thin over the
 Python API) and ``campaign`` (the staged-test campaign as the make targets run it)."""
 
 from .main import main

@@ -190,7 +190,8 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
     import json
     from dataclasses import asdict
 
-    from ..structures.select import Structure, effects_on
+    from ..structures.structure import Structure
+    from ..structures.select import effects_on
     from ..diagnose.workflow import DiagnoseOptions, split_holdout
     from ..identify.workflow import deliver
     from ..experiment import load_experiment

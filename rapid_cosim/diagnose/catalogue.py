@@ -26,6 +26,7 @@ base parameters, e.g. a deadband with a larger droop when every step has one siz
 
 from __future__ import annotations
 
+from enum import Enum
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -42,6 +43,26 @@ BASES = {BASE_BENCH: "StagedTest", INPUT_BENCH: "FrequencyInput",
          **{f"iGrGen.TestBenches.{kind}{g}": f"{kind}{g}" for g in STANDARD
             for kind in ("StagedTest", "FrequencyInput")}}
 NONE = "none"
+
+
+class VerdictKind(str, Enum):
+    """What a verdict is, whatever effect or structure it names (its value is the word the
+    records write, so a verdict compares equal to it and writes as it): one named, none
+    (nothing missing), ambiguous (several the data cannot tell apart), unexplained
+    (nothing known explains the data)."""
+
+    NAMED = "named"
+    NONE = "none"
+    AMBIGUOUS = "ambiguous"
+    UNEXPLAINED = "unexplained"
+
+    @classmethod
+    def of(cls, verdict: str) -> "VerdictKind":
+        """The kind of a verdict's effect or structure: a name is NAMED."""
+        return cls(verdict) if verdict in {k.value for k in cls} - {"named"} else cls.NAMED
+
+
+AMBIGUOUS, UNEXPLAINED = VerdictKind.AMBIGUOUS, VerdictKind.UNEXPLAINED
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..calibration import RunOptions
 from ..compiler import build_models, resolve_models
-from ..fitting.engine import JOBLIB_BACKENDS, JoblibEngine
+from ..fitting.engine import JOBLIB_BACKENDS, LOCAL_PROCESSES, JoblibEngine
 from ..errors import ConfigError, RapidCosimError
 from ..data import close_matches
 from ..experiment import Experiment
@@ -120,7 +120,7 @@ class Context:
         # Candidates are independent fits: with local workers each is fitted in a worker
         # process (its batches then run in that process); on a dask cluster they are
         # fitted here, one after the other, and their batches go to the cluster.
-        self.parallel = options.n_jobs != 1 and options.backend in ("loky", "multiprocessing")
+        self.parallel = options.n_jobs != 1 and options.backend in LOCAL_PROCESSES
 
     @property
     def bases(self) -> list[str]:

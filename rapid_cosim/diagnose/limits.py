@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from .adequacy import misfit_locations
 from .candidates import CandidateFit, CandidateSpec
-from .catalogue import NONE
+from .catalogue import AMBIGUOUS, NONE, UNEXPLAINED
 from .materiality import gap_share, material
 from .selection import Verdict
 
@@ -36,9 +36,9 @@ def check_material(ctx, base: CandidateFit, chosen: CandidateFit, verdict: Verdi
     note = (f"{dropped} is detectable but immaterial (fitted at {report[dropped]['size_share']:.0%} of its material "
             f"size, removing {report[dropped]['gap_share']:.0%} of the gap above the noise)")
     if not kept:
-        return None, Verdict(NONE, reason=f"{verdict.reason}; but {note}"), report
+        return None, Verdict(NONE, reason=f"{verdict.said}; but {note}"), report
     verdict.effects = kept
-    verdict.reason += f"; {note}"
+    verdict.note(note)
     return previous, verdict, report
 
 
@@ -73,7 +73,7 @@ def inadequate(ctx, verdict: Verdict, ranking, before_tests, after_tests, fit_af
     first = ctx.fits.get(CandidateSpec(tuple(verdict.effects[:1])).label) if verdict.effects else None
     first_share = gap_share(before_tests, ctx.tests(first), ctx.noise) if first is not None else 0.0
     info["named_gap_share"], info["first_effect_gap_share"] = named_share, first_share
-    ambiguous_failing = verdict.effect == "ambiguous" and not set(verdict.candidates) & set(passing)
+    ambiguous_failing = verdict.effect == AMBIGUOUS and not set(verdict.candidates) & set(passing)
     if (verdict.effect == NONE and not passing) or ambiguous_failing or (
             verdict.effects and first_share < MIN_PARTIAL_SHARE and named_share < MIN_NAMED_SHARE):
         what = ("the base model" if not verdict.effects else
@@ -85,14 +85,14 @@ def inadequate(ctx, verdict: Verdict, ranking, before_tests, after_tests, fit_af
             reason += (f"; the best partial explanation, {partial['candidate']}, removes "
                        f"{partial['gap_share_removed']:.0%} of the gap")
         reason += f"; misfit {where['summary']}"
-        return Verdict("unexplained", candidates=list(verdict.candidates), reason=reason + f" ({verdict.reason})"), info
-    verdict.reason += (f"; the final model still misses structure (variance ratio "
+        return Verdict(UNEXPLAINED, candidates=list(verdict.candidates), reason=reason + f" ({verdict.said})"), info
+    verdict.note(f"the final model still misses structure (variance ratio "
                        f"{fit_after.pooled_variance_ratio:.2f}; {where['summary']})")
     return verdict, info
 
 
 def verdict_text(verdict: Verdict, fit_after) -> str:
     named = " + ".join(verdict.effects) if verdict.effects else verdict.effect
-    if not fit_after.adequate and verdict.effect != "unexplained":
+    if not fit_after.adequate and verdict.effect != UNEXPLAINED:
         return f"{named} + unexplained remainder"
     return named

@@ -41,7 +41,7 @@ import numpy as np
 from ..experiment import Experiment
 from ..noise import NoiseFit, campaign_noise
 from .candidates import CandidateFit, ExperimentResiduals
-from .catalogue import NONE
+from .catalogue import AMBIGUOUS, NONE
 
 THRESHOLD = 10.0
 
@@ -143,8 +143,19 @@ class Verdict:
     effect: str  # a catalogue name, "none" or "ambiguous"
     effects: list[str] = field(default_factory=list)  # named effects, greedy order
     candidates: list[str] = field(default_factory=list)  # when ambiguous: which could not be told apart
-    reason: str = ""
+    reason: str = ""  # why this verdict, in one clause; what later stages learn goes to notes
     held_out: dict | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def note(self, text: str) -> None:
+        """What a later stage adds (held-out confirmation, a limit it ran into): kept
+        apart, rendered once by :attr:`said`."""
+        self.notes.append(text)
+
+    @property
+    def said(self) -> str:
+        """The reason and every note, as the reports print it."""
+        return "; ".join([self.reason, *self.notes])
 
 
 def rank(fits: Sequence[CandidateFit], noise: Mapping[str, NoiseFloor]) -> list[Ranked]:
@@ -188,7 +199,7 @@ def decide(ranking: Sequence[Ranked], *, threshold: float = THRESHOLD,
     rivals = [r.label for r in ranking[1:] if r.label != "none" and r.delta < threshold
               and _margin(ranking, r) >= threshold]
     if rivals:
-        return Verdict("ambiguous", candidates=[best.label, *rivals],
+        return Verdict(AMBIGUOUS, candidates=[best.label, *rivals],
                        reason=f"{best.label} and {', '.join(rivals)} are within {threshold:g} of each other")
     second = ranking[1]
     reason = (f"{best.label} beats none by {margin_none:.1f} and the next candidate ({second.label}) by "
@@ -208,7 +219,7 @@ def settle_on_heldout(verdict: Verdict, ranking: Sequence[Ranked], heldout_terms
     which the held-out confirmation against ``none`` answers later.
     """
     tied = verdict.candidates
-    if verdict.effect != "ambiguous" or NONE in tied or not all(c in heldout_terms for c in tied):
+    if verdict.effect != AMBIGUOUS or NONE in tied or not all(c in heldout_terms for c in tied):
         return verdict
     bics = {r.label: r.bic for r in ranking}
     total = {c: bics[c] + heldout_terms[c] for c in tied}
@@ -216,7 +227,7 @@ def settle_on_heldout(verdict: Verdict, ranking: Sequence[Ranked], heldout_terms
     best, runner = order[0], order[1]
     lead = total[runner] - total[best]
     if lead < threshold:
-        verdict.reason += (f"; the held-out tests do not separate them either ({best} ahead of {runner} by "
+        verdict.note(f"the held-out tests do not separate them either ({best} ahead of {runner} by "
                            f"{lead:.1f} over training and held-out tests)")
         return verdict
     parts = ", ".join(f"{c} by {total[c] - total[best]:.1f} (held-out {heldout_terms[c] - heldout_terms[best]:+.1f})"

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..experiment import load_experiment
 from .campaigns import CAMPAIGN, FOREIGN, SINGLE_SIZE, Case, draw_case, write_campaign  # noqa: F401  (re-exported)
-from .catalogue import CATALOGUE, EFFECTS, NONE, VARIANTS
+from .catalogue import AMBIGUOUS, CATALOGUE, EFFECTS, NONE, UNEXPLAINED, VARIANTS
 from .workflow import DiagnoseOptions, Diagnosis, diagnose
 
 # The physical effects a plant can hide (the freed documented constants are studied apart).
@@ -42,14 +42,14 @@ class CaseResult:
         d = self.diagnosis
         self.named_first = d.effects[0] if d.effects else d.effect
         # no model was added for these verdicts, so there is no shrink to measure
-        self.gap_shrink = None if d.effect in (NONE, "ambiguous", "unexplained") else _shrink(d, self.case.noise.sigma)
+        self.gap_shrink = None if d.effect in (NONE, AMBIGUOUS, UNEXPLAINED) else _shrink(d, self.case.noise.sigma)
 
     @property
     def outcome(self) -> str:
         """The verdict as the confusion matrix counts it: a named effect, ``none``,
         ``ambiguous``, ``unexplained``, or ``+remainder`` (named, model still inadequate)."""
         d = self.diagnosis
-        if d.effect in (NONE, "ambiguous", "unexplained"):
+        if d.effect in (NONE, AMBIGUOUS, UNEXPLAINED):
             return d.effect
         return self.named_first if d.adequate else "+remainder"
 
@@ -61,12 +61,12 @@ class CaseResult:
         tell apart."""
         d = self.diagnosis
         if self.case.foreign:
-            return d.effect == "unexplained"
+            return d.effect == UNEXPLAINED
         if len(self.case.effects) > 1:
             return set(d.effects) == set(self.case.effects)
         if self.case.truth in VARIANTS:
             return self.named_first in (self.case.truth, VARIANTS[self.case.truth].variant_of) or (
-                d.effect == "ambiguous" and self.case.truth in d.candidates)
+                d.effect == AMBIGUOUS and self.case.truth in d.candidates)
         return self.named_first == self.case.truth
 
     @property
@@ -84,7 +84,7 @@ class CaseResult:
     def wrong_whole_story(self) -> bool:
         """A catalogue name given as the whole story (adequate model) that is wrong."""
         d = self.diagnosis
-        return d.effect not in (NONE, "ambiguous", "unexplained") and d.adequate and not self.correct
+        return d.effect not in (NONE, AMBIGUOUS, UNEXPLAINED) and d.adequate and not self.correct
 
 
 def _shrink(d: Diagnosis, sigma: float) -> float | None:
@@ -117,7 +117,7 @@ def confusion(results: Sequence[CaseResult]) -> tuple[list[str], list[str], np.n
     order = [*EFFECTS, NONE, *FOREIGN]
     truths = [t for t in order if any(r.case.truth == t for r in results)]
     truths += sorted({r.case.truth for r in results} - set(truths))  # pairs
-    verdicts = [*EFFECTS, NONE, "ambiguous", "unexplained", "+remainder"]
+    verdicts = [*EFFECTS, NONE, AMBIGUOUS, UNEXPLAINED, "+remainder"]
     m = np.zeros((len(truths), len(verdicts)), dtype=int)
     for r in results:
         m[truths.index(r.case.truth), verdicts.index(r.outcome)] += 1

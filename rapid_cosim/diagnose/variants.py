@@ -21,7 +21,7 @@ it is given:
 from __future__ import annotations
 
 from .candidates import CandidateFit, CandidateSpec, default_start
-from .catalogue import EFFECTS, variants_of
+from .catalogue import AMBIGUOUS, EFFECTS, variants_of
 from .selection import Verdict, bic
 
 
@@ -49,18 +49,18 @@ def check_variants(ctx, chosen: CandidateFit, verdict: Verdict, threshold: float
     if delta <= -threshold:
         report["outcome"] = "variant"
         verdict = Verdict(best.spec.effects[0], effects=list(best.spec.effects), held_out=verdict.held_out,
-                          reason=(f"{verdict.reason}; but {best_label} explains it better ({-delta:.1f} in BIC) "
+                          reason=(f"{verdict.said}; but {best_label} explains it better ({-delta:.1f} in BIC) "
                                   f"with the documented {constants} kept: the documentation stands"))
         return best, verdict, report, None
     if delta < threshold:
-        report["outcome"] = "ambiguous"
-        verdict = Verdict("ambiguous", candidates=[best_label, chosen.spec.label], held_out=verdict.held_out,
-                          reason=(f"{verdict.reason}; but {best_label}, with the documented {constants} kept, fits "
+        report["outcome"] = AMBIGUOUS.value
+        verdict = Verdict(AMBIGUOUS, candidates=[best_label, chosen.spec.label], held_out=verdict.held_out,
+                          reason=(f"{verdict.said}; but {best_label}, with the documented {constants} kept, fits "
                                   f"as well ({delta:+.1f} in BIC): the data cannot tell a documented {constants} "
                                   f"off its value from a {EFFECTS[best.spec.effects[0]].title}; the parameters "
                                   f"given are {best_label}'s, where the documentation stands"))
         return chosen, verdict, report, best
     report["outcome"] = "documented constant"
-    verdict.reason += (f"; its variants with the documented {constants} kept fit worse (the best, {best_label}, by "
+    verdict.note(f"its variants with the documented {constants} kept fit worse (the best, {best_label}, by "
                        f"{delta:.1f})")
     return chosen, verdict, report, None

@@ -27,7 +27,7 @@ from ..fitting.objective import ProblemObjective
 from ..experiment import Experiment
 from .adequacy import jitter_share
 from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, residuals_at
-from .catalogue import BASES, CATALOGUE, NONE, camel, check_base, composable, effect_parameters, governor, is_staged, \
+from .catalogue import AMBIGUOUS, BASES, CATALOGUE, NONE, UNEXPLAINED, camel, check_base, composable, effect_parameters, governor, is_staged, \
     write_bench
 from .context import Context, DiagnoseOptions, split_holdout
 from .features import Features, residual_features
@@ -82,7 +82,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     if not decisive(ranking, options.threshold):
         not_excluded = _material_checks(ctx, base, options)
     verdict = decide(ranking, threshold=options.threshold, not_excluded=not_excluded)
-    if verdict.effect == "ambiguous" and ctx.heldout and NONE not in verdict.candidates:
+    if verdict.effect == AMBIGUOUS and ctx.heldout and NONE not in verdict.candidates:
         verdict = settle_on_heldout(verdict, ranking, {c: _held_out_score(ctx, ctx.fits[c])
                                                        for c in verdict.candidates if c in ctx.fits},
                                     options.threshold)
@@ -100,16 +100,16 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     variants, story = {}, None  # story: the simpler of two stories the data cannot tell apart
     if chosen is not None:
         chosen, verdict, variants, story = check_variants(ctx, chosen, verdict, options.threshold)
-        if verdict.effect == "ambiguous":
+        if verdict.effect == AMBIGUOUS:
             chosen = None
 
     separating = None
-    if verdict.effect == "ambiguous":
+    if verdict.effect == AMBIGUOUS:
         separating = _separating(ctx, verdict.candidates, not_excluded)
     elif verdict.effect == NONE and not_excluded:  # the staged test that would tell none from the caveat
         separating = _separating(ctx, [NONE, not_excluded[0]], not_excluded)
         if separating:
-            verdict.reason += f"; {separating['advice']}"
+            verdict.note(separating['advice'])
 
     materiality = {}
     if chosen is not None:
@@ -121,7 +121,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     unexplained = None
     if not fit_after.adequate:
         verdict, unexplained = inadequate(ctx, verdict, ranking, before_tests, after_tests, fit_after)
-        if verdict.effect == "unexplained":
+        if verdict.effect == UNEXPLAINED:
             chosen = None  # a partial explanation is reported, not written into the package
     model_written, model_file = None, None
     if chosen is not None and options.write_model:
@@ -132,7 +132,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     judged.update({"final": fit_after, "base": fit_before})
     search = _search_report(ctx, verdict, ranking, second, options)
     if search["uncertain"]:
-        verdict.reason += "; " + search["warning"]
+        verdict.note(search["warning"])
     gap_before = _gaps(ctx, before_tests)
     gap_after = _gaps(ctx, after_tests)
     bands = intervals(final_fit, n_jobs=ctx.options.n_jobs, log=ctx.log)
@@ -140,7 +140,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
                         "whitened_before": t.whitened, "whitened_after": after_tests[name].whitened}
                  for name, t in before_tests.items()}
     return Diagnosis(
-        effect=verdict.effect, effects=verdict.effects, candidates=verdict.candidates, reason=verdict.reason,
+        effect=verdict.effect, effects=verdict.effects, candidates=verdict.candidates, reason=verdict.said,
         verdict=verdict_text(verdict, fit_after), adequate=fit_after.adequate,
         adequacy={"before": fit_before.to_json(), "after": fit_after.to_json()}, unexplained=unexplained,
         materiality=materiality,
@@ -189,7 +189,7 @@ def _confirm(ctx: Context, chosen: CandidateFit, base: CandidateFit, verdict: Ve
         return Verdict(NONE, held_out=verdict.held_out,
                        reason=f"{verdict.effect} wins on the training tests but does not predict the held-out "
                               f"tests better than the base model ({improvement:+.1f}): not named, not excluded")
-    verdict.reason += f"; confirmed on held-out {', '.join(e.name for e in ctx.heldout)} ({improvement:+.1f})"
+    verdict.note(f"confirmed on held-out {', '.join(e.name for e in ctx.heldout)} ({improvement:+.1f})")
     return verdict
 
 
@@ -201,12 +201,12 @@ def _second_effect(ctx: Context, chosen: CandidateFit, verdict: Verdict, options
     ranked = rank([chosen, *combos], ctx.noise)
     best = ranked[0]
     if best.label == chosen.spec.label:
-        verdict.reason += f"; no second effect improves it (closest {ranked[1].label}, {ranked[1].delta:+.1f})"
+        verdict.note(f"no second effect improves it (closest {ranked[1].label}, {ranked[1].delta:+.1f})")
         return chosen, verdict, ranked
     margin = next(r for r in ranked if r.label == chosen.spec.label).delta
     rivals = [r.label for r in ranked[1:] if r.label != chosen.spec.label and r.delta < options.threshold]
     if margin < options.threshold or rivals:
-        verdict.reason += (f"; a second effect is not decisive ({best.label} by {margin:.1f}"
+        verdict.note(f"a second effect is not decisive ({best.label} by {margin:.1f}"
                            + (f", rivals {', '.join(rivals)})" if rivals else ")"))
         return chosen, verdict, ranked
     fit = ctx.fits[best.label]
@@ -222,18 +222,18 @@ def _second_effect(ctx: Context, chosen: CandidateFit, verdict: Verdict, options
     if nested_bic < bic(chosen, ctx.noise):
         chosen = ctx.fits[chosen.spec.label] = nested
     if nested_bic - bic(fit, ctx.noise) < options.threshold:
-        verdict.reason += (f"; {best.label} fits better only because its search found better parameters of "
+        verdict.note(f"{best.label} fits better only because its search found better parameters of "
                            f"{chosen.spec.label} (the second effect adds less than {options.threshold:g})")
         return chosen, verdict, rank([chosen, *combos], ctx.noise)
     if ctx.heldout:
         named = _held_out_score(ctx, fit)
         prev = _held_out_score(ctx, chosen)
         if named >= prev:
-            verdict.reason += f"; {best.label} not confirmed on the held-out tests"
+            verdict.note(f"{best.label} not confirmed on the held-out tests")
             return chosen, verdict, ranked
     added = fit.spec.effects[-1]
     verdict.effects = list(fit.spec.effects)
-    verdict.reason += f"; adding {added} improves it by {margin:.1f}"
+    verdict.note(f"adding {added} improves it by {margin:.1f}")
     return fit, verdict, ranked
 
 

@@ -264,7 +264,7 @@ UNIT_FILE = FileKind("Unit file", "unit.toml", "A unit folder's file (rapid_cosi
 ))
 
 STRUCTURE_FILE = FileKind("Structure file", "structures/<name>.toml", "One governor structure (rapid_cosim/"
-                          "structures/select.py). `[fixed]` and `[estimate]` (required) are the experiment config's, "
+                          "structures/structure.py). `[fixed]` and `[estimate]` (required) are the experiment config's, "
                           "checked when the file is read (errors name it); `documented` is relative to this file.", (
     Section("structure", (
         Key("name", STR, "", REQUIRED, "", "the structure's name (`TGOV1`)"),

@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import EngineLost, RapidCosimError
 
 JOBLIB_BACKENDS = ("loky", "multiprocessing", "sequential", "dask")
+LOCAL_PROCESSES = ("loky", "multiprocessing")  # backends whose workers are this machine's processes
 
 
 @contextmanager

@@ -3,7 +3,7 @@ on file gets before anything is fitted (NERC MOD-033's comparison of the system 
 with an actual event, one unit at a time).
 
 The record's model is the unit's structure of that name, played as a grid simulator
-plays the record (:meth:`~rapid_cosim.structures.select.Structure.playing`): every value
+plays the record (:meth:`~rapid_cosim.structures.structure.Structure.playing`): every value
 the record carries in place of the structure's, IEEEG1's K3 as the file states it
 whatever the structure's ``K3_rest``; the operating point and the smooth limits'
 sharpness stay the test's and the bench's. Each of the unit's
@@ -41,7 +41,7 @@ band two noise levels wide: 32 % and 37 % on two right records, both of which fa
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -52,13 +52,13 @@ from ..diagnose.candidates import residuals_at, experiment_blocks
 from ..diagnose.null import ScoredTest, replicates_for, with_extra
 from ..diagnose.selection import noise_floors
 from ..fitting.objective import ProblemObjective
-from ..structures.select import Structure, on_structure
+from ..structures.structure import Structure, on_structure
 from ..errors import ConfigError
 from ..exchange import Record
 from ..noise import campaign_noise
 from ..report.archives import curves_at
 from ..report.tolerances import Tolerances, judge
-from ..report.validation import compared, metrics_of
+from ..report.validation import Compared, compared, metrics_of
 
 BAND_REPLICATES = 200  # noise replicates the bands' false-alarm rate is read from (its SE ~ 0.015 at 5 %)
 UNJUDGEABLE = 0.10  # a band that the noise alone fails more often than this is not judged on the recording
@@ -67,18 +67,30 @@ NULL_REPLICATES = 400  # of the noise tests' null (beyond 20 replicates its tail
 RULES = f"bands+variance+score held at bounds; alpha {ALPHA}; null {NULL_REPLICATES}; bands {BAND_REPLICATES}; unjudgeable {UNJUDGEABLE}"
 
 
+@dataclass(frozen=True)
+class TestJudgement:
+    """A record on one recording: whether it passes its bands, the band metrics that
+    fail, its RMSE over the recorder's noise, how often the noise alone fails the bands
+    judged (their false-alarm rate) and the bands not judged, with that rate."""
+
+    passed: bool
+    failing: list[str]
+    rmse_over_noise: float
+    band_false_alarm: float
+    not_judged: dict[str, float]
+
+
 @dataclass
 class Playback:
-    """A record on a unit's recordings: per test, whether it passes its bands, the band
-    metrics that fail, its RMSE over the recorder's noise and the bands' false-alarm rate;
-    for the unit, why the noise tests reject it (empty: they do not), their p, and the
-    chance that a correct record fails these checks here."""
+    """A record on a unit's recordings: per test its :class:`TestJudgement`; for the unit,
+    why the noise tests reject it (empty: they do not), their p, and the chance that a
+    correct record fails these checks here."""
 
     model: str
     source: str
     values: dict[str, float]
     passed: bool
-    tests: dict[str, dict]
+    tests: dict[str, TestJudgement]
     inconsistent: list[str] = field(default_factory=list)  # why the noise tests reject it
     p: float = 1.0  # the noise tests' (Sidak over the variance and the score test)
     false_alarm: float = 0.0  # chance that a correct record fails these checks here
@@ -86,10 +98,14 @@ class Playback:
     @property
     def failing(self) -> list[str]:
         """The recordings on which a band fails."""
-        return [t for t, r in self.tests.items() if not r["passed"]]
+        return [t for t, r in self.tests.items() if not r.passed]
 
     def to_json(self) -> dict:
         return asdict(self)
+
+    @classmethod
+    def from_json(cls, data: dict) -> "Playback":
+        return cls(**{**data, "tests": {k: TestJudgement(**v) for k, v in data["tests"].items()}})
 
 
 def structure_for(model: str, structures: list[Path]) -> Structure:
@@ -139,20 +155,18 @@ def play_back(record: Record, experiments: list, structures: list[Path], toleran
             reasons.append(f"the residual is more than the recorder's noise ({_p(variance.p)})")
     tests, kept_rate = {}, (1.0 - ALPHA)
     for i, exp in enumerate(scored):
-        arrays = compared(curves_at(inputs, x, i))
-        m = metrics_of(*arrays)
+        curve = compared(curves_at(inputs, x, i))
+        m = metrics_of(curve)
         checks = judge(m, tolerances)
-        metric_names, fails = band_replicates(arrays, null.tests[i], tolerances, np.random.default_rng([seed, 29, i]))
+        metric_names, fails = band_replicates(curve, null.tests[i], tolerances, np.random.default_rng([seed, 29, i]))
         noisy = {k: float(r) for k, r in zip(metric_names, fails.mean(axis=0)) if r > UNJUDGEABLE}
         judged = [j for j, k in enumerate(metric_names) if k not in noisy]
         rate = float(fails[:, judged].any(axis=1).mean()) if judged else 0.0
         kept_rate *= 1.0 - rate
         failing = [c.metric for c in checks if c.passed is False and c.metric not in noisy]
-        tests[exp.name] = {"passed": not failing, "failing": failing,
-                           "rmse_over_noise": float(m.rmse / floors[exp.name].sigma), "band_false_alarm": rate,
-                           "not_judged": noisy}
+        tests[exp.name] = TestJudgement(not failing, failing, float(m.rmse / floors[exp.name].sigma), rate, noisy)
     return Playback(record.model, record.file, dict(record.values),
-                    all(t["passed"] for t in tests.values()) and not reasons, tests, reasons, float(p),
+                    all(t.passed for t in tests.values()) and not reasons, tests, reasons, float(p),
                     float(1.0 - kept_rate))
 
 
@@ -210,7 +224,7 @@ def _linearised(inputs, x: np.ndarray, structure: Structure, at_x: dict) -> tupl
     return residuals, jacobians, kept
 
 
-def band_replicates(arrays: tuple, test: ScoredTest, tolerances: Tolerances, rng: np.random.Generator,
+def band_replicates(curve: Compared, test: ScoredTest, tolerances: Tolerances, rng: np.random.Generator,
                     replicates: int = BAND_REPLICATES) -> tuple[list[str], np.ndarray]:
     """(the metrics, ``(replicates, metrics)`` whether each fails its band) on noise
     replicates of the played-back curve, as if it were the plant's: each replicate's
@@ -220,16 +234,16 @@ def band_replicates(arrays: tuple, test: ScoredTest, tolerances: Tolerances, rng
     takes it. The recorder's estimated model itself, not draws from its uncertainty
     (draws put the bands' rate near 15 % on right records the bands passed 48 times in
     50)."""
-    name, out, t, measured, simulated, t0, t_end, noise = arrays
-    ok = np.isfinite(measured - simulated)
+    simulated = curve.simulated
+    ok = np.isfinite(curve.measured - simulated)
     if int(ok.sum()) != test.times.size:
-        raise ValueError(f"{name}: {int(ok.sum())} compared samples against {test.times.size} scored ones")
+        raise ValueError(f"{curve.test}: {int(ok.sum())} compared samples against {test.times.size} scored ones")
     draws = test.whitening.sample(with_extra([test.noise.model] * replicates, test.extra), rng)
     draws -= draws.mean(axis=1, keepdims=True)
     rows = []
     for d in draws:
-        replica = np.full(t.size, np.nan)
+        replica = np.full(curve.time.size, np.nan)
         replica[ok] = simulated[ok] + d
-        rows.append(judge(metrics_of(name, out, t, replica, simulated, t0, t_end, noise), tolerances))
+        rows.append(judge(metrics_of(replace(curve, measured=replica)), tolerances))
     metric_names = [c.metric for c in rows[0]]
     return metric_names, np.array([[c.passed is False for c in checks] for checks in rows], dtype=bool)

@@ -20,7 +20,7 @@ import json
 import os
 import time
 import tomllib
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Callable
 
@@ -29,38 +29,8 @@ from ..errors import ConfigError
 from ..version import __version__
 from .playback import RULES
 from .spec import FleetSpec, UnitEntry, load_fleet
-from .unit_job import FAILED, FAILS, IDENTIFIED, PASSED, FleetOptions, run_unit
-
-
-@dataclass
-class FleetResult:
-    """Every unit's result (as :class:`.unit_job.UnitResult` dicts), how many failed,
-    what was run now and what was kept, and the files written."""
-
-    name: str
-    units: list[dict]
-    ran: list[str]
-    kept: list[str]
-    seconds: float
-    workers: int
-    files: dict[str, str] = field(default_factory=dict)
-
-    @property
-    def failed(self) -> int:
-        return self.count(FAILED)
-
-    def count(self, path: str) -> int:
-        return sum(u["path"] == path for u in self.units)
-
-    def summary(self) -> str:
-        """The units by path, as the CLI and the page say it."""
-        fails = self.count(FAILS)
-        return (f"{len(self.units)} units: {self.count(PASSED)} records on file pass, "
-                + (f"{fails} fail (checked only, not identified), " if fails else "")
-                + f"{self.count(IDENTIFIED)} identified, {self.failed} failed")
-
-    def to_json(self) -> dict:
-        return asdict(self)
+from .result import FleetResult, UnitResult
+from .unit_job import FleetOptions, run_unit
 
 
 def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
@@ -113,7 +83,7 @@ def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, sched
     for entry in spec.units:
         digest = unit_digest(entry, options)
         kept = _read(folder / f"{entry.name}.json")
-        if kept is not None and kept.get("digest") == digest:
+        if kept is not None and kept.digest == digest:
             done[entry.name] = kept
         else:
             todo.append((entry, digest))
@@ -131,7 +101,7 @@ def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, sched
 
 
 def _distribute(todo, options: FleetOptions, folder: Path, workers: int, scheduler: str | None,
-                progress: bool) -> dict[str, dict]:
+                progress: bool) -> dict[str, UnitResult]:
     from distributed import Client, LocalCluster, as_completed
     from tqdm import tqdm
 
@@ -145,8 +115,9 @@ def _distribute(todo, options: FleetOptions, folder: Path, workers: int, schedul
             bar = tqdm(total=len(todo), unit="unit", disable=not progress, desc="units")
             for future in as_completed(futures):
                 entry, digest = futures[future]
-                row = {**future.result(), "digest": digest}
-                _write(folder / f"{entry.name}.json", row)  # kept as it finishes: a rerun skips it
+                row = future.result()
+                row.digest = digest
+                _write(folder / f"{entry.name}.json", row.to_json())  # kept as it finishes: a rerun skips it
                 out[entry.name] = row
                 bar.update(1)
             bar.close()
@@ -173,10 +144,11 @@ def _build_benches(spec: FleetSpec, package, fmu_dir, log) -> None:
     build_models(sorted(models | set(structures)), package=package, fmu_dir=fmu_dir, log=lambda *_: None)
 
 
-def _read(path: Path) -> dict | None:
+def _read(path: Path) -> UnitResult | None:
+    """A unit's result as written (None: none, or one this version cannot read: run again)."""
     try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError):
+        return UnitResult.from_json(json.loads(path.read_text()))
+    except (OSError, ValueError, TypeError, KeyError):
         return None
 
 

@@ -44,8 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
-EVENT = ROOT / "experiments" / "electrical" / "tgov1_on"
+EVENT = Path("electrical") / "tgov1_on"  # under the experiments folder the caller names
 STRUCTURES = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV", "TGTypeI")
 F_NOM = 60.0
 ANDES_PRE_EVENT_S = 10.0  # the committed event's steady state before the load switches on
@@ -113,12 +112,12 @@ def draw_unit(k: int, seed: int) -> UnitPlan:
     return plan
 
 
-def structure_files(plan: UnitPlan, folder: Path) -> list[Path]:
-    """The four standard structure files, IEEEG1's documenting TG Type I's lead-lag for a
-    TG Type I unit (its record is that IEEEG1)."""
+def structure_files(plan: UnitPlan, folder: Path, experiments: Path) -> list[Path]:
+    """The four standard structure files (``experiments/structures``), IEEEG1's
+    documenting TG Type I's lead-lag for a TG Type I unit (its record is that IEEEG1)."""
     out = []
     for name in ("TGOV1", "IEEEG1", "GGOV1", "HYGOV"):
-        text = (ROOT / "experiments" / "structures" / f"{name}.toml").read_text()
+        text = (experiments / "structures" / f"{name}.toml").read_text()
         if name == "IEEEG1" and plan.structure == "TGTypeI":
             text = text.replace('"gov.T1" = 0.001', f'"gov.T1" = {TGTYPEI_DOC["Tc"]}').replace(
                 '"gov.T2" = 0.0', f'"gov.T2" = {TGTYPEI_DOC["T3"]}').replace(
@@ -143,7 +142,7 @@ def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: 
     noise is estimated (it did: the P_e units' noise level came out about nine times the
     recorder's, and the bands' noise terms with it)."""
     from ..compiler import ensure_fmu
-    from ..structures.select import Structure
+    from ..structures.structure import Structure
     from ..simulator import get_simulator
 
     structure = next(Structure.load(p) for p in structures if Structure.load(p).name == plan.record_model)
@@ -157,7 +156,8 @@ def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: 
                         inputs={"f_dev": f_dev, "rocof": rocof}, outputs=[out])[out]
 
 
-def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: float = PRE_EVENT_S) -> Path:
+def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, experiments: Path,
+               pre_event: float = PRE_EVENT_S) -> Path:
     from ..exchange import FORMATS
     from ..experiment import render_config
     from ..experiment.synthetic import NoiseModel, pmu_noise
@@ -165,10 +165,10 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
     folder.mkdir(parents=True, exist_ok=True)
     # Simulated and noised on the longest span, then cropped: a unit recorded from 10 s
     # before the event carries the same noise as its 30 s recording's last 10 s of them.
-    t, f, t_event = event_frequency(max(pre_event, PRE_EVENT_S))
+    t, f, t_event = event_frequency(experiments, max(pre_event, PRE_EVENT_S))
     recorded = t >= t_event - pre_event - 1e-6
     start = float(t[recorded][0])  # the recording's clock starts at 0 (the benches' simulations do)
-    structures = structure_files(plan, folder)
+    structures = structure_files(plan, folder, experiments)
     p = simulate_unit(plan, structures, t, f - F_NOM, fmu_dir)
     g = np.random.default_rng([seed, 10_000 + int(plan.name[4:])])
     white = g.uniform(0.0005, 0.001)
@@ -218,11 +218,11 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, pre_event: floa
     return folder
 
 
-def event_frequency(pre_event: float = PRE_EVENT_S) -> tuple[np.ndarray, np.ndarray, float]:
+def event_frequency(experiments: Path, pre_event: float = PRE_EVENT_S) -> tuple[np.ndarray, np.ndarray, float]:
     """The event's time and noise-free frequency with ``pre_event`` seconds before the
     event, and the event's time: ANDES's own 10 s, lengthened by holding its initial
     steady state (exact: the grid sits in its power flow's equilibrium until the event)."""
-    clean = np.genfromtxt(EVENT / "clean.csv", delimiter=",", names=True)
+    clean = np.genfromtxt(Path(experiments) / EVENT / "clean.csv", delimiter=",", names=True)
     t, f = clean["time"], clean["FREQ"]
     dt = (t[-1] - t[0]) / (t.size - 1)  # the file's stamps are rounded to 0.1 ms
     extra = int(round((pre_event - ANDES_PRE_EVENT_S) / dt))
@@ -235,21 +235,24 @@ def event_frequency(pre_event: float = PRE_EVENT_S) -> tuple[np.ndarray, np.ndar
 def _record_values(plan: UnitPlan, structures: list[Path]) -> dict[str, float]:
     """The record on file's values: the structure file's documented constants and the
     record's own (wrong or right) values."""
-    from ..structures.select import Structure
+    from ..structures.structure import Structure
 
     structure = next(Structure.load(p) for p in structures if Structure.load(p).name == plan.record_model)
     fixed = {k.removeprefix("gov."): v for k, v in structure.fixed.items()}
     return {**fixed, **plan.record}
 
 
-def make_fleet(folder: str | Path, units: int | list[int], *, seed: int = 1, fmu_dir: str | Path | None = None,
-               name: str | None = None, pre_event: float = PRE_EVENT_S) -> Path:
+def make_fleet(folder: str | Path, units: int | list[int], *, experiments: str | Path, seed: int = 1,
+               fmu_dir: str | Path | None = None, name: str | None = None, pre_event: float = PRE_EVENT_S) -> Path:
     """Units ``0 .. units - 1`` (or those of a list) under ``folder/units`` and
-    ``folder/fleet.toml``."""
+    ``folder/fleet.toml``; ``experiments`` is the repository's experiments folder (the
+    event and the standard structure files come from it: the installed package carries
+    neither)."""
     folder = Path(folder)
     indices = list(range(units)) if isinstance(units, int) else list(units)
     for k in indices:
-        write_unit(draw_unit(k, seed), folder / "units" / f"unit{k:03d}", seed, fmu_dir, pre_event)
+        write_unit(draw_unit(k, seed), folder / "units" / f"unit{k:03d}", seed, fmu_dir, Path(experiments),
+                   pre_event)
     title = name or f"synthetic fleet of {len(indices)} units"
     (folder / "fleet.toml").write_text(f'[fleet]\nname = "{title}"\nunits = ["units/*"]\n')
     return folder / "fleet.toml"

@@ -22,7 +22,7 @@ from __future__ import annotations
 import shutil
 import time
 import traceback
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..calibration.delivery import archived_reproduction
@@ -33,12 +33,9 @@ from ..noise import campaign_noise, quiet_windows
 from ..report.tolerances import Tolerances
 from .check import check_entry
 from .playback import play_back
+from .result import Recommendation, Route, UnitResult
 from .spec import UnitEntry
 
-PASSED = "record on file passes"
-FAILS = "record on file fails"  # and, checking only, not identified
-IDENTIFIED = "identified"
-FAILED = "failed"
 QUIET_ADVISED_S = 30.0  # of recording before an event (module docstring)
 KEY = {"TGOV1": ("R", "T1", "T3"), "IEEEG1": ("K", "T3", "T4", "T5", "K1", "Uo", "Uc"),
        "GGOV1": ("R", "Kpgov", "Kigov", "Tb", "Ropen", "Rclose"), "HYGOV": ("R", "r", "Tr", "TW")}
@@ -57,28 +54,10 @@ class FleetOptions:
     check_only: bool = False  # play the records on file back and judge them; identify nothing
 
 
-@dataclass
-class UnitResult:
-    unit: str
-    folder: str
-    path: str  # PASSED, FAILS (checking only), IDENTIFIED or FAILED
-    error: str = ""
-    on_file: dict | None = None  # the record on file's playback
-    recommended: dict | None = None  # the identification's record: model, fit, parameters, its playback
-    explanation: str = ""
-    flags: list[str] = field(default_factory=list)
-    changes: dict = field(default_factory=dict)
-    files: dict = field(default_factory=dict)
-    seconds: float = 0.0
-
-    def to_json(self) -> dict:
-        return asdict(self)
-
-
-def run_unit(entry: UnitEntry, options: FleetOptions) -> dict:
-    """The unit's result as a JSON-able dict (module docstring)."""
+def run_unit(entry: UnitEntry, options: FleetOptions) -> UnitResult:
+    """The unit's result (module docstring)."""
     t0 = time.perf_counter()
-    result = UnitResult(entry.name, str(entry.folder), FAILED)
+    result = UnitResult(entry.name, str(entry.folder), Route.FAILED)
     work = Path(options.results) / "units" / entry.name
     try:
         if work.exists():
@@ -87,14 +66,14 @@ def run_unit(entry: UnitEntry, options: FleetOptions) -> dict:
         with pinned_threads():  # the same numbers on any worker, whatever its threads
             _run(entry, options, result, work)
     except CheckFailed as e:
-        result.path, result.error = FAILED, e.one_line()
+        result.route, result.error = Route.FAILED, e.one_line()
     except RapidCosimError as e:
-        result.path, result.error = FAILED, str(e)
+        result.route, result.error = Route.FAILED, str(e)
     except Exception as e:  # a crash is one unit's row, not the fleet's end
-        result.path, result.error = FAILED, f"{type(e).__name__}: {e}"
+        result.route, result.error = Route.FAILED, f"{type(e).__name__}: {e}"
         (work / "traceback.txt").write_text(traceback.format_exc())
     result.seconds = time.perf_counter() - t0
-    return result.to_json()
+    return result
 
 
 def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path) -> None:
@@ -114,27 +93,28 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
         result.flags.append(f"under {QUIET_ADVISED_S:.0f} s before the event ({', '.join(short)}): "
                             "the noise tests may pass a record a little off")
     if checked.record is not None:
-        on_file = play_back(checked.record, experiments, list(unit.structures), tolerances, **common)
-        result.on_file = on_file.to_json()
+        on_file = result.on_file = play_back(checked.record, experiments, list(unit.structures), tolerances,
+                                             **common)
         if on_file.passed or options.check_only:
-            result.path = PASSED if on_file.passed else FAILS
+            result.route = Route.PASSED if on_file.passed else Route.FAILS
             return
     elif options.check_only:
         raise RapidCosimError(f"{entry.name}: no record on file to check (the fleet checks only)")
     ident = identify(entry.folder, workdir=work, seed=options.seed, n_jobs=1, package=options.package,
                      fmu_dir=options.fmu_dir, report=True, pdf=options.pdf, log=lambda *_: None)
-    result.path = IDENTIFIED
+    result.route = Route.IDENTIFIED
     result.explanation = ident.explanation["verdict"]
+    result.unexplained = ident.unexplained
     root = Path(options.results)
     result.files = {k: str(Path(v).resolve().relative_to(root.resolve())) for k, v in ident.files.items()}
-    if "unexplained" in result.explanation:
+    if result.unexplained:
         result.flags.append("unexplained")
     if ident.recommended is None:
         result.flags.append("no record recommended")
         return
     rec = ident.record(ident.recommended)
-    if "ties with" in ident.reason:
-        result.flags.append("tie: " + ident.reason.split(";")[0])
+    if ident.tied_with:
+        result.flags.append(f"tie: recommended over {ident.tied_with}, the first by BIC, with fewer parameters")
     if rec.at_bounds:
         result.flags.append("at bounds: " + ", ".join(rec.at_bounds))
     if not rec.adequate:
@@ -147,9 +127,9 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
                             "delivered")
     check = play_back(written, experiments, list(unit.structures), tolerances, **common)
     check.source = result.files["dyr"]  # relative to the results: the same wherever the fleet ran
-    result.recommended = {"model": rec.model, "fit": rec.fit, "parameters": written.values,
-                          "key": {k: written.values[k] for k in KEY.get(rec.model, ()) if k in written.values},
-                          "reason": ident.reason, "playback": check.to_json()}
+    result.recommended = Recommendation(rec.model, rec.fit, dict(written.values),
+                                        {k: written.values[k] for k in KEY.get(rec.model, ()) if k in written.values},
+                                        ident.reason, check)
     if check.failing:
         result.flags.append("recommended record fails its bands on " + ", ".join(check.failing))
     result.flags.extend(f"recommended record: {why}" for why in check.inconsistent)
@@ -168,7 +148,7 @@ def short_quiet(experiments: list) -> list[str]:
     return out
 
 
-def changes(old: dict | None, old_model: str | None, model: str, new: dict) -> dict:
+def changes(old: dict | None, old_model: str | None, model: str, new: dict) -> dict[str, float | str]:
     """What the new record changes from the one on file: the model, or each key value's
     relative change."""
     if old is None:

@@ -17,7 +17,7 @@ from pathlib import Path
 from ..data import close_matches
 from ..errors import Finding, RapidCosimError, finding
 from ..experiment import Experiment, load_experiment
-from ..structures.select import Structure
+from ..structures.structure import Structure
 from .unit import Unit
 
 

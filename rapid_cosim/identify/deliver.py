@@ -6,7 +6,7 @@ Why written as files: the report is the one ``rapid-cosim report`` writes (from 
 recommended fit's archive, :func:`rapid_cosim.report.html.validation_page`), and with
 these files a reader can remake it by that command alone. The held-out configs are the
 tests exactly as the selection predicted them
-(:func:`rapid_cosim.structures.select.on_structure`: the structure's bench and
+(:func:`rapid_cosim.structures.structure.on_structure`: the structure's bench and
 constants, the recorder's noise model), so the page judges the record delivered, not a
 re-fit of it.
 """

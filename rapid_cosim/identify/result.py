@@ -8,6 +8,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Sequence
 
+from ..diagnose.catalogue import VerdictKind
+
 # What each standard structure can represent of the effect catalogue, as its own
 # parameters (PES-TR1 2013 and the PSS/E Model Library block diagrams), and in words.
 # An optional part (IEEEG1's Uo/Uc) carries its effect only when it was freed.
@@ -54,6 +56,18 @@ def cannot_carry(structure: str, effects: list[str], *, freed: bool) -> list[str
     return [e for e in effects if e not in carried]
 
 
+@dataclass(frozen=True)
+class TestFidelity:
+    """How a standard record fits one test, beside the explanation (TG Type I and the
+    effect catalogue) on the same test."""
+
+    rmse_over_noise: float
+    variance_ratio: float
+    p: float  # the adequacy test's, Holm-adjusted over the tests
+    adequate: bool
+    explanation_rmse_over_noise: float | None  # None where no explanation was run
+
+
 @dataclass
 class StandardRecord:
     model: str  # TGOV1, IEEEG1, GGOV1, HYGOV
@@ -64,7 +78,7 @@ class StandardRecord:
     bic: float
     adequate: bool
     variance_ratio: float
-    tests: dict[str, dict]  # per test: rmse_over_noise, variance_ratio, p (Holm), adequate, the explanation's rmse
+    tests: dict[str, TestFidelity]
     cannot_carry: list[str]
     words: str
     archive: str
@@ -74,8 +88,8 @@ class StandardRecord:
     def fidelity(self, tests: Sequence[str], *, failing: bool = False) -> str:
         """RMSE over the noise per test of ``tests`` it has (``failing``: marked where the
         test finds it inadequate)."""
-        return ", ".join(f"{t} {self.tests[t]['rmse_over_noise']:.2f}"
-                         + (" (fails)" if failing and not self.tests[t]["adequate"] else "")
+        return ", ".join(f"{t} {self.tests[t].rmse_over_noise:.2f}"
+                         + (" (fails)" if failing and not self.tests[t].adequate else "")
                          for t in tests if t in self.tests)
 
 
@@ -93,6 +107,7 @@ class Identification:
     reason: str
     structure_verdict: str
     seconds: float
+    tied_with: str | None = None  # the first by BIC, where a simpler record tied with it is recommended
     files: dict[str, str] = field(default_factory=dict)  # what was delivered: dyr, dyd, report, pdf
     notes: dict[str, str] = field(default_factory=dict)  # why one of those was not written
     reproduced: dict[str, float] = field(default_factory=dict)  # dyr, dyd: read back, largest miss of the fit (pu)
@@ -102,6 +117,11 @@ class Identification:
 
     def record(self, model: str) -> StandardRecord:
         return next(r for r in self.records if r.model == model)
+
+    @property
+    def unexplained(self) -> bool:
+        """Whether the explanation found nothing it knows that explains the unit."""
+        return VerdictKind.of(self.explanation["effect"]) is VerdictKind.UNEXPLAINED
 
     def to_json(self) -> dict:
         return json.loads(json.dumps(asdict(self), default=float))
@@ -129,7 +149,7 @@ class Identification:
         lines.append("| test | " + " | ".join(r.model for r in self.records) + " | explanation |")
         lines.append("|---|" + "---:|" * (len(self.records) + 1))
         for t in tests:
-            cells = [f"{r.tests[t]['rmse_over_noise']:.2f}{'' if r.tests[t]['adequate'] else ' (fails)'}"
+            cells = [f"{r.tests[t].rmse_over_noise:.2f}{'' if r.tests[t].adequate else ' (fails)'}"
                      if t in r.tests else "-" for r in self.records]
             lines.append(f"| {t} | " + " | ".join(cells) + f" | {e['tests'][t]['rmse_over_noise']:.2f} |")
         lines += ["", "## The recommended record", "", f"**{self.recommended or 'none'}**: {self.reason}."]

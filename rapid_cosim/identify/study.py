@@ -57,7 +57,8 @@ from ..diagnose.catalogue import STANDARD
 from ..diagnose.candidates import residuals_at
 from ..diagnose.context import METHOD
 from ..diagnose.selection import noise_floors
-from ..structures.select import Structure, StructureVerdict, on_structure
+from ..structures.structure import Structure, on_structure
+from ..structures.select import StructureVerdict
 
 # The field campaign's ten tests (experiments/staged_tests.md): (dispatch in pu, step in Hz,
 # return time in s or None for a step held to the end, length in s, recorder rate in Hz),
@@ -68,7 +69,6 @@ STEPS = ((0.6, -0.2, None, 90.0, 10.0), (0.6, -0.2, 60.0, 110.0, 10.0), (0.6, 0.
          (0.6, 0.1, 60.0, 110.0, 10.0))
 HELD_OUT = (3, 7)  # tests 4 and 8
 T_STEP = 10.0
-STRUCTURES_DIR = Path(__file__).resolve().parents[2] / "experiments" / "structures"
 TARGET_NAMED, TARGET_RMSE, TARGET_CAMPAIGNS = 0.9, 1.1, 10  # issue 23's done-when line
 
 Draw = Callable[[np.random.Generator, int], dict[str, float]]
@@ -142,9 +142,10 @@ class StructureCase:
 
 
 def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir, steps=STEPS,
-                       held_out=HELD_OUT, standard=STANDARD, structures_dir: Path = STRUCTURES_DIR,
+                       held_out=HELD_OUT, standard=STANDARD, structures_dir: Path,
                        method: str = METHOD) -> StructureCase:
-    """One campaign of a ``truth`` plant through identify's path; see the module docstring."""
+    """One campaign of a ``truth`` plant through identify's path (the standard structure
+    files from ``structures_dir``, as a unit folder names its own); see the module docstring."""
     from .workflow import deliver
 
     rng = np.random.default_rng([seed, 104729, sorted(PLANTS).index(truth)])

@@ -36,15 +36,16 @@ from typing import Callable, Sequence
 from ..calibration import RunOptions
 from ..diagnose.context import METHOD
 from ..diagnose.selection import THRESHOLD
-from ..structures.select import Structure, StructureFit, StructureVerdict, on_structure, select_structure
+from ..structures.structure import Structure, on_structure
+from ..structures.select import StructureFit, StructureVerdict, select_structure
 from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
 from ..exchange import MODELS
 from ..errors import CheckFailed
 from ..experiment import Experiment
-from ..noise import campaign_noise
+from ..noise import NoiseFit, campaign_noise
 from .check import check_unit, say
 from .deliver import write_configs
-from .result import CARRIES, Identification, StandardRecord, cannot_carry
+from .result import CARRIES, Identification, StandardRecord, TestFidelity, cannot_carry
 from .unit import Unit
 
 
@@ -77,7 +78,8 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=d.records, recommended=d.recommended,
-                            reason=d.reason, structure_verdict=d.verdict.structure, seconds=0.0,
+                            reason=d.reason, tied_with=d.tied_with, structure_verdict=d.verdict.structure,
+                            seconds=0.0,
                             recordings={e.name: e.recording.summary() for e in (*training, *heldout)})
     result.diagnosis = str(explanation.save(workdir / "explanation")[0])
     if d.recommended is not None:  # the held-out tests on the record's bench, as the selection predicted them
@@ -99,7 +101,8 @@ class Delivery:
     recommended: str | None
     reason: str
     candidates: list[Structure]
-    fitted_noise: dict
+    fitted_noise: dict[str, NoiseFit]  # per test name (campaign_noise)
+    tied_with: str | None = None  # the first by BIC, where a simpler record tied with it is recommended
 
 
 def deliver(structures: Sequence[Structure], training: Sequence[Experiment], heldout: Sequence[Experiment],
@@ -118,9 +121,9 @@ def deliver(structures: Sequence[Structure], training: Sequence[Experiment], hel
                                package=package, fmu_dir=fmu_dir, fitted_noise=fitted_noise, log=log)
     fits = {f.name: f for f in verdict.ranking}
     records = [_record(s, fits, explanation) for s in structures if s.name in MODELS]  # what a record can hold
-    recommended, reason = _recommend(records)
+    recommended, reason, tied_with = _recommend(records)
     log(f"  recommended: {recommended or 'none'} ({reason})")
-    return Delivery(verdict, records, recommended, reason, candidates, fitted_noise)
+    return Delivery(verdict, records, recommended, reason, candidates, fitted_noise, tied_with)
 
 
 def _record(structure: Structure, fits: dict[str, StructureFit], explanation) -> StandardRecord:
@@ -133,11 +136,10 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation) ->
     effects = list(explanation.effects) if explanation is not None else []
     missing = cannot_carry(structure.name, effects, freed=use is freed)
     explained = explanation.adequacy["after"]["tests"] if explanation is not None else {}
-    per_test = {name: {"rmse_over_noise": t["rmse_over_noise"], "variance_ratio": t["variance_ratio"],
-                       "p": t["p_holm"], "adequate": t["adequate"],
-                       "explanation_rmse_over_noise": explained.get(name, {}).get("rmse_over_noise")}
+    per_test = {name: TestFidelity(t["rmse_over_noise"], t["variance_ratio"], t["p_holm"], t["adequate"],
+                                   explained.get(name, {}).get("rmse_over_noise"))
                 for name, t in use.tests.items()}
-    failing = [n for n, t in per_test.items() if not t["adequate"]]
+    failing = [n for n, t in per_test.items() if not t.adequate]
     if use.adequate:
         words = "within the noise on every test"
     else:
@@ -156,13 +158,14 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation) ->
                           relative_se={k: v["relative_se"] for k, v in use.identifiability.get("parameters", {}).items()})
 
 
-def _recommend(records: list[StandardRecord]) -> tuple[str | None, str]:
-    """The record the criterion prefers: the first by BIC (with its optional parts where
+def _recommend(records: list[StandardRecord]) -> tuple[str | None, str, str | None]:
+    """The record the criterion prefers, why, and the first by BIC where a simpler one
+    tied with it is recommended instead: the first by BIC (with its optional parts where
     they won); a simpler one only where it ties with it (within the selection threshold),
     and then both are said. A winner that is not within the noise is still recommended,
     and said to be so."""
     if not records:
-        return None, "no standard structure was given"
+        return None, "no standard structure was given", None
     ranked = sorted(records, key=lambda r: r.bic)
     first = ranked[0]
     ties = sorted((r for r in ranked[1:] if r.bic - first.bic < THRESHOLD and r.n_estimated < first.n_estimated),
@@ -198,7 +201,7 @@ def _recommend(records: list[StandardRecord]) -> tuple[str | None, str]:
         reason += "; within the noise on every test"
     else:
         reason += f"; NOT within the noise ({chosen.words})"
-    return chosen.model, reason
+    return chosen.model, reason, None if chosen is first else first.fit
 
 
 def _explanation(d) -> dict:

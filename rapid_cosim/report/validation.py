@@ -99,12 +99,27 @@ def _difference(pair: Pair) -> float | None:
 
 
 def metrics(curves: FitCurves, role: str = "training") -> ValidationMetrics:
-    return metrics_of(*compared(curves), role, residual=np.asarray(curves.residual, dtype=float))
+    return metrics_of(compared(curves), role, residual=np.asarray(curves.residual, dtype=float))
 
 
-def compared(curves: FitCurves) -> tuple:
-    """(test, output, times, measured, simulated, event, end, noise level): what the
-    metrics are read from, NaN where a sample is not compared."""
+@dataclass(frozen=True)
+class Compared:
+    """A measured and a simulated curve on one time base, NaN where a sample is not
+    compared, with the judged span (event to end) and the recorder's noise level: what the
+    metrics are read from."""
+
+    test: str
+    output: str
+    time: np.ndarray
+    measured: np.ndarray
+    simulated: np.ndarray
+    event: float
+    end: float
+    noise: float | None
+
+
+def compared(curves: FitCurves) -> Compared:
+    """The fit's curves as :func:`metrics_of` reads them."""
     exp = curves.detail.experiment
     out = curves.output
     t = np.asarray(curves.detail.fit.time, dtype=float)
@@ -115,7 +130,7 @@ def compared(curves: FitCurves) -> tuple:
     measured = np.where(ok, measured_all[idx], np.nan)
     t0, t_end = span(exp, t)
     noise = None if exp.noise_sigma is None else float(exp.noise_sigma.get(out, np.nan))
-    return exp.name, out, t, measured, measured - r, t0, t_end, noise
+    return Compared(exp.name, out, t, measured, measured - r, t0, t_end, noise)
 
 
 def span(exp, t: np.ndarray) -> tuple[float, float]:
@@ -128,13 +143,12 @@ def span(exp, t: np.ndarray) -> tuple[float, float]:
     return t0, t_end
 
 
-def metrics_of(name: str, out: str, t: np.ndarray, measured: np.ndarray, simulated: np.ndarray, t0: float,
-               t_end: float, noise: float | None, role: str = "training",
-               residual: np.ndarray | None = None) -> ValidationMetrics:
-    """The metrics of a measured and a simulated curve on the time base ``t`` (NaN where a
-    sample is not compared): what :func:`metrics` reads off a fit (its ``residual`` as the
-    fit computed it), and what a noise replicate of a record's playback is judged on
-    (:mod:`rapid_cosim.fleet.playback`)."""
+def metrics_of(curve: Compared, role: str = "training", residual: np.ndarray | None = None) -> ValidationMetrics:
+    """The metrics of a measured and a simulated curve: what :func:`metrics` reads off a
+    fit (its ``residual`` as the fit computed it), and what a noise replicate of a
+    record's playback is judged on (:mod:`rapid_cosim.fleet.playback`)."""
+    name, out, t, measured, simulated = curve.test, curve.output, curve.time, curve.measured, curve.simulated
+    t0, t_end, noise = curve.event, curve.end, curve.noise
     r = measured - simulated if residual is None else residual
     ok = np.isfinite(r)
     sigma = noise if noise is not None and np.isfinite(noise) else 0.0

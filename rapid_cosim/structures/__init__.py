@@ -1,4 +1,5 @@
-"""Which governor structure fits a unit: ``select`` (each structure calibrated and
+"""Which governor structure fits a unit: ``structure`` (a structure file, read and
+checked), ``select`` (each structure calibrated and
 ranked by the criterion, ties and the recommendation, the effect catalogue run on the
 winner) and ``identifiability`` (the Fisher information at an optimum: what the tests
 determine, trade-offs, the step that would pin a parameter down). Used by ``identify``

@@ -1,21 +1,9 @@
 """Which governor structure fits a unit: TG Type I, TGOV1, IEEEG1, GGOV1, HYGOV (iGrGen.Governors),
 each calibrated jointly on the training tests and ranked by the rules the effects obey.
 
-A structure is a small TOML file (``experiments/structures/TGOV1.toml``)::
-
-    [structure]
-    name = "TGOV1"
-    bench = "iGrGen.TestBenches.StagedTestTGOV1"        # a staged test's model
-    input_bench = "iGrGen.TestBenches.FrequencyInputTGOV1"  # a recorded event's (optional)
-
-    [fixed]        # what the plant documentation gives for this structure
-    documented = "unit.dyr"  # optional: its constants from the unit's .dyr/.dyd record
-    "gov.VMAX" = 1.0
-    [estimate]     # what the tests must determine, with bounds
-    "gov.R" = { min = 0.02, max = 0.12, label = "R" }
-
-Each test's config keeps its data, source (``src.*``), dispatch (``gov.p_ref``), fitness
-and simulation settings; its governor constants and estimates are the structure's.
+A structure is a small TOML file (:mod:`.structure`); each test keeps its data, source,
+dispatch, fitness and simulation settings, its governor constants and estimates the
+structure's.
 
 Ranking: BIC on residuals whitened by the recorder's noise model (:mod:`.selection`,
 :mod:`rapid_cosim.noise`), one offset per test counted; every structure is fitted by
@@ -42,195 +30,25 @@ standard models carry valve limits among their own parameters.
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import asdict, dataclass, field, replace
-from itertools import combinations
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
 from ..calibration import RunOptions, best_run, inputs_from_experiments
-from ..errors import ConfigError, Finding
-from ..exchange import model_named
-from ..experiment import Experiment, documented, parse_experiment, render_config
-from ..experiment.config import check_parameter_tables
-from ..experiment.schema import STRUCTURE_FILE
+from ..fitting.engine import LOCAL_PROCESSES
+from ..experiment import Experiment
 from ..simulator import get_simulator
 from ..noise import campaign_noise
 from ..diagnose.adequacy import adequacy
+from ..diagnose.catalogue import AMBIGUOUS, UNEXPLAINED
 from ..diagnose.candidates import jacobian_at, residuals_at
 from .identifiability import best_separating_step, identifiability
+from .structure import Structure, on_structure
 from ..diagnose.null import replicates_for
 from ..diagnose.selection import THRESHOLD, noise_floors, score
 from ..diagnose.separate import separating_menu
-
-KEPT_FIXED = ("src.", "gov.p_ref", "f_nom", "mach.")  # the test's and the unit's machine (H, D), not the governor's
-
-
-@dataclass(frozen=True)
-class Structure:
-    name: str
-    bench: str
-    input_bench: str | None
-    fixed: dict
-    estimate: dict
-    path: str
-    optional: dict = field(default_factory=dict)  # parts freed only where the data call for them
-    carries: str = ""  # what the optional parts carry (an effect of the catalogue), e.g. "rate_limit"
-    nested_in: str | None = None  # a variant: the structure whose optimum it starts from
-    vary: tuple[str, ...] = ()  # a variant's own parameters, searched around that optimum
-
-    def with_optional(self) -> "Structure":
-        """This structure with all its optional parts estimated too (IEEEG1's valve rates)."""
-        return self.optional_variants()[0]
-
-    def optional_variants(self) -> list["Structure"]:
-        """This structure with each non-empty set of its optional parts estimated too, the
-        whole set first (IEEEG1's valve rates: both, the opening alone, the closing alone),
-        named ``IEEEG1+rate_limit`` and ``IEEEG1+rate_limit(Uo)``. Why each apart: a rate
-        the tests never reach is not determined by them, and a fit that frees it leaves it
-        anywhere it does not bind there, a limit the record would then state for other
-        events (a closing rate of 0.004 pu/s from a load switched on, say); the criterion
-        keeps a part only where the data call for it. Each variant is nested in this
-        structure (``nested_in``): it is fitted from this one's optimum with its parts where
-        they do not act, and searched around it in their own parameters (``vary``), as an
-        effect of the catalogue is fitted from its base model's optimum."""
-        names, label = list(self.optional), self.carries or "optional"
-        out = []
-        for k in range(len(names), 0, -1):
-            for chosen in combinations(names, k):
-                tail = "" if k == len(names) else "(" + ",".join(n.removeprefix("gov.") for n in chosen) + ")"
-                out.append(replace(self, name=f"{self.name}+{label}{tail}", optional={}, nested_in=self.name,
-                                   vary=tuple(chosen),
-                                   estimate={**self.estimate, **{n: self.optional[n] for n in chosen}}))
-        return out
-
-    def started_from(self, optimum: dict[str, float], defaults: dict[str, float]) -> "Structure":
-        """This variant with its estimates starting at the nesting structure's ``optimum``,
-        and its own parameters at the bench's ``defaults`` (where they do not act, an
-        opening rate of 1 pu/s), each within its range."""
-        estimate = {}
-        for name, spec in self.estimate.items():
-            value = optimum.get(name, defaults.get(name))
-            if value is None:
-                estimate[name] = spec
-                continue
-            estimate[name] = {**spec, "start": float(min(max(value, spec["min"]), spec["max"]))}
-        return replace(self, estimate=estimate)
-
-    def playing(self, record: dict[str, float]) -> tuple["Structure", dict[str, float]]:
-        """This structure holding a record's values (iGrGen names) as a grid simulator plays
-        them (:meth:`~rapid_cosim.exchange.tables.Model.played`: the record's fields win;
-        this structure's constants fill only what the record has no field for), nothing
-        optional, and the record's values of the parameters it estimates (bench names)."""
-        values = model_named(self.name).played(record, self.fixed)
-        missing = [n for n in self.estimate if n not in values]
-        if missing:
-            raise ConfigError(f"the record gives no value for {', '.join(missing)}, which {self.name} estimates",
-                              self.path, "estimate")
-        return (replace(self, fixed={k: v for k, v in values.items() if k not in self.estimate}, optional={}),
-                {n: values[n] for n in self.estimate})
-
-    @classmethod
-    def load(cls, path: str | Path) -> "Structure":
-        path = Path(path)
-        try:
-            raw = tomllib.loads(path.read_text())
-        except (OSError, tomllib.TOMLDecodeError) as e:
-            raise ConfigError(f"cannot read the structure file: {e}", str(path)) from None
-        head = raw.get("structure")
-        accepted = STRUCTURE_FILE.accepted()
-        extra = sorted(set(raw) - set(accepted))
-        if extra:
-            raise ConfigError(f"unknown section(s) {', '.join(extra)}; allowed: {', '.join(accepted)}", str(path),
-                              extra[0])
-        if not isinstance(head, dict) or "name" not in head or "bench" not in head:
-            raise ConfigError("needs [structure] with name and bench", str(path), "structure")
-        unknown = sorted(set(head) - accepted["structure"])
-        if unknown:
-            raise ConfigError(f"unknown key '{unknown[0]}'; allowed: {', '.join(sorted(accepted['structure']))}",
-                              str(path), f"structure.{unknown[0]}")
-        if not raw.get("estimate"):
-            raise ConfigError("estimates nothing: give [estimate] with the parameters the tests must determine",
-                              str(path), "estimate")
-        fixed, estimate = dict(raw.get("fixed", {})), dict(raw["estimate"])
-        check_parameter_tables(fixed, estimate, str(path))  # errors name this file, not a test's config
-        if documented.KEY in fixed:  # a .dyr/.dyd record of the unit, relative to the structure file
-            _, added, starts, _ = documented.record_constants(fixed.pop(documented.KEY), fixed, estimate,
-                                                              path.parent, str(path))
-            fixed = {**added, **fixed}
-            estimate = {k: {**v, "start": starts[k]} if k in starts else v for k, v in estimate.items()}
-        optional = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.get("optional", {}).items()}
-        carried = {v.pop("carries", "") for v in optional.values() if isinstance(v, dict)}
-        check_parameter_tables({}, optional, str(path), "optional")
-        if len(carried) > 1:
-            raise ConfigError(f"the optional parts carry {sorted(carried)}: one effect per structure file",
-                              str(path), "optional")
-        clash = sorted(set(optional) & (set(estimate) | set(fixed)))
-        if clash:
-            raise ConfigError(f"{', '.join(clash)}: optional and also fixed or estimated", str(path), "optional")
-        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate, str(path),
-                   optional, carried.pop() if carried else "")
-
-    def check(self, *, package=None, fmu_dir=None) -> list[Finding]:
-        """Every problem of this structure file that a run would meet, each naming this file
-        and its key: a bench that cannot be built, a parameter its bench lacks or cannot
-        take, a value outside the range the model declares."""
-        from ..compiler import ensure_fmu
-        from ..errors import BuildError
-
-        out = []
-        for key, bench in (("structure.bench", self.bench), ("structure.input_bench", self.input_bench)):
-            if bench is None:
-                continue
-            try:
-                params = get_simulator(ensure_fmu(bench, package=package, fmu_dir=fmu_dir)).parameters
-            except (BuildError, ConfigError) as e:
-                out.append(Finding(self.path, key, str(e)))
-                continue
-            tables = [("fixed", n, [v]) for n, v in self.fixed.items()]
-            tables += [(section, n, [spec.get("min"), spec.get("max")]) for section, table in
-                       (("estimate", self.estimate), ("optional", self.optional)) for n, spec in table.items()]
-            for section, name, values in tables:
-                where = f'{section}."{name}"'
-                info = params.get(name)
-                if info is None or not info.settable:
-                    close = [k for k in params if k.rsplit(".", 1)[-1].lower() == name.rsplit(".", 1)[-1].lower()]
-                    out.append(Finding(self.path, where, f"{bench} has no settable parameter '{name}'"
-                                       + (f" (close: {', '.join(close)})" if close else "")))
-                    continue
-                lo = -np.inf if info.min is None else info.min
-                hi = np.inf if info.max is None else info.max
-                bad = [v for v in values if isinstance(v, (int, float)) and not lo <= v <= hi]
-                if bad:
-                    out.append(Finding(self.path, where, f"{bad[0]:g} is outside the range {bench} declares for "
-                                       f"'{name}': [{lo:g}, {hi:g}]"))
-        first = {}  # one problem per key, though both benches meet it
-        for f in out:
-            first.setdefault((f.file, f.where), f)
-        return list(first.values())
-
-    def experiment(self, exp: Experiment, noise=None) -> Experiment:
-        """``exp`` with this structure as its model (``noise``: the recorder's model, for
-        the whitened fitness)."""
-        raw = tomllib.loads(exp.config_text)
-        bench = self.input_bench if exp.inputs else self.bench
-        if bench is None:
-            raise ConfigError(f"{exp.name} is driven by recorded inputs; the structure {self.name} has no "
-                              "input_bench", self.path, "structure.input_bench")
-        fixed = {k: v for k, v in raw.get("fixed", {}).items() if k.startswith(KEPT_FIXED)}
-        data = dict(raw["data"])
-        data_file = Path(data["file"])
-        data["file"] = str(data_file if data_file.is_absolute() else (Path(exp.config_path).parent / data_file))
-        machine = {k: v for k, v in raw.get("estimate", {}).items() if k.startswith("mach.")}  # H estimated
-        sections = {**raw, "experiment": {**raw["experiment"], "model": bench}, "data": data,
-                    "fixed": {**fixed, **self.fixed}, "estimate": {**self.estimate, **machine}}
-        if noise is not None:
-            (output,) = [o for o in exp.outputs if exp.weights[o] > 0]
-            sections["noise"] = {output: noise.to_config()}
-        return parse_experiment(render_config(sections), exp.config_path, data=exp.data, files=exp.files)
-
 
 @dataclass
 class StructureFit:
@@ -264,9 +82,9 @@ class StructureVerdict:
         """The structure the effect catalogue runs on: the one named, or, when none fits
         to the noise, the first if it beats every other by the threshold (what is missing
         may be an effect on top of it)."""
-        if self.structure not in ("ambiguous", "unexplained"):
+        if self.structure not in (AMBIGUOUS, UNEXPLAINED):
             return self.structure
-        if self.structure == "unexplained" and (len(self.ranking) == 1 or self.ranking[1].delta >= THRESHOLD):
+        if self.structure == UNEXPLAINED and (len(self.ranking) == 1 or self.ranking[1].delta >= THRESHOLD):
             return self.ranking[0].name
         return None
 
@@ -291,12 +109,6 @@ def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Se
             "variance_ratio_after": d.adequacy["after"]["pooled_variance_ratio"] if d.adequacy else None}
 
 
-def on_structure(structure: Structure, experiments: Sequence[Experiment], fitted_noise: dict) -> list[Experiment]:
-    """The experiments as :func:`select_structure` fits and predicts them: ``structure``
-    as their model, each whitened by its recorder's model of ``fitted_noise`` (a
-    :func:`~rapid_cosim.noise.campaign_noise` over them); a report of a fit predicts its
-    held-out tests from these."""
-    return [structure.experiment(e, fitted_noise[e.name].model) for e in experiments]
 
 
 def select_structure(structures: Sequence[Structure], training: Sequence[Experiment],
@@ -349,7 +161,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         f.delta = f.bic - fits[0].bic
     verdict = _verdict(fits, threshold)
     staged = [e for e in training if not e.inputs]  # a step test to design the next one from
-    if verdict.structure == "ambiguous" and staged:
+    if verdict.structure == AMBIGUOUS and staged:
         a, b = (next(s for s in structures if s.name == n) for n in verdict.candidates[:2])
         verdict.separating_test = _separating(a, b, fits, staged[0], noise, package, fmu_dir)
         log(f"  {verdict.separating_test['advice']}")
@@ -389,7 +201,7 @@ def _started(s: Structure, runs: dict[str, tuple], package, fmu_dir) -> tuple[St
 def _run_jobs(jobs, training, fitted_noise, options: RunOptions, workdir: Path, searches, package,
               fmu_dir) -> list[tuple]:
     payload = (jobs, list(training), fitted_noise, options, workdir, tuple(searches), package, fmu_dir)
-    if options.n_jobs == 1 or options.backend not in ("loky", "multiprocessing") or len(jobs) < 2:
+    if options.n_jobs == 1 or options.backend not in LOCAL_PROCESSES or len(jobs) < 2:
         return _calibrated(payload, np.arange(len(jobs)))
     from ..compiler import build_models
     from ..fitting.engine import JoblibEngine
@@ -455,12 +267,12 @@ def _verdict(fits: list[StructureFit], threshold: float) -> StructureVerdict:
     rivals = [f.name for f in close if f.n_estimated == best.n_estimated]
     if not any(f.adequate for f in fits):
         margin = f", by {fits[1].delta:.1f} in BIC over {fits[1].name}" if len(fits) > 1 else ""
-        return StructureVerdict("unexplained", [f.name for f in fits],
+        return StructureVerdict(UNEXPLAINED, [f.name for f in fits],
                                 f"no structure fits to the noise (best {top.name}{margin}, variance ratio "
                                 f"{top.variance_ratio:.2f}): what is missing is missing from every structure "
                                 "tried, or is another structure", fits)
     if rivals:
-        return StructureVerdict("ambiguous", [best.name, *rivals],
+        return StructureVerdict(AMBIGUOUS, [best.name, *rivals],
                                 f"{best.name} and {', '.join(rivals)}, as simple, are within {threshold:g} in BIC",
                                 fits)
     beaten = [f for f in others if f.name not in richer]
@@ -488,7 +300,7 @@ def _verdict(fits: list[StructureFit], threshold: float) -> StructureVerdict:
                                     f"held-out tests together ({-gap:.1f} on training, {-held:.1f} held out), "
                                     "which earns its extra parameters", fits)
         elif runner.name not in richer and gap + held < threshold:
-            return StructureVerdict("ambiguous", [best.name, runner.name],
+            return StructureVerdict(AMBIGUOUS, [best.name, runner.name],
                                     reason + f", but predicts the held-out tests worse than {runner.name} "
                                              f"({held:+.1f}), which leaves {gap + held:.1f} over all tests",
                                     fits)

@@ -1,0 +1,211 @@
+"""A governor structure as its file describes it (``experiments/structures/TGOV1.toml``)::
+
+    [structure]
+    name = "TGOV1"
+    bench = "iGrGen.TestBenches.StagedTestTGOV1"        # a staged test's model
+    input_bench = "iGrGen.TestBenches.FrequencyInputTGOV1"  # a recorded event's (optional)
+
+    [fixed]        # what the plant documentation gives for this structure
+    documented = "unit.dyr"  # optional: its constants from the unit's .dyr/.dyd record
+    "gov.VMAX" = 1.0
+    [estimate]     # what the tests must determine, with bounds
+    "gov.R" = { min = 0.02, max = 0.12, label = "R" }
+    [optional]     # parts freed only where the data call for them (IEEEG1's valve rates)
+
+Each test's config keeps its data, source (``src.*``), dispatch (``gov.p_ref``), fitness
+and simulation settings; its governor constants and estimates are the structure's
+(:meth:`Structure.experiment`). Read and checked here, before any fit: the file's keys
+and tables, and (:meth:`Structure.check`) its parameters against its benches. Selection
+among structures is :mod:`.select`'s.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from itertools import combinations
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import ConfigError, Finding
+from ..exchange import model_named
+from ..experiment import Experiment, documented, parse_experiment, render_config
+from ..experiment.config import check_parameter_tables
+from ..experiment.schema import STRUCTURE_FILE
+from ..simulator import get_simulator
+
+KEPT_FIXED = ("src.", "gov.p_ref", "f_nom", "mach.")  # the test's and the unit's machine (H, D), not the governor's
+
+
+@dataclass(frozen=True)
+class Structure:
+    name: str
+    bench: str
+    input_bench: str | None
+    fixed: dict
+    estimate: dict
+    path: str
+    optional: dict = field(default_factory=dict)  # parts freed only where the data call for them
+    carries: str = ""  # what the optional parts carry (an effect of the catalogue), e.g. "rate_limit"
+    nested_in: str | None = None  # a variant: the structure whose optimum it starts from
+    vary: tuple[str, ...] = ()  # a variant's own parameters, searched around that optimum
+
+    def with_optional(self) -> "Structure":
+        """This structure with all its optional parts estimated too (IEEEG1's valve rates)."""
+        return self.optional_variants()[0]
+
+    def optional_variants(self) -> list["Structure"]:
+        """This structure with each non-empty set of its optional parts estimated too, the
+        whole set first (IEEEG1's valve rates: both, the opening alone, the closing alone),
+        named ``IEEEG1+rate_limit`` and ``IEEEG1+rate_limit(Uo)``. Why each apart: a rate
+        the tests never reach is not determined by them, and a fit that frees it leaves it
+        anywhere it does not bind there, a limit the record would then state for other
+        events (a closing rate of 0.004 pu/s from a load switched on, say); the criterion
+        keeps a part only where the data call for it. Each variant is nested in this
+        structure (``nested_in``): it is fitted from this one's optimum with its parts where
+        they do not act, and searched around it in their own parameters (``vary``), as an
+        effect of the catalogue is fitted from its base model's optimum."""
+        names, label = list(self.optional), self.carries or "optional"
+        out = []
+        for k in range(len(names), 0, -1):
+            for chosen in combinations(names, k):
+                tail = "" if k == len(names) else "(" + ",".join(n.removeprefix("gov.") for n in chosen) + ")"
+                out.append(replace(self, name=f"{self.name}+{label}{tail}", optional={}, nested_in=self.name,
+                                   vary=tuple(chosen),
+                                   estimate={**self.estimate, **{n: self.optional[n] for n in chosen}}))
+        return out
+
+    def started_from(self, optimum: dict[str, float], defaults: dict[str, float]) -> "Structure":
+        """This variant with its estimates starting at the nesting structure's ``optimum``,
+        and its own parameters at the bench's ``defaults`` (where they do not act, an
+        opening rate of 1 pu/s), each within its range."""
+        estimate = {}
+        for name, spec in self.estimate.items():
+            value = optimum.get(name, defaults.get(name))
+            if value is None:
+                estimate[name] = spec
+                continue
+            estimate[name] = {**spec, "start": float(min(max(value, spec["min"]), spec["max"]))}
+        return replace(self, estimate=estimate)
+
+    def playing(self, record: dict[str, float]) -> tuple["Structure", dict[str, float]]:
+        """This structure holding a record's values (iGrGen names) as a grid simulator plays
+        them (:meth:`~rapid_cosim.exchange.tables.Model.played`: the record's fields win;
+        this structure's constants fill only what the record has no field for), nothing
+        optional, and the record's values of the parameters it estimates (bench names)."""
+        values = model_named(self.name).played(record, self.fixed)
+        missing = [n for n in self.estimate if n not in values]
+        if missing:
+            raise ConfigError(f"the record gives no value for {', '.join(missing)}, which {self.name} estimates",
+                              self.path, "estimate")
+        return (replace(self, fixed={k: v for k, v in values.items() if k not in self.estimate}, optional={}),
+                {n: values[n] for n in self.estimate})
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Structure":
+        path = Path(path)
+        try:
+            raw = tomllib.loads(path.read_text())
+        except (OSError, tomllib.TOMLDecodeError) as e:
+            raise ConfigError(f"cannot read the structure file: {e}", str(path)) from None
+        head = raw.get("structure")
+        accepted = STRUCTURE_FILE.accepted()
+        extra = sorted(set(raw) - set(accepted))
+        if extra:
+            raise ConfigError(f"unknown section(s) {', '.join(extra)}; allowed: {', '.join(accepted)}", str(path),
+                              extra[0])
+        if not isinstance(head, dict) or "name" not in head or "bench" not in head:
+            raise ConfigError("needs [structure] with name and bench", str(path), "structure")
+        unknown = sorted(set(head) - accepted["structure"])
+        if unknown:
+            raise ConfigError(f"unknown key '{unknown[0]}'; allowed: {', '.join(sorted(accepted['structure']))}",
+                              str(path), f"structure.{unknown[0]}")
+        if not raw.get("estimate"):
+            raise ConfigError("estimates nothing: give [estimate] with the parameters the tests must determine",
+                              str(path), "estimate")
+        fixed, estimate = dict(raw.get("fixed", {})), dict(raw["estimate"])
+        check_parameter_tables(fixed, estimate, str(path))  # errors name this file, not a test's config
+        if documented.KEY in fixed:  # a .dyr/.dyd record of the unit, relative to the structure file
+            _, added, starts, _ = documented.record_constants(fixed.pop(documented.KEY), fixed, estimate,
+                                                              path.parent, str(path))
+            fixed = {**added, **fixed}
+            estimate = {k: {**v, "start": starts[k]} if k in starts else v for k, v in estimate.items()}
+        optional = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.get("optional", {}).items()}
+        carried = {v.pop("carries", "") for v in optional.values() if isinstance(v, dict)}
+        check_parameter_tables({}, optional, str(path), "optional")
+        if len(carried) > 1:
+            raise ConfigError(f"the optional parts carry {sorted(carried)}: one effect per structure file",
+                              str(path), "optional")
+        clash = sorted(set(optional) & (set(estimate) | set(fixed)))
+        if clash:
+            raise ConfigError(f"{', '.join(clash)}: optional and also fixed or estimated", str(path), "optional")
+        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate, str(path),
+                   optional, carried.pop() if carried else "")
+
+    def check(self, *, package=None, fmu_dir=None) -> list[Finding]:
+        """Every problem of this structure file that a run would meet, each naming this file
+        and its key: a bench that cannot be built, a parameter its bench lacks or cannot
+        take, a value outside the range the model declares."""
+        from ..compiler import ensure_fmu
+        from ..errors import BuildError
+
+        out = []
+        for key, bench in (("structure.bench", self.bench), ("structure.input_bench", self.input_bench)):
+            if bench is None:
+                continue
+            try:
+                params = get_simulator(ensure_fmu(bench, package=package, fmu_dir=fmu_dir)).parameters
+            except (BuildError, ConfigError) as e:
+                out.append(Finding(self.path, key, str(e)))
+                continue
+            tables = [("fixed", n, [v]) for n, v in self.fixed.items()]
+            tables += [(section, n, [spec.get("min"), spec.get("max")]) for section, table in
+                       (("estimate", self.estimate), ("optional", self.optional)) for n, spec in table.items()]
+            for section, name, values in tables:
+                where = f'{section}."{name}"'
+                info = params.get(name)
+                if info is None or not info.settable:
+                    close = [k for k in params if k.rsplit(".", 1)[-1].lower() == name.rsplit(".", 1)[-1].lower()]
+                    out.append(Finding(self.path, where, f"{bench} has no settable parameter '{name}'"
+                                       + (f" (close: {', '.join(close)})" if close else "")))
+                    continue
+                lo = -np.inf if info.min is None else info.min
+                hi = np.inf if info.max is None else info.max
+                bad = [v for v in values if isinstance(v, (int, float)) and not lo <= v <= hi]
+                if bad:
+                    out.append(Finding(self.path, where, f"{bad[0]:g} is outside the range {bench} declares for "
+                                       f"'{name}': [{lo:g}, {hi:g}]"))
+        first = {}  # one problem per key, though both benches meet it
+        for f in out:
+            first.setdefault((f.file, f.where), f)
+        return list(first.values())
+
+    def experiment(self, exp: Experiment, noise=None) -> Experiment:
+        """``exp`` with this structure as its model (``noise``: the recorder's model, for
+        the whitened fitness)."""
+        raw = tomllib.loads(exp.config_text)
+        bench = self.input_bench if exp.inputs else self.bench
+        if bench is None:
+            raise ConfigError(f"{exp.name} is driven by recorded inputs; the structure {self.name} has no "
+                              "input_bench", self.path, "structure.input_bench")
+        fixed = {k: v for k, v in raw.get("fixed", {}).items() if k.startswith(KEPT_FIXED)}
+        data = dict(raw["data"])
+        data_file = Path(data["file"])
+        data["file"] = str(data_file if data_file.is_absolute() else (Path(exp.config_path).parent / data_file))
+        machine = {k: v for k, v in raw.get("estimate", {}).items() if k.startswith("mach.")}  # H estimated
+        sections = {**raw, "experiment": {**raw["experiment"], "model": bench}, "data": data,
+                    "fixed": {**fixed, **self.fixed}, "estimate": {**self.estimate, **machine}}
+        if noise is not None:
+            (output,) = [o for o in exp.outputs if exp.weights[o] > 0]
+            sections["noise"] = {output: noise.to_config()}
+        return parse_experiment(render_config(sections), exp.config_path, data=exp.data, files=exp.files)
+
+
+def on_structure(structure: Structure, experiments: Sequence[Experiment], fitted_noise: dict) -> list[Experiment]:
+    """The experiments as :func:`select_structure` fits and predicts them: ``structure``
+    as their model, each whitened by its recorder's model of ``fitted_noise`` (a
+    :func:`~rapid_cosim.noise.campaign_noise` over them); a report of a fit predicts its
+    held-out tests from these."""
+    return [structure.experiment(e, fitted_noise[e.name].model) for e in experiments]
