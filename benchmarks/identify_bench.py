@@ -49,8 +49,13 @@ def build(tree: Path) -> None:
 
 
 def run_profile(tree: Path, units: list[str], work: Path) -> dict:
-    """profile_identify.py (this tree's) under ``tree``'s code."""
+    """profile_identify.py (this tree's) under ``tree``'s code; a profile already in the
+    work folder is kept (its tree is named by its revision), so a run stopped half-way
+    goes on where it stopped."""
     out = work / f"profile-{tree.name}.json"
+    if out.exists():
+        print(f"kept {out} (remove it to profile {tree.name} again)", file=sys.stderr)
+        return json.loads(out.read_text())
     env = {**os.environ, "PYTHONPATH": str(tree), "RAPID_COSIM_FMUS": str(tree / "fmus")}
     subprocess.run([sys.executable, str(ROOT / "benchmarks" / "profile_identify.py"), "--units", ",".join(units),
                     "--work", str(work / f"runs-{tree.name}"), "--json", str(out)], env=env, check=True,
@@ -64,8 +69,10 @@ def run_fleet(tree: Path, fleet: Path, work: Path) -> dict:
     code = ("import json, sys, time\nimport rapid_cosim as rc\nt0 = time.perf_counter()\n"
             f"r = rc.fleet({str(fleet)!r}, results={str(work / ('fleet-' + tree.name))!r}, workers=2, "
             "progress=False, log=lambda *_: None)\n"
-            "print(json.dumps({'wall': time.perf_counter() - t0, 'units': [{k: u.get(k) for k in "
-            "('unit', 'path', 'seconds', 'recommended')} for u in r.units]}))\n")
+            "rows = [u.to_json() if hasattr(u, 'to_json') else u for u in r.units]\n"
+            "print(json.dumps({'wall': time.perf_counter() - t0, 'units': [{'unit': u['unit'], 'route': "
+            "u.get('route', u.get('path')), 'seconds': u['seconds'], 'recommended': u.get('recommended')} "
+            "for u in rows]}, default=str))\n")
     env = {**os.environ, "PYTHONPATH": str(tree), "RAPID_COSIM_FMUS": str(tree / "fmus")}
     done = subprocess.run([sys.executable, "-c", code], env=env, cwd=tree, check=True, capture_output=True,
                           text=True)
@@ -138,10 +145,10 @@ def main(argv=None) -> None:
                      f"(x{b['wall'] / a['wall']:.2f})")
         for ub, ua in zip(b["units"], a["units"]):
             rb, ra = ub.get("recommended") or {}, ua.get("recommended") or {}
-            same = (ub["path"], rb.get("fit")) == (ua["path"], ra.get("fit"))
-            lines.append(f"  {ua['unit']}: {ub['seconds']:.0f} -> {ua['seconds']:.0f} s, {ua['path']}"
+            same = (ub["route"], rb.get("fit")) == (ua["route"], ra.get("fit"))
+            lines.append(f"  {ua['unit']}: {ub['seconds']:.0f} -> {ua['seconds']:.0f} s, {ua['route']}"
                          + (f", {ra.get('fit')}" if ra else "") + ("" if same else
-                                                                    f" (before: {ub['path']}, {rb.get('fit')})"))
+                                                                    f" (before: {ub['route']}, {rb.get('fit')})"))
     lines.append(f"make bench-identify: {time.perf_counter() - t0:.0f} s")
     print("\n".join(lines))
     if args.json:
