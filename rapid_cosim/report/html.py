@@ -100,8 +100,8 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
             f"<p class=note>Archive <code>{e(str(run.path))}</code>; method {e(run.result.method)}, "
             f"best fitness {run.result.fun:.4g} after {run.result.nfev} simulations; "
             f"written {when} by rapid-cosim {__version__}.</p>",
-            f"<p id=overall>{n_pass} of {len(rows)} tests pass every judged metric, {n_fail} fail "
-            f"({sum(r == HELD_OUT for _, r in curves)} held out).</p>",
+            f"<p id=overall>{n_pass} of {len(rows)} tests pass every judged metric, {n_fail} fail; "
+            f"{sum(r == HELD_OUT for _, r in curves)} of the {len(rows)} are held out.</p>",
             summary(rows),
             "<h2>Error metrics against the tolerance bands</h2>", metrics_table(rows),
             "<p class=note>Per test, from the event (<code>[fitness] pre_step_end</code>) to the end of the window or "
