@@ -77,7 +77,8 @@ joint: fmus  ## joint Bayesian fit of R and Ts over tests 1-8 and event1, and ho
 
 diagnose: fmus  ## identify's explanation part alone: name what TG Type I misses on tests 1-10 (4 and 8 held out), write it into iGrGen.Diagnosed
 	$(RC) diagnose $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
-		--results $(RESULTS)/diagnose --json $(RESULTS)/diagnose/verdict.json --seed $(SEED) --n-jobs $(N_JOBS)
+		--results $(RESULTS)/diagnose --json $(RESULTS)/diagnose/verdict.json --seed $(SEED) --n-jobs $(N_JOBS) \
+		--package modelica/iGrGen
 	@echo "make diagnose: $$(( $$(date +%s) - $(T0) )) s wall time"
 
 identify: fmus  ## one identification of the field unit (experiments/unit.toml): explanation, records, .dyr (.dyd with MVA=...), report HTML+PDF

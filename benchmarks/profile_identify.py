@@ -1,7 +1,7 @@
 """Where an identification spends its time, by stage and by kind of work (issue 42):
 ``make profile-identify``.
 
-    python benchmarks/profile_identify.py [--units steam,electrical,fleet] [--json out.json]
+    python benchmarks/profile_identify.py [--units steam,electrical,field,fleet] [--json out.json]
 
 Each unit is identified in one process (``n_jobs = 1``, so that every second is seen
 here; the report's HTML included, its PDF not), with the functions that make up each
@@ -19,7 +19,7 @@ stage and each kind of work wrapped by a timer. A stage is the innermost one run
 Within each stage the kinds of work: **simulation** (the compiled runner's batches),
 **whitening** (residuals whitened by the recorder's noise model), **noise model**
 (building whiteners and deviances: REML fits and the null's draws), **Jacobians** (their
-simulations counted under simulation), **data (re)loading** (configs parsed, recordings
+simulations counted as the Jacobians', the outermost kind), **data (re)loading** (configs parsed, recordings
 read), and **the rest** (the optimisers, archives, bookkeeping). The same unit is then
 identified again as ``rapid-cosim identify`` runs it (``n_jobs = 2``, workers in their
 own processes) for the wall time against the CPU time of this process and its workers,

@@ -45,7 +45,6 @@ import argparse
 import hashlib
 import json
 import re
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -280,6 +279,7 @@ def fleet_rows(work: Path, units: int) -> list[dict]:
     import andes_grid
 
     import rapid_cosim as rc
+    from rapid_cosim.exchange import model_named
     from rapid_cosim.fleet.synthetic import PRE_EVENT_S, make_fleet
     from rapid_cosim.structures.structure import Structure
 
@@ -301,8 +301,8 @@ def fleet_rows(work: Path, units: int) -> list[dict]:
             continue
         structure = Structure.load(home / "structures" / f"{model}.toml")
         values = {k.removeprefix("gov."): v for k, v in structure.fixed.items()} | truth["plant"]
-        if model == "IEEEG1" and values.get("K3_rest", 0.0) > 0.5:
-            values["K3"] = 1.0 - values["K1"] - values.get("K5", 0.0) - values.get("K7", 0.0)
+        resolve = model_named(model).resolve  # the stages in use written into K3, as a delivered record has it
+        values = resolve(values) if resolve else values
         values.pop("K3_rest", None)
         text = (folder / "results" / u["files"]["dyr"]).read_text()
         row = judge(f"{u['unit']} ({truth['structure']})", text, andes_plant(model, values),
@@ -385,7 +385,6 @@ def main(argv=None) -> None:
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps(rows, indent=1, default=float) + "\n")
-    shutil.rmtree(work / "tmp", ignore_errors=True)
 
 
 if __name__ == "__main__":

@@ -36,6 +36,7 @@ from .experiment import Experiment, load_experiment
 from .fitting.engine import pinned_threads
 from .simulator import DEFAULT_RUNNER, BatchResult, Trajectory, get_simulator
 
+
 def pinned(func):
     """The API function run with one BLAS and OpenMP thread (:func:`~rapid_cosim.fitting.engine.pinned_threads`)."""
     @functools.wraps(func)
@@ -418,5 +419,5 @@ def export(archive: str | Path, out: str | Path, *, format: str | None = None, b
                                bus_name=bus_name, kv=kv, source=str(archive))
     note = machine_note({n: v for n, v in parameters.items() if n.startswith("mach.")}, kind)
     if note:  # an electrical-power event's H (and D): the generator's record, not the governor's
-        warnings.warn(note, ExchangeWarning, stacklevel=2)
+        warnings.warn(note, ExchangeWarning, stacklevel=3)  # the caller's line: past export and pinned
     return delivered

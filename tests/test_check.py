@@ -152,6 +152,28 @@ def test_a_structure_value_outside_the_models_range_names_the_structure_file(uni
     _one(unit, r"IEEEG1\.toml \[fixed\.\"gov\.PMAX\"\]: 3 is outside the range .* declares for 'gov\.PMAX': \[0, 2\]")
 
 
+def _without_section(text: str, name: str) -> str:
+    """``text`` without the TOML section ``[name]`` (its header to the next header)."""
+    out, skipping = [], False
+    for line in text.splitlines(keepends=True):
+        if line.startswith("["):
+            skipping = line.strip() == f"[{name}]"
+        if not skipping:
+            out.append(line)
+    return "".join(out)
+
+
+def test_a_section_that_is_not_a_table_is_named(unit):
+    """A structure file's [fixed] written as a value, and a unit file's [tests]: each named
+    by its file and section (it was a TypeError from deep in the reader)."""
+    structure = unit.parent / "structures" / "TGOV1.toml"
+    structure.write_text("fixed = 3\n" + _without_section(structure.read_text(), "fixed"))
+    _one(unit, r"structures/TGOV1\.toml \[fixed\]: \[fixed\] must be a table \(a section\), got 3")
+    other = _copy(REPO / "experiments" / "electrical", unit.parent.parent / "other") / "unit.toml"
+    other.write_text("tests = 5\n" + _without_section(other.read_text(), "tests"))
+    _one(other, r"unit\.toml \[tests\]: \[tests\] must be a table \(a section\), got 5")
+
+
 def test_an_mva_out_of_range_is_named(unit):
     _edit(unit, "mva = 900.0", "mva = 900000.0")
     _one(unit, r"unit\.toml \[unit\.mva\]: mva = 900000\.0: the machine's MVA base, a number from 1 to 5000")
@@ -218,3 +240,12 @@ def test_show_names_a_config_as_not_an_archive(capsys):
 def test_simulate_refuses_a_stop_time_before_the_start(capsys):
     assert main(["simulate", "iGrGen.TestBenches.StagedTest", "--stop-time", "-5"]) == 2
     assert "stop_time -5 s must be after start_time 0 s" in capsys.readouterr().err
+
+
+def test_diagnose_with_every_test_held_out_says_so(test1, tmp_path, capsys):
+    """Nothing left to fit on: the user's error, naming --holdout, before any fit (it was a
+    ValueError's traceback)."""
+    assert main(["diagnose", str(test1), "--holdout", "test1", "--results", str(tmp_path / "d")]) == 2
+    err = capsys.readouterr().err
+    assert "[--holdout]: every experiment is held out (test1): keep at least one to fit on" in err
+    assert not (tmp_path / "d").exists()

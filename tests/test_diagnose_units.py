@@ -150,3 +150,53 @@ def test_laplace_never_evaluates_outside_the_bounds():
     assert np.all(points >= space.lower) and np.all(points <= space.upper)
     assert g.at_bound == ("db",)
     assert np.isfinite(g.std).all()
+
+
+def test_a_named_model_goes_into_the_users_package_never_the_shipped_one(tmp_path):
+    """Without --package (or $RAPID_COSIM_PACKAGE) the package is the one inside
+    rapid_cosim, which in a virtual environment is writable: the model goes into the work
+    folder's copy all the same. A package of the user's is written where it can be, its
+    copy used where it cannot."""
+    import os
+    from types import SimpleNamespace
+
+    from rapid_cosim.diagnose.workflow import written_into
+
+    own, copy = tmp_path / "iGrGen", tmp_path / "work" / "package" / "iGrGen"
+    (own / "Diagnosed").mkdir(parents=True)
+    shipped = written_into(SimpleNamespace(package_is_users=False, user_package=own, package=copy))
+    assert shipped[0] == copy and "copy of the shipped package" in shipped[1]
+    assert written_into(SimpleNamespace(package_is_users=True, user_package=own, package=copy)) == (own, "")
+    (own / "Diagnosed").chmod(0o500)
+    try:
+        if not os.access(own / "Diagnosed", os.W_OK):  # root may write anyway
+            where, why = written_into(SimpleNamespace(package_is_users=True, user_package=own, package=copy))
+            assert where == copy and "cannot be written" in why
+    finally:
+        (own / "Diagnosed").chmod(0o700)
+
+
+def test_an_unexplained_or_ambiguous_diagnosis_is_saved_and_said_in_words(tmp_path):
+    """The outcome constants are the words themselves: h5py stores them (a str Enum member
+    it refused, and an identification whose explanation was unexplained ended in a
+    TypeError), and the verdict's sentence says 'unexplained', not a class name."""
+    import h5py
+    import json
+
+    from rapid_cosim.diagnose.catalogue import AMBIGUOUS, UNEXPLAINED, VerdictKind
+    from rapid_cosim.diagnose.result import Diagnosis
+    from rapid_cosim.diagnose.limits import verdict_text
+    from rapid_cosim.diagnose.selection import Verdict
+
+    for effect in (UNEXPLAINED, AMBIGUOUS):
+        v = Verdict(effect, candidates=["delay", "deadband"], reason="nothing fits")
+        said = verdict_text(v, type("Fit", (), {"adequate": False})())
+        assert said in ("unexplained", "ambiguous + unexplained remainder") and "VerdictKind" not in said
+        d = Diagnosis(effect, [], list(v.candidates), v.said, said, False, {}, None, {}, [], [], [], None, None, {},
+                      {}, {}, {}, {}, {}, {}, {}, {}, {}, {}, {}, None, None, {}, ["t1"], [], "now")
+        js, h5 = d.save(tmp_path / effect)
+        with h5py.File(h5) as f:
+            assert f.attrs["effect"] == effect
+        assert json.loads(js.read_text())["effect"] == effect
+        assert VerdictKind.of(effect) is VerdictKind(effect) and f"{VerdictKind.of(effect)}" == effect
+    assert VerdictKind.of("rate_limit") is VerdictKind.NAMED

@@ -23,7 +23,7 @@ from rapid_cosim.cli import main
 from rapid_cosim.diagnose.study import draw_case, write_campaign
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.exchange import read_record
-from rapid_cosim.identify import Unit
+from rapid_cosim.identify import Identification, Unit
 from rapid_cosim.report.pdf import unavailable
 from rapid_cosim.identify.result import cannot_carry
 
@@ -205,18 +205,19 @@ def test_the_recommendation_follows_the_criterion():
     is still recommended, and said to be so (issue 32)."""
     from rapid_cosim.identify.workflow import _recommend
 
-    model, why, tied = _recommend([_record("TGOV1", 124.0, 4), _record("IEEEG1", 0.0, 7)])
+    model, why, tied, ties = _recommend([_record("TGOV1", 124.0, 4), _record("IEEEG1", 0.0, 7)])
     assert model == "IEEEG1" and why.startswith("first by BIC (IEEEG1, 7 estimated parameters; 124.0 ahead of TGOV1)")
-    assert tied is None
-    model, why, tied = _recommend([_record("TGOV1", 6.0, 4), _record("IEEEG1", 0.0, 5), _record("GGOV1", 50.0, 6)])
+    assert tied is None and ties == []
+    model, why, tied, ties = _recommend([_record("TGOV1", 6.0, 4), _record("IEEEG1", 0.0, 5), _record("GGOV1", 50.0, 6)])
     assert model == "TGOV1" and "it ties with IEEEG1, the first by BIC (6.0 behind, within 10)" in why
-    assert tied == "IEEEG1"  # the outcome as data: the fleet flags the tie from this, not from the sentence
-    model, why, _ = _recommend([_record("TGOV1", 30.0, 4), _record("IEEEG1", 0.0, 7, adequate=False)])
+    assert tied == "IEEEG1" and ties == ["TGOV1"]  # as data: the fleet flags the tie from these, not the sentence
+    model, why, _, ties = _recommend([_record("TGOV1", 30.0, 4), _record("IEEEG1", 0.0, 7, adequate=False)])
     assert model == "IEEEG1" and "NOT within the noise (not within the noise on test1" in why
     short = _record("TGOV1", 7.3, 4)
     short.cannot_carry = ["rate_limit"]  # the explanation found a rate limit TGOV1 has no part for
-    model, why, tied = _recommend([short, _record("IEEEG1", 0.0, 7)])
+    model, why, tied, ties = _recommend([short, _record("IEEEG1", 0.0, 7)])
     assert model == "IEEEG1" and "TGOV1 ties with it but cannot carry rate_limit" in why and tied is None
+    assert ties == ["TGOV1"]  # passed over, still a tie the fleet flags
 
 
 def test_a_tie_held_by_its_bounds_or_outside_the_noise_is_not_recommended_over_a_clean_first():
@@ -227,12 +228,23 @@ def test_a_tie_held_by_its_bounds_or_outside_the_noise_is_not_recommended_over_a
 
     held = _record("GGOV1", 1.1, 6)
     held.at_bounds = ["gov.Kpgov = 40 at its upper bound", "gov.Tb = 0.05 at its lower bound"]
-    model, why, tied = _recommend([held, _record("IEEEG1", 0.0, 7)])
+    model, why, tied, ties = _recommend([held, _record("IEEEG1", 0.0, 7)])
     assert model == "IEEEG1" and "GGOV1 ties with IEEEG1 but its gov.Kpgov, gov.Tb on their bounds" in why
-    assert tied is None
+    assert tied is None and ties == ["GGOV1"]
     first = _record("IEEEG1", 0.0, 7)
     first.at_bounds = ["gov.T2 = 0 at its lower bound"]
-    model, why, tied = _recommend([held, first])
+    model, why, tied, ties = _recommend([held, first])
     assert model == "GGOV1" and "it ties with IEEEG1" in why and tied == "IEEEG1"
-    model, why, _ = _recommend([_record("TGOV1", 3.0, 4, adequate=False), _record("IEEEG1", 0.0, 7)])
+    model, why, _, ties = _recommend([_record("TGOV1", 3.0, 4, adequate=False), _record("IEEEG1", 0.0, 7)])
     assert model == "IEEEG1" and "TGOV1 ties with IEEEG1 but it is not within the noise" in why
+
+
+def test_an_explanation_with_a_remainder_counts_as_unexplained():
+    """What the fleet flags 'unexplained': nothing known explains the unit, or what the
+    explanation names leaves a remainder ('rate_limit + unexplained remainder')."""
+    def ident(effect, adequate):
+        return Identification("u", None, 1, "1", ["t1"], [], {"effect": effect, "adequate": adequate}, [], None, "",
+                              "", 0.0)
+
+    assert ident("unexplained", False).unexplained and ident("rate_limit", False).unexplained
+    assert not ident("rate_limit", True).unexplained and not ident("none", True).unexplained

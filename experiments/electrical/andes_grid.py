@@ -43,7 +43,7 @@ STEP = 0.005  # ANDES's time step (s)
 @dataclass(frozen=True)
 class GridEvent:
     """A constant-power load of ``mw`` at ``bus`` switched on (``load`` +1) or off (-1, the
-    case's own load PQ_0 lowered by as much first, so the dispatch is the same)."""
+    case's own bus-7 load PQ_1 lowered by as much first, so the dispatch is the same)."""
 
     load: int = 1
     bus: int = 7

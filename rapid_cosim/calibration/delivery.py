@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Mapping
 
@@ -117,6 +117,7 @@ def deliver_record(inputs: RunInputs, parameters: Mapping[str, float], x, out: s
         written = fmt.write_record(trial, record.model.name, record.values, bus=bus, machine_id=machine_id,
                                    **options)
         read = fmt.read_record(trial, bus=bus, machine_id=machine_id, **({"mva": mva} if kind == "dyr" else {}))
+        read = replace(read, file=str(out))  # errors name the file the user asked for, not the trial copy
         check = reproduction(inputs, x, record.model, read)
         if not check.reproduces:
             raise DeliveryError(_refusal(out, record, check, inputs, x))

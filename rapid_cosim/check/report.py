@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import Finding, RapidCosimError, finding
-from ..experiment.schema import reference
+from ..experiment.schema import explain
 from .cost import PLAYBACK_EXTRA, duration, identify_simulations, method_simulations, seconds_per_simulation
 
 
@@ -37,8 +37,8 @@ class CheckReport:
                        "simulation on this machine in one process (counts are rough: the methods stop when they "
                        "converge)")
         for p in self.problems:
-            link = reference(p.where) if p.where and not p.where.startswith(("row ", "line ", "--")) else None
-            out.append(f"  problem: {p}" + (f" (the key: {link})" if link else ""))
+            words = explain(p.where) if p.where and not p.where.startswith(("row ", "line ", "--")) else None
+            out.append(f"  problem: {p}" + (f" (the key: {words})" if words else ""))
         return "\n".join(out)
 
 
@@ -65,6 +65,11 @@ def check_configs(paths: Sequence[Path], *, method: str, package=None, fmu_dir=N
     from ..identify.check import quietly
 
     report = CheckReport(", ".join(map(str, paths)), "config")
+    try:  # the method first: a misspelt one is said before any model is built
+        stages = parse_method(method)
+    except ValueError as e:
+        stages = None
+        report.problems.append(Finding(None, "--method", str(e)))
     notes: list[str] = []
     experiments = []
     for path in paths:
@@ -82,10 +87,7 @@ def check_configs(paths: Sequence[Path], *, method: str, package=None, fmu_dir=N
     for exp in experiments:
         report.lines += [f"{exp.name}: {line}" for line in exp.recording.lines()]
         report.lines.append(f"{exp.name}: {exp.model}, estimates {_estimates(exp)}")
-    try:
-        stages = parse_method(method)
-    except ValueError as e:
-        report.problems.append(Finding(None, "--method", str(e)))
+    if stages is None:
         return report
     report.lines.append("stages: " + " then ".join(f"{s.name}" + (f" ({s.max_iter} iterations)" if s.max_iter else "")
                                                  for s in stages) + f" on {inputs.problem.space.dim} parameters")

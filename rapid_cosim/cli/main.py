@@ -30,12 +30,12 @@ class _Warnings:
 
 
 def _reference(error: RapidCosimError) -> str:
-    """Where the reference explains the key an error names (docs/config.md), if it does."""
+    """What the reference says of the key an error names (docs/config.md), if it does."""
     from ..errors import ConfigError
-    from ..experiment.schema import reference
+    from ..experiment.schema import explain
 
-    link = reference(error.key) if isinstance(error, ConfigError) and error.key else None
-    return f"\n  (the key: {link})" if link else ""
+    words = explain(error.key) if isinstance(error, ConfigError) and error.key else None
+    return f"\n  (the key: {words})" if words else ""
 
 
 def _terminate(signum, frame):

@@ -157,7 +157,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = command("joint", cmd_joint, "joint Bayesian (SMC) fit of R and Ts over several tests, with a "
                 "consistency check of the per-test estimates")
     p.add_argument("--tests", default="1-8", help="tests (default %(default)s)")
-    p.add_argument("--experiments", default="experiments", help="experiments folder (default %(default)s)")
+    p.add_argument("--experiments", default="experiments", help="experiments folder (default %(default)s, in the "
+                   "current folder: the repository's bundled tests)")
     p.add_argument("--per-test-method", default="pf10+nm",
                    help="whose per-test optima are checked against the joint fit (default %(default)s)")
     p.add_argument("--option", action="append", metavar="smc.NAME=VALUE",
@@ -236,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = command("demo", cmd_demo, "build the FMUs, calibrate one staged test with both chains, "
                 "write its figure and table")
     p.add_argument("--test", default="test1", help="staged test (default %(default)s)")
-    p.add_argument("--experiments", default="experiments", help="experiments folder (default %(default)s)")
+    p.add_argument("--experiments", default="experiments", help="experiments folder (default %(default)s, in the "
+                   "current folder: the repository's bundled tests)")
     campaign_options(p)
     return parser

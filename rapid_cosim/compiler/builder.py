@@ -13,8 +13,8 @@ of them, compiles each distinct model once. A lock per model and FMU folder make
 second process wait while the first builds, then take its FMU.
 
 No default depends on the current folder: the package is the iGrGen shipped inside
-rapid_cosim (:func:`default_package`), the FMUs go into the user's cache
-(:func:`default_fmu_dir`); ``$RAPID_COSIM_PACKAGE`` and ``$RAPID_COSIM_FMUS`` name others
+rapid_cosim (:func:`default_package`), the FMUs go into the user's cache, a folder per
+version of rapid-cosim (:func:`default_fmu_dir`); ``$RAPID_COSIM_PACKAGE`` and ``$RAPID_COSIM_FMUS`` name others
 (the repository's Makefile sets the second to its ``fmus/``, a developer's view).
 """
 
@@ -53,9 +53,13 @@ def default_package() -> Path:
 
 
 def default_fmu_dir() -> Path:
-    """``$RAPID_COSIM_FMUS``, else a folder of the user's cache."""
+    """``$RAPID_COSIM_FMUS``, else a folder of the user's cache for this version of
+    rapid-cosim: two installed versions ship different sources, and one must not replace
+    the other's FMU under a run."""
+    from ..version import __version__
+
     configured = os.environ.get("RAPID_COSIM_FMUS")
-    return Path(configured) if configured else cache_dir() / "fmu"
+    return Path(configured) if configured else cache_dir() / "fmu" / __version__
 
 
 def resolve_models(package: str | Path | None, fmu_dir: str | Path | None) -> tuple[Path, Path]:

@@ -26,7 +26,7 @@ base parameters, e.g. a deadband with a larger droop when every step has one siz
 
 from __future__ import annotations
 
-from enum import Enum
+from enum import StrEnum
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -42,14 +42,14 @@ STANDARD = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV")
 BASES = {BASE_BENCH: "StagedTest", INPUT_BENCH: "FrequencyInput",
          **{f"iGrGen.TestBenches.{kind}{g}": f"{kind}{g}" for g in STANDARD
             for kind in ("StagedTest", "FrequencyInput")}}
-NONE = "none"
 
 
-class VerdictKind(str, Enum):
-    """What a verdict is, whatever effect or structure it names (its value is the word the
-    records write, so a verdict compares equal to it and writes as it): one named, none
-    (nothing missing), ambiguous (several the data cannot tell apart), unexplained
-    (nothing known explains the data)."""
+class VerdictKind(StrEnum):
+    """What a verdict is, whatever effect or structure it names: one named, none (nothing
+    missing), ambiguous (several the data cannot tell apart), unexplained (nothing known
+    explains the data). A verdict's ``effect`` or ``structure`` holds the word (a name,
+    or one of the constants below, plain strings that HDF5 attributes and JSON take as
+    they are); :meth:`of` tells its kind."""
 
     NAMED = "named"
     NONE = "none"
@@ -62,7 +62,8 @@ class VerdictKind(str, Enum):
         return cls(verdict) if verdict in {k.value for k in cls} - {"named"} else cls.NAMED
 
 
-AMBIGUOUS, UNEXPLAINED = VerdictKind.AMBIGUOUS, VerdictKind.UNEXPLAINED
+NONE, AMBIGUOUS, UNEXPLAINED = (VerdictKind.NONE.value, VerdictKind.AMBIGUOUS.value,
+                                VerdictKind.UNEXPLAINED.value)
 
 
 @dataclass(frozen=True)

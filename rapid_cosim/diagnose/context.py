@@ -9,6 +9,7 @@ criterion and adequacy judge it by.
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 from dataclasses import dataclass, field, replace
@@ -82,7 +83,11 @@ def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> 
         close = close_matches(unknown[0], names, n=1)
         raise ConfigError(f"held-out {', '.join(unknown)}: not among the experiments ({', '.join(names)})"
                           + (f"; did you mean {close[0]!r}?" if close else ""), None, "--holdout")
-    return ([e for e in experiments if e.name not in holdout], [e for e in experiments if e.name in holdout])
+    training = [e for e in experiments if e.name not in holdout]
+    if not training:
+        raise ConfigError(f"every experiment is held out ({', '.join(names)}): keep at least one to fit on", None,
+                          "--holdout")
+    return training, [e for e in experiments if e.name in holdout]
 
 
 def _fit_jobs(payload, chunk) -> list[CandidateFit]:
@@ -103,6 +108,9 @@ class Context:
         self.training, self.heldout = list(training), list(heldout)
         self.workdir, self.options = Path(workdir), options
         (self.user_package, self.user_fmu_dir), self.log = resolve_models(package, fmu_dir), log
+        # the user's own package (given, or $RAPID_COSIM_PACKAGE): a named model may be written into it;
+        # the one shipped inside rapid_cosim never is (an installed wheel's files are not the user's)
+        self.package_is_users = package is not None or bool(os.environ.get("RAPID_COSIM_PACKAGE"))
         self.package = self.workdir / "package" / self.user_package.name
         self.fmu_dir = self.workdir / "fmus"
         shutil.copytree(self.user_package, self.package, dirs_exist_ok=True)  # refreshed on every run

@@ -76,7 +76,7 @@ class Diagnosis:
         js.write_text(json.dumps(self.to_json(), indent=2) + "\n")
         h5 = folder / "diagnosis.h5"
         with h5py.File(h5, "w") as f:
-            f.attrs["effect"] = self.effect
+            f.attrs["effect"] = str(self.effect)  # a plain string: h5py takes no str subclass
             f.attrs["json"] = json.dumps(self.to_json())
             for test, arrays in self.residuals.items():
                 g = f.create_group(test)

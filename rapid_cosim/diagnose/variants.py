@@ -53,7 +53,7 @@ def check_variants(ctx, chosen: CandidateFit, verdict: Verdict, threshold: float
                                   f"with the documented {constants} kept: the documentation stands"))
         return best, verdict, report, None
     if delta < threshold:
-        report["outcome"] = AMBIGUOUS.value
+        report["outcome"] = AMBIGUOUS
         verdict = Verdict(AMBIGUOUS, candidates=[best_label, chosen.spec.label], held_out=verdict.held_out,
                           reason=(f"{verdict.said}; but {best_label}, with the documented {constants} kept, fits "
                                   f"as well ({delta:+.1f} in BIC): the data cannot tell a documented {constants} "

@@ -51,7 +51,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     ``noise_fits``: the recorders' noise fits of these experiments, where the caller has
     them already (an identification shares one fit between its two parts)."""
     if not training:
-        raise ValueError("diagnose needs at least one training experiment")
+        raise ConfigError("diagnose needs at least one training experiment (every one was held out)")
     for exp in [*training, *heldout]:
         try:
             check_base(exp.model)
@@ -256,17 +256,29 @@ def _separating(ctx: Context, labels: Sequence[str], not_excluded: Sequence[str]
     return separating_test(a, b, staged[0], ctx.noise[staged[0].name])
 
 
+def written_into(ctx) -> tuple[Path, str]:
+    """The package a named model is written into, and why not the user's where it is not:
+    the user's own package (``--package``, ``$RAPID_COSIM_PACKAGE``) where it can be
+    written; else the work folder's copy, never the package shipped inside rapid_cosim
+    (an installed wheel's files are not the user's to change)."""
+    if not ctx.package_is_users:
+        return ctx.package, (f"the model goes into the work folder's copy of the shipped package, {ctx.package} "
+                             "(--package names a package of yours to write it into)")
+    if not os.access(ctx.user_package / "Diagnosed", os.W_OK):
+        return ctx.package, (f"{ctx.user_package} cannot be written: the model goes into the work folder's copy, "
+                             f"{ctx.package} (--package names a package of yours)")
+    return ctx.user_package, ""
+
+
 def _write_and_recalibrate(ctx: Context, chosen: CandidateFit, options: DiagnoseOptions):
     """The named model written into the package, compiled, and calibrated again."""
     effects = chosen.spec.effects
     held = sorted({governor(b) for b in ctx.bases} - {"TGTypeI"})  # a standard structure's name in the class
     name = options.model_name or "iGrGen.Diagnosed.Calibrated" + "".join(held) + "".join(camel(e) for e in effects)
     values = dict(chosen.parameters)
-    package_dir = ctx.user_package
-    if not os.access(package_dir / "Diagnosed", os.W_OK):  # an installed package: its copy in the work folder
-        package_dir = ctx.package
-        ctx.log(f"  {ctx.user_package} cannot be written: the model goes into the work folder's copy, {package_dir} "
-                "(--package names a package of yours)")
+    package_dir, why = written_into(ctx)
+    if why:
+        ctx.log(f"  {why}")
     # one class per base bench: the staged test's keeps the name, a recorded-frequency one adds "Input"
     names = {base: name + ("" if is_staged(base) else "Input") for base in ctx.bases}
     targets = []

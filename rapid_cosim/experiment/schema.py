@@ -383,21 +383,47 @@ def _matches(pattern: str, segments: list[str]) -> bool:
     return len(parts) == len(segments) and all(p.startswith("<") or p == s for p, s in zip(parts, segments))
 
 
-def reference(key: str) -> str | None:
-    """The link to the page's entry of a config key as errors name it (``data.delimiter``,
-    ``estimate."gov.R".min``), falling back to the nearest enclosing entry; None if none."""
+def _entry(key: str) -> tuple[str, Key | None] | None:
+    """(the page's anchor, the key's entry) of a config key as errors name it
+    (``data.delimiter``, ``estimate."gov.R".min``), the nearest enclosing entry where the
+    key has none of its own (a section: no Key); None if none."""
     segments = _segments(key)
     while segments:
         for kind in KINDS:
             for s in kind.sections:
                 if len(segments) == 1 and s.name == segments[0]:
-                    return f"{PAGE}#{_slug(_title(s))}"
+                    return _slug(_title(s)), None
                 if _matches(s.name, segments[:-1]):
                     hit = next((k for k in s.keys if k.name == segments[-1]), s.open)
                     if hit is not None:
-                        return f"{PAGE}#{s.anchor(hit)}"
+                        return s.anchor(hit), hit
         segments = segments[:-1]
     return None
+
+
+def reference(key: str) -> str | None:
+    """The link to the page's entry of a config key as errors name it, falling back to
+    the nearest enclosing entry; None if none."""
+    found = _entry(key)
+    return None if found is None else f"{PAGE}#{found[0]}"
+
+
+def explain(key: str) -> str | None:
+    """What an error says of the key it names: what the key allows and its default, and
+    its entry on the page (which an installed rapid-cosim prints with ``python -m
+    rapid_cosim.experiment.schema``: the wheel ships no docs/); None if the page has no
+    entry for it."""
+    found = _entry(key)
+    if found is None:
+        return None
+    anchor, entry = found
+    where = f"{PAGE}#{anchor}; python -m rapid_cosim.experiment.schema prints the page"
+    if entry is None:
+        return where
+    allowed = _allowed(entry.allowed).replace("`", "")
+    words = "; ".join(w for w in (allowed and f"allowed: {allowed}",
+                                  entry.default not in (REQUIRED, "") and f"default {entry.default}") if w)
+    return f"{words}; {where}" if words else where
 
 
 def main(argv: list[str] | None = None) -> None:

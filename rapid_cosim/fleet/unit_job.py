@@ -103,7 +103,7 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
     ident = identify(entry.folder, workdir=work, seed=options.seed, n_jobs=1, package=options.package,
                      fmu_dir=options.fmu_dir, report=True, pdf=options.pdf, log=lambda *_: None)
     result.route = Route.IDENTIFIED
-    result.explanation = ident.explanation["verdict"]
+    result.explanation = str(ident.explanation["verdict"])
     result.unexplained = ident.unexplained
     root = Path(options.results)
     result.files = {k: str(Path(v).resolve().relative_to(root.resolve())) for k, v in ident.files.items()}
@@ -113,8 +113,8 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
         result.flags.append("no record recommended")
         return
     rec = ident.record(ident.recommended)
-    if ident.tied_with:
-        result.flags.append(f"tie: recommended over {ident.tied_with}, the first by BIC, with fewer parameters")
+    if ident.ties:  # the recommendation's first clause says which way the tie went
+        result.flags.append("tie: " + ident.reason.split(";")[0])
     if rec.at_bounds:
         result.flags.append("at bounds: " + ", ".join(rec.at_bounds))
     if not rec.adequate:

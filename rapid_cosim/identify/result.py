@@ -8,7 +8,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Sequence
 
-from ..diagnose.catalogue import VerdictKind
+from ..diagnose.catalogue import NONE, VerdictKind
 
 # What each standard structure can represent of the effect catalogue, as its own
 # parameters (PES-TR1 2013 and the PSS/E Model Library block diagrams), and in words.
@@ -108,6 +108,7 @@ class Identification:
     structure_verdict: str
     seconds: float
     tied_with: str | None = None  # the first by BIC, where a simpler record tied with it is recommended
+    ties: list[str] = field(default_factory=list)  # simpler records tying with the first, recommended or not
     files: dict[str, str] = field(default_factory=dict)  # what was delivered: dyr, dyd, report, pdf
     notes: dict[str, str] = field(default_factory=dict)  # why one of those was not written
     reproduced: dict[str, float] = field(default_factory=dict)  # dyr, dyd: read back, largest miss of the fit (pu)
@@ -120,8 +121,11 @@ class Identification:
 
     @property
     def unexplained(self) -> bool:
-        """Whether the explanation found nothing it knows that explains the unit."""
-        return VerdictKind.of(self.explanation["effect"]) is VerdictKind.UNEXPLAINED
+        """Whether the explanation leaves something unexplained: nothing it knows explains
+        the unit, or what it names leaves a remainder (its final model not within the
+        noise: the verdict's "+ unexplained remainder")."""
+        return VerdictKind.of(self.explanation["effect"]) is VerdictKind.UNEXPLAINED \
+            or not self.explanation["adequate"]
 
     def to_json(self) -> dict:
         return json.loads(json.dumps(asdict(self), default=float))
@@ -173,7 +177,7 @@ class Identification:
         e = self.explanation
         lines = [f"explanation (TG Type I and the effect catalogue): {e['verdict']}, "
                  f"{'adequate' if e['adequate'] else 'not adequate'} (campaign p {e['p']:.2g})"]
-        if e["effect"] == "none" and e.get("not_excluded"):
+        if e["effect"] == NONE and e.get("not_excluded"):
             test = e.get("separating_test")
             lines[0] += (f"; not excluded at a material size: {', '.join(e['not_excluded'])}"
                          + (f" ({test['advice']})" if test else ""))

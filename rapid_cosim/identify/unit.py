@@ -69,6 +69,8 @@ class Unit:
         except tomllib.TOMLDecodeError as e:
             raise ConfigError(f"not valid TOML: {e}", str(path)) from None
         for section, keys in KEYS.items():
+            if not isinstance(raw.get(section, {}), dict):
+                raise ConfigError(f"[{section}] must be a table (a section), got {raw[section]!r}", str(path), section)
             unknown = sorted(set(raw.get(section, {})) - keys)
             if unknown:
                 close = close_matches(unknown[0], sorted(keys), n=1)

@@ -29,7 +29,7 @@ the same way.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -78,7 +78,7 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=d.records, recommended=d.recommended,
-                            reason=d.reason, tied_with=d.tied_with, structure_verdict=d.verdict.structure,
+                            reason=d.reason, tied_with=d.tied_with, ties=d.ties, structure_verdict=d.verdict.structure,
                             seconds=0.0,
                             recordings={e.name: e.recording.summary() for e in (*training, *heldout)})
     result.diagnosis = str(explanation.save(workdir / "explanation")[0])
@@ -103,6 +103,7 @@ class Delivery:
     candidates: list[Structure]
     fitted_noise: dict[str, NoiseFit]  # per test name (campaign_noise)
     tied_with: str | None = None  # the first by BIC, where a simpler record tied with it is recommended
+    ties: list[str] = field(default_factory=list)  # simpler records tying with the first, recommended or not
 
 
 def deliver(structures: Sequence[Structure], training: Sequence[Experiment], heldout: Sequence[Experiment],
@@ -121,9 +122,9 @@ def deliver(structures: Sequence[Structure], training: Sequence[Experiment], hel
                                package=package, fmu_dir=fmu_dir, fitted_noise=fitted_noise, log=log)
     fits = {f.name: f for f in verdict.ranking}
     records = [_record(s, fits, explanation) for s in structures if s.name in MODELS]  # what a record can hold
-    recommended, reason, tied_with = _recommend(records)
+    recommended, reason, tied_with, ties = _recommend(records)
     log(f"  recommended: {recommended or 'none'} ({reason})")
-    return Delivery(verdict, records, recommended, reason, candidates, fitted_noise, tied_with)
+    return Delivery(verdict, records, recommended, reason, candidates, fitted_noise, tied_with, ties)
 
 
 def _record(structure: Structure, fits: dict[str, StructureFit], explanation) -> StandardRecord:
@@ -158,18 +159,20 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation) ->
                           relative_se={k: v["relative_se"] for k, v in use.identifiability.get("parameters", {}).items()})
 
 
-def _recommend(records: list[StandardRecord]) -> tuple[str | None, str, str | None]:
-    """The record the criterion prefers, why, and the first by BIC where a simpler one
-    tied with it is recommended instead: the first by BIC (with its optional parts where
-    they won); a simpler one only where it ties with it (within the selection threshold),
-    and then both are said. A winner that is not within the noise is still recommended,
-    and said to be so."""
+def _recommend(records: list[StandardRecord]) -> tuple[str | None, str, str | None, list[str]]:
+    """The record the criterion prefers, why, the first by BIC where a simpler one tied
+    with it is recommended instead, and every simpler record that ties with the first
+    (recommended or passed over): the first by BIC (with its optional parts where they
+    won); a simpler one only where it ties with it (within the selection threshold), and
+    then both are said. A winner that is not within the noise is still recommended, and
+    said to be so."""
     if not records:
-        return None, "no standard structure was given", None
+        return None, "no standard structure was given", None, []
     ranked = sorted(records, key=lambda r: r.bic)
     first = ranked[0]
     ties = sorted((r for r in ranked[1:] if r.bic - first.bic < THRESHOLD and r.n_estimated < first.n_estimated),
                   key=lambda r: (r.n_estimated, r.bic))
+    tying = [r.fit for r in ties]
     # a simpler record that cannot carry what the explanation found (a rate limit) is not
     # as good a record, however close its fit to these tests: on a larger event it is wrong
     short = [r for r in ties if r.cannot_carry and not first.cannot_carry]
@@ -201,7 +204,7 @@ def _recommend(records: list[StandardRecord]) -> tuple[str | None, str, str | No
         reason += "; within the noise on every test"
     else:
         reason += f"; NOT within the noise ({chosen.words})"
-    return chosen.model, reason, None if chosen is first else first.fit
+    return chosen.model, reason, None if chosen is first else first.fit, tying
 
 
 def _explanation(d) -> dict:

@@ -186,9 +186,10 @@ def _calibrate_all(structures, training, fitted_noise, options: RunOptions, work
     return [runs[s.name] for s in structures]
 
 
-def _started(s: Structure, runs: dict[str, tuple], package, fmu_dir) -> tuple[Structure, RunOptions | None]:
-    """A structure as fitted: a variant from its nesting structure's optimum, its own
-    parameters varied (the multistart's nested starts); others as they are."""
+def _started(s: Structure, runs: dict[str, tuple], package, fmu_dir) -> tuple[Structure, dict | None]:
+    """A structure as fitted, and the multistart's options for it: a variant from its
+    nesting structure's optimum with its own parameters varied (``{"vary": ...}``, the
+    nested starts); others as they are (None: the run's own options)."""
     if s.nested_in not in runs:
         return s, None
     from ..compiler import ensure_fmu

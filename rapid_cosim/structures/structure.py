@@ -116,6 +116,9 @@ class Structure:
         if extra:
             raise ConfigError(f"unknown section(s) {', '.join(extra)}; allowed: {', '.join(accepted)}", str(path),
                               extra[0])
+        for section in accepted:
+            if section in raw and not isinstance(raw[section], dict):
+                raise ConfigError(f"[{section}] must be a table (a section), got {raw[section]!r}", str(path), section)
         if not isinstance(head, dict) or "name" not in head or "bench" not in head:
             raise ConfigError("needs [structure] with name and bench", str(path), "structure")
         unknown = sorted(set(head) - accepted["structure"])
