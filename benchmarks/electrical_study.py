@@ -300,10 +300,12 @@ def _optional_rates(folder: Path, kind: str, workdir: Path, fmu_dir: Path) -> di
     structure's optional parts), in :func:`effects_on`'s terms: ``rate_limit`` when the
     rates win by the threshold, else the verdict."""
     from rapid_cosim.calibration import RunOptions
+    from rapid_cosim.experiment import EstimateSpec
     from rapid_cosim.structures.select import select_structure
 
     plain = candidate_structures()[2]
-    rates = {"gov.Uo": {"min": 0.001, "max": 1.0, "scale": "log"}, "gov.Uc": {"min": -1.0, "max": -0.001}}
+    rates = {"gov.Uo": EstimateSpec("gov.Uo", 0.001, 1.0, "gov.Uo", scale="log"),
+             "gov.Uc": EstimateSpec("gov.Uc", -1.0, -0.001, "gov.Uc")}
     plain = replace(plain, fixed={k: v for k, v in plain.fixed.items() if k not in rates}, optional=rates,
                     carries="rate_limit")
     v = select_structure([plain, plain.with_optional()], [variant(folder, kind)], workdir=workdir,
@@ -341,15 +343,18 @@ def candidate_structures():
     from rapid_cosim.structures.structure import Structure
 
     bench = "iGrGen.TestBenches.FrequencyInput"
-    tg = Structure("TGTypeI", "iGrGen.TestBenches.StagedTest", bench, {f"gov.{k}": v for k, v in TGTYPEI_FIXED.items()},
-                   {k: {"min": lo, "max": hi} for k, (lo, hi, _) in ESTIMATE["TGTypeI"].items()}, "study")
-    tgov1 = Structure("TGOV1", f"{bench}TGOV1", f"{bench}TGOV1", {f"gov.{k}": v for k, v in TGOV1_FIXED.items()},
-                      {"gov.R": {"min": 0.02, "max": 0.12}, "gov.T1": {"min": 0.05, "max": 3.0},
-                       "gov.T2": {"min": 0.0, "max": 10.0}, "gov.T3": {"min": 3.0, "max": 20.0}}, "study")
+    tg = Structure.from_tables(
+        "TGTypeI", "iGrGen.TestBenches.StagedTest", bench, {f"gov.{k}": v for k, v in TGTYPEI_FIXED.items()},
+        {k: {"min": lo, "max": hi} for k, (lo, hi, _) in ESTIMATE["TGTypeI"].items()}, "study")
+    tgov1 = Structure.from_tables(
+        "TGOV1", f"{bench}TGOV1", f"{bench}TGOV1", {f"gov.{k}": v for k, v in TGOV1_FIXED.items()},
+        {"gov.R": {"min": 0.02, "max": 0.12}, "gov.T1": {"min": 0.05, "max": 3.0},
+         "gov.T2": {"min": 0.0, "max": 10.0}, "gov.T3": {"min": 3.0, "max": 20.0}}, "study")
     fixed = {**{f"gov.{k}": v for k, v in IEEEG1_FIXED.items()}, "gov.K3_rest": 1.0}
-    ieeeg1 = Structure("IEEEG1", f"{bench}IEEEG1", f"{bench}IEEEG1", fixed,
-                       {"gov.K": {"min": 5.0, "max": 50.0}, "gov.T4": {"min": 0.05, "max": 2.0},
-                        "gov.T5": {"min": 1.0, "max": 20.0}, "gov.K1": {"min": 0.05, "max": 0.6}}, "study")
+    ieeeg1 = Structure.from_tables(
+        "IEEEG1", f"{bench}IEEEG1", f"{bench}IEEEG1", fixed,
+        {"gov.K": {"min": 5.0, "max": 50.0}, "gov.T4": {"min": 0.05, "max": 2.0},
+         "gov.T5": {"min": 1.0, "max": 20.0}, "gov.K1": {"min": 0.05, "max": 0.6}}, "study")
     return [tg, tgov1, ieeeg1]
 
 

@@ -359,7 +359,7 @@ def test_a_config_takes_its_documented_constants_from_a_record(tgov1_run, tmp_pa
         '"gov.VMAX" = 1.0\n"gov.VMIN" = 0.0\n"gov.Dt" = 0.0\n', 'documented = "unit.dyr"\n'))
     loaded = Structure.load(structure)
     assert loaded.fixed == {"gov.VMAX": 0.9, "gov.VMIN": 0.1, "gov.Dt": 0.2}
-    assert {k: v.get("start") for k, v in loaded.estimate.items()} == {"gov.R": 0.055, "gov.T1": 0.4,
+    assert {k: v.start for k, v in loaded.estimate.items()} == {"gov.R": 0.055, "gov.T1": 0.4,
                                                                        "gov.T2": 2.0, "gov.T3": 5.5}
 
     (tmp_path / "unit.dyr").write_text("1 'TGOV1' 1 0.05 0.5 one 0.0 2.5 7.5 0.0 /\n")

@@ -20,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from rapid_cosim.errors import ConfigError
+from rapid_cosim.experiment import EstimateSpec
 from rapid_cosim.fleet import Route, load_fleet, run_fleet
 from rapid_cosim.fleet.synthetic import draw_unit, make_fleet
 
@@ -288,7 +289,8 @@ def test_a_parameter_on_its_bound_pulled_outward_is_held_out_of_the_score_test()
 
     from rapid_cosim.fleet.playback import _held_at_bounds
 
-    structure = SimpleNamespace(estimate={"gov.T4": {"min": 0.001, "max": 10.0}, "gov.K": {"min": 8.0, "max": 50.0}})
+    structure = SimpleNamespace(estimate={"gov.T4": EstimateSpec("gov.T4", 0.001, 10.0, "T4"),
+                                          "gov.K": EstimateSpec("gov.K", 8.0, 50.0, "K")})
     names, x = ["gov.K", "gov.T4"], np.array([50.0, 0.001])
     pulled = lambda *alone: SimpleNamespace(alone=alone)  # noqa: E731
     assert _held_at_bounds(x, names, [0, 1], structure, pulled(0.3, -0.02)) == [0, 1]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import tomllib
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from rapid_cosim.structures.identifiability import best_separating_step, identif
 from rapid_cosim.diagnose.selection import noise_floors
 from rapid_cosim.structures.structure import Structure
 from rapid_cosim.structures.select import StructureFit, _verdict, select_structure
+from rapid_cosim.experiment import render_config
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.report.structures import markdown as structures_markdown
 from rapid_cosim.experiment import load_experiment
@@ -66,6 +68,24 @@ def test_a_structure_file_is_checked_before_anything_runs(tmp_path):
         Structure.load(_structure(tmp_path, "b", "[structure]\nname = 'X'\nbench = 'M'\n"))
     with pytest.raises(ConfigError, match="cannot read"):
         Structure.load(_structure(tmp_path, "c", "[structure\n"))
+
+
+def test_a_structure_reads_dotted_and_quoted_keys_alike_and_renders_its_estimates_back(tmp_path):
+    head = "[structure]\nname = 'X'\nbench = 'M'\n"
+    quoted = Structure.load(_structure(tmp_path, "q", head + '[fixed]\n"gov.Tc" = 0.4\n[estimate]\n'
+                                       '"gov.R" = { min = 0.02, max = 0.12, label = "R" }\n'
+                                       '"gov.Ts" = { min = 0.05, max = 2, scale = "log", start = 0.2 }\n'))
+    dotted = Structure.load(_structure(tmp_path, "d", head + "[fixed]\ngov.Tc = 0.4\n[estimate]\n"
+                                       "gov.R = { min = 0.02, max = 0.12, label = 'R' }\n"
+                                       "gov.Ts = { min = 0.05, max = 2, scale = 'log', start = 0.2 }\n"))
+    assert dotted.estimate == quoted.estimate and dotted.fixed == quoted.fixed == {"gov.Tc": 0.4}
+    assert quoted.estimate["gov.Ts"].scale == "log" and quoted.estimate["gov.R"].label == "R"
+    back = tomllib.loads(render_config({"estimate": {n: s.to_config() for n, s in quoted.estimate.items()}}))
+    back = back["estimate"]
+    assert Structure.from_tables("X", "M", None, {}, back, "again").estimate == quoted.estimate
+    with pytest.raises(ConfigError, match="min .* must be less than max") as e:
+        Structure.load(_structure(tmp_path, "bad", head + '[estimate]\n"gov.R" = { min = 0.2, max = 0.1 }\n'))
+    assert "bad.toml" in str(e.value)
 
 
 def test_the_tgov1_plant_chooses_tgov1_and_its_parameters(repo, campaign):

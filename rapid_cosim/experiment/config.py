@@ -413,13 +413,15 @@ def _read_estimate(table: dict, cfg: "_Reader", section: str = "estimate") -> tu
     return tuple(specs.values())
 
 
-def check_parameter_tables(fixed: dict, estimate: dict, file: str, section: str = "estimate") -> None:
-    """A structure file's ``[fixed]`` and ``[estimate]`` (or ``[optional]``) checked as a
-    config's are, every error naming ``file`` and its key: the tables become the tests'
-    configs, and an error named by a test's config sends the user to the wrong file."""
+def parameter_tables(fixed: dict, estimate: dict, file: str,
+                     section: str = "estimate") -> tuple[dict[str, float], dict[str, EstimateSpec]]:
+    """A structure file's ``[fixed]`` and ``[estimate]`` (or ``[optional]``) read and
+    checked as a config's are, dotted keys flattened, every error naming ``file`` and its
+    key: the tables become the tests' configs, and an error named by a test's config
+    sends the user to the wrong file."""
     cfg = _Reader(file)
-    _read_fixed({k: v for k, v in fixed.items() if k != documented.KEY}, cfg)
-    _read_estimate(estimate, cfg, section)
+    values = _read_fixed({k: v for k, v in fixed.items() if k != documented.KEY}, cfg)
+    return values, {s.name: s for s in _read_estimate(estimate, cfg, section)}
 
 
 def _read_window(f: dict, data: MeasuredData, cfg: "_Reader") -> tuple[float, float]:

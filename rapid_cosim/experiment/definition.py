@@ -41,6 +41,20 @@ class EstimateSpec:
     scale: str = "linear"
     start: float | None = None
 
+    def to_config(self) -> dict:
+        """This entry as a config's ``[estimate]`` table writes it, defaults left out, so
+        that a config rendered from it reads back as this entry."""
+        out: dict = {"min": self.min, "max": self.max}
+        if self.label != self.name:
+            out["label"] = self.label
+        if self.per_experiment:
+            out["per_experiment"] = True
+        if self.scale != "linear":
+            out["scale"] = self.scale
+        if self.start is not None:
+            out["start"] = self.start
+        return out
+
 
 @dataclass(frozen=True)
 class SimulationSettings:

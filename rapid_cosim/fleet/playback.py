@@ -193,7 +193,7 @@ def _held_at_bounds(x: np.ndarray, names: list[str], kept: list[int], structure:
         return []
     held = []
     for c, j in enumerate(kept):
-        lo, hi = structure.estimate[names[j]]["min"], structure.estimate[names[j]]["max"]
+        lo, hi = structure.estimate[names[j]].min, structure.estimate[names[j]].max
         tol = 1e-9 * max(1.0, abs(x[j]))  # on the bound itself: beyond it the optimum is not the record's value
         if (abs(x[j] - lo) <= tol and score.alone[c] < 0) or (abs(x[j] - hi) <= tol and score.alone[c] > 0):
             held.append(j)
@@ -208,7 +208,7 @@ def _linearised(inputs, x: np.ndarray, structure: Structure, at_x: dict) -> tupl
     simulation failed, near a record's stability edge, drops its parameter). Not
     :func:`rapid_cosim.diagnose.candidates.jacobian_at`: a record on file may lie outside
     the structure's search bounds, which that clips to."""
-    span = np.array([structure.estimate[n]["max"] - structure.estimate[n]["min"] for n in inputs.problem.names])
+    span = np.array([structure.estimate[n].max - structure.estimate[n].min for n in inputs.problem.names])
     steps = 1e-3 * np.where(x != 0, np.abs(x), 10.0 * span)
     X = np.tile(x, (x.size + 1, 1))
     X[1:][np.arange(x.size), np.arange(x.size)] += steps

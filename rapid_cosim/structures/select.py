@@ -38,7 +38,7 @@ import numpy as np
 
 from ..calibration import RunOptions, best_run, inputs_from_experiments
 from ..fitting.engine import LOCAL_PROCESSES
-from ..experiment import Experiment
+from ..experiment import EstimateSpec, Experiment
 from ..simulator import get_simulator
 from ..noise import campaign_noise
 from ..diagnose.adequacy import adequacy
@@ -241,13 +241,13 @@ def _separating(a: Structure, b: Structure, fits: list[StructureFit], template: 
     return separating_menu(model(a), model(b), template, noise[template.name])
 
 
-def _at_bounds(estimate: dict, best: dict[str, float], share: float = 0.01) -> list[str]:
+def _at_bounds(estimate: dict[str, EstimateSpec], best: dict[str, float], share: float = 0.01) -> list[str]:
     """Estimates within ``share`` of their range (in the log for log-scaled ones) of a
     bound: the range, or the structure, holds them there."""
     out = []
     for name, spec in estimate.items():
-        lo, hi, x = float(spec["min"]), float(spec["max"]), best[name]
-        if spec.get("scale") == "log":
+        lo, hi, x = spec.min, spec.max, best[name]
+        if spec.scale == "log":
             lo, hi, x = np.log(lo), np.log(hi), np.log(x)
         if min(x - lo, hi - x) <= share * (hi - lo):
             out.append(f"{name} = {best[name]:.4g} at its {'lower' if x - lo < hi - x else 'upper'} bound")

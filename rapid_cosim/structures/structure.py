@@ -31,8 +31,8 @@ import numpy as np
 
 from ..errors import ConfigError, Finding
 from ..exchange import model_named
-from ..experiment import Experiment, documented, parse_experiment, render_config
-from ..experiment.config import check_parameter_tables
+from ..experiment import EstimateSpec, Experiment, documented, parse_experiment, render_config
+from ..experiment.config import parameter_tables
 from ..experiment.schema import STRUCTURE_FILE
 from ..simulator import get_simulator
 
@@ -44,10 +44,10 @@ class Structure:
     name: str
     bench: str
     input_bench: str | None
-    fixed: dict
-    estimate: dict
+    fixed: dict[str, float]
+    estimate: dict[str, EstimateSpec]
     path: str
-    optional: dict = field(default_factory=dict)  # parts freed only where the data call for them
+    optional: dict[str, EstimateSpec] = field(default_factory=dict)  # freed only where the data call for them
     carries: str = ""  # what the optional parts carry (an effect of the catalogue), e.g. "rate_limit"
     nested_in: str | None = None  # a variant: the structure whose optimum it starts from
     vary: tuple[str, ...] = ()  # a variant's own parameters, searched around that optimum
@@ -87,7 +87,7 @@ class Structure:
             if value is None:
                 estimate[name] = spec
                 continue
-            estimate[name] = {**spec, "start": float(min(max(value, spec["min"]), spec["max"]))}
+            estimate[name] = replace(spec, start=float(min(max(value, spec.min), spec.max)))
         return replace(self, estimate=estimate)
 
     def playing(self, record: dict[str, float]) -> tuple["Structure", dict[str, float]]:
@@ -129,23 +129,31 @@ class Structure:
             raise ConfigError("estimates nothing: give [estimate] with the parameters the tests must determine",
                               str(path), "estimate")
         fixed, estimate = dict(raw.get("fixed", {})), dict(raw["estimate"])
-        check_parameter_tables(fixed, estimate, str(path))  # errors name this file, not a test's config
         if documented.KEY in fixed:  # a .dyr/.dyd record of the unit, relative to the structure file
+            parameter_tables(fixed, estimate, str(path))  # the file's own errors before the record's
             _, added, starts, _ = documented.record_constants(fixed.pop(documented.KEY), fixed, estimate,
                                                               path.parent, str(path))
             fixed = {**added, **fixed}
             estimate = {k: {**v, "start": starts[k]} if k in starts else v for k, v in estimate.items()}
         optional = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.get("optional", {}).items()}
         carried = {v.pop("carries", "") for v in optional.values() if isinstance(v, dict)}
-        check_parameter_tables({}, optional, str(path), "optional")
         if len(carried) > 1:
             raise ConfigError(f"the optional parts carry {sorted(carried)}: one effect per structure file",
                               str(path), "optional")
-        clash = sorted(set(optional) & (set(estimate) | set(fixed)))
+        return cls.from_tables(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate,
+                               str(path), optional, carried.pop() if carried else "")
+
+    @classmethod
+    def from_tables(cls, name: str, bench: str, input_bench: str | None, fixed: dict, estimate: dict, path: str,
+                    optional: dict | None = None, carries: str = "") -> "Structure":
+        """A structure from its file's tables as TOML reads them (``{"gov.R": {"min": ...}}``,
+        dotted keys too), each checked as a config's are, errors naming ``path``."""
+        values, specs = parameter_tables(fixed, estimate, path)
+        _, free = parameter_tables({}, optional or {}, path, "optional")
+        clash = sorted(set(free) & (set(specs) | set(values)))
         if clash:
-            raise ConfigError(f"{', '.join(clash)}: optional and also fixed or estimated", str(path), "optional")
-        return cls(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate, str(path),
-                   optional, carried.pop() if carried else "")
+            raise ConfigError(f"{', '.join(clash)}: optional and also fixed or estimated", path, "optional")
+        return cls(name, bench, input_bench, values, specs, path, free, carries)
 
     def check(self, *, package=None, fmu_dir=None) -> list[Finding]:
         """Every problem of this structure file that a run would meet, each naming this file
@@ -164,7 +172,7 @@ class Structure:
                 out.append(Finding(self.path, key, str(e)))
                 continue
             tables = [("fixed", n, [v]) for n, v in self.fixed.items()]
-            tables += [(section, n, [spec.get("min"), spec.get("max")]) for section, table in
+            tables += [(section, n, [spec.min, spec.max]) for section, table in
                        (("estimate", self.estimate), ("optional", self.optional)) for n, spec in table.items()]
             for section, name, values in tables:
                 where = f'{section}."{name}"'
@@ -199,7 +207,8 @@ class Structure:
         data["file"] = str(data_file if data_file.is_absolute() else (Path(exp.config_path).parent / data_file))
         machine = {k: v for k, v in raw.get("estimate", {}).items() if k.startswith("mach.")}  # H estimated
         sections = {**raw, "experiment": {**raw["experiment"], "model": bench}, "data": data,
-                    "fixed": {**fixed, **self.fixed}, "estimate": {**self.estimate, **machine}}
+                    "fixed": {**fixed, **self.fixed},
+                    "estimate": {**{n: s.to_config() for n, s in self.estimate.items()}, **machine}}
         if noise is not None:
             (output,) = [o for o in exp.outputs if exp.weights[o] > 0]
             sections["noise"] = {output: noise.to_config()}
