@@ -53,7 +53,7 @@ def test_the_values_the_page_states_are_the_parsers():
     """Allowed values and defaults written in the schema (their modules read their keys
     from it, so it cannot import them) are the parsers' own."""
     from rapid_cosim.identify.unit import MVA_RANGE
-    from rapid_cosim.report.tolerances import DEFAULT_BANDS, TERM_RANGES
+    from rapid_cosim.validation.tolerances import DEFAULT_BANDS, TERM_RANGES
 
     assert schema.UNITS == tuple(signals.UNITS) and schema.CONVERSIONS == signals.CONVERSIONS
     assert schema.BASELINES == signals.BASELINES and schema.SCALES == definition.SCALES
@@ -192,7 +192,7 @@ def test_the_fleet_file_takes_exactly_the_listed_keys(tmp_path):
 
 
 def test_the_tolerance_file_takes_exactly_the_listed_metrics_and_terms(tmp_path):
-    from rapid_cosim.report.tolerances import load_tolerances
+    from rapid_cosim.validation.tolerances import load_tolerances
 
     path = tmp_path / "bands.toml"
     terms = {k.name for k in TOLERANCE_FILE.section("validation.<metric>").keys}
@@ -246,7 +246,7 @@ def _error(call) -> ConfigError:
 
 def test_an_errors_key_links_to_its_entry(folder, tmp_path):
     from rapid_cosim.identify.unit import Unit
-    from rapid_cosim.report.tolerances import load_tolerances
+    from rapid_cosim.validation.tolerances import load_tolerances
 
     def broken(name: str, key: str, value):
         raw = _base()

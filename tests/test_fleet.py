@@ -97,7 +97,7 @@ def test_a_wrong_record_inside_every_band_is_flagged_by_the_noise_tests(fmus, re
     from rapid_cosim.experiment import load_experiment
     from rapid_cosim.fleet.playback import UNJUDGEABLE, play_back
     from rapid_cosim.identify import Unit
-    from rapid_cosim.report.tolerances import Tolerances
+    from rapid_cosim.validation.tolerances import Tolerances
 
     make_fleet(tmp_path, [0, 64, 70, 98], experiments=repo / "experiments", seed=1, fmu_dir=repo / "fmus")
     assert draw_unit(98, 1).wrong == "lag" and draw_unit(98, 1).structure == "HYGOV"

@@ -19,7 +19,7 @@ import pytest
 import rapid_cosim as rc
 from rapid_cosim.cli import main
 from rapid_cosim.errors import ConfigError
-from rapid_cosim.report.tolerances import DEFAULT_BANDS, METRIC_TERMS, load_tolerances
+from rapid_cosim.validation.tolerances import DEFAULT_BANDS, METRIC_TERMS, load_tolerances
 from rapid_cosim.report.html import validation_page
 from rapid_cosim.report.pdf import QUIET
 
@@ -168,8 +168,8 @@ def test_a_bad_tolerance_file_is_refused_with_file_line_key_value_and_range(tmp_
 def test_a_response_that_never_settles_fails_and_an_undefined_time_is_not_judged():
     import math
 
-    from rapid_cosim.report.tolerances import Tolerances, judge
-    from rapid_cosim.report.validation import ValidationMetrics, _moving_mean
+    from rapid_cosim.validation.tolerances import Tolerances, judge
+    from rapid_cosim.validation.metrics import ValidationMetrics, _moving_mean
 
     def checks(settling, rise=(10.0, 10.5)):
         m = ValidationMetrics("t", "pm", 0.001, 0.004, (0.066, 0.066), (0.067, 0.066), rise, (None, None), settling,

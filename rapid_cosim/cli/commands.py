@@ -150,7 +150,7 @@ def cmd_staged_test(args) -> int:
 
 def cmd_report(args) -> int:
     from ..report.html import validation_page
-    from ..report.tolerances import LABELS, verdict
+    from ..validation.tolerances import LABELS, verdict
 
     page = validation_page(args.archive, args.out, n_jobs=args.n_jobs, tolerances=args.tolerances,
                            heldout=args.holdout or (), diagnosis=args.diagnosis, pdf=args.pdf or None, bus=args.bus,

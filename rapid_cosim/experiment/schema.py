@@ -2,7 +2,7 @@
 
 Why declared here and not in each parser: the parsers take their accepted keys from these
 declarations (:mod:`.config`, :mod:`.signals`, :mod:`.recording`, :mod:`.recorder`,
-``identify.unit``, ``fleet.spec``, ``report.tolerances``), and ``docs/config.md`` is
+``identify.unit``, ``fleet.spec``, ``validation.tolerances``), and ``docs/config.md`` is
 generated from them, so the page and the parsers cannot disagree. Allowed values and
 defaults that live in a module reading its keys from here are written again below (that
 module cannot be imported here without a cycle); ``tests/test_config_reference.py`` holds
@@ -306,7 +306,7 @@ _BANDS = {"rmse": ("{ noise = 2.0, relative = 0.05 }", "the RMSE of the compared
           "settling_time": ("{ relative = 0.2, seconds = 2.0 }", "the error of the settling time")}
 
 TOLERANCE_FILE = FileKind("Tolerance file", "<name>.toml", "The validation report's bands "
-                          "(rapid_cosim/report/tolerances.py, `rapid-cosim report --tolerances`; docs/tolerances.toml "
+                          "(rapid_cosim/validation/tolerances.py, `rapid-cosim report --tolerances`; docs/tolerances.toml "
                           "holds the defaults), in a file of its own or a larger one.", (
     Section("validation", tuple(Key(m, TABLE, "", f"`{band}`", "terms: " + ", ".join(METRIC_TERMS[m]), doc)
                                 for m, (band, doc) in _BANDS.items()),

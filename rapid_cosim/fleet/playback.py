@@ -10,7 +10,7 @@ sharpness stay the test's and the bench's. Each of the unit's
 recordings (training and held-out alike: nothing is fitted here) is simulated on the
 recorded frequency, its meter offset profiled as in the fitness, and judged twice:
 
-- **the tolerance bands** (:mod:`rapid_cosim.report.tolerances`): the error metrics an
+- **the tolerance bands** (:mod:`rapid_cosim.validation.tolerances`): the error metrics an
   engineer reads (RMSE, peak and settled change, rise, peak and settling times);
 - **the noise** (:mod:`rapid_cosim.diagnose.adequacy` with nothing fitted): is the
   residual what the recorder's noise leaves (its whitened variance and whiteness
@@ -57,8 +57,9 @@ from ..errors import ConfigError
 from ..exchange import Record
 from ..noise import campaign_noise
 from ..report.archives import curves_at
-from ..report.tolerances import Tolerances, judge
-from ..report.validation import Compared, compared, metrics_of
+from ..validation.tolerances import Tolerances, judge
+from ..report.validation import compared
+from ..validation.metrics import Compared, metrics_of
 
 BAND_REPLICATES = 200  # noise replicates the bands' false-alarm rate is read from (its SE ~ 0.015 at 5 %)
 UNJUDGEABLE = 0.10  # a band that the noise alone fails more often than this is not judged on the recording

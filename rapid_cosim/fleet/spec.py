@@ -5,7 +5,7 @@
     units = ["units/*"]          # unit folders (each with its unit.toml), or globs of them
     records = "records.dyr"      # optional: the units' records on file, one PSS/E .dyr or PSLF
                                  # .dyd holding them all, each unit's found by its bus and id
-    tolerances = "bands.toml"    # optional: the validation bands (report.tolerances)
+    tolerances = "bands.toml"    # optional: the validation bands (validation.tolerances)
 
 A unit folder may also hold its own record on file, ``record.dyr`` or ``record.dyd``,
 which comes before the fleet's. A unit with no record on file is identified. Paths are

@@ -30,7 +30,7 @@ from ..fitting.engine import pinned_threads
 from ..errors import CheckFailed, DeliveryError, RapidCosimError
 from ..exchange import read_record
 from ..noise import campaign_noise, quiet_windows
-from ..report.tolerances import Tolerances
+from ..validation.tolerances import Tolerances
 from .check import check_entry
 from .playback import play_back
 from .result import Recommendation, Route, UnitResult
@@ -163,6 +163,6 @@ def changes(old: dict | None, old_model: str | None, model: str, new: dict) -> d
 
 
 def _tolerances(options: FleetOptions) -> Tolerances:
-    from ..report.tolerances import load_tolerances
+    from ..validation.tolerances import load_tolerances
 
     return load_tolerances(options.tolerances) if options.tolerances else Tolerances()

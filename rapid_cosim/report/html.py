@@ -31,9 +31,10 @@ from .htmlkit import STYLE, e, mark, png
 from .provenance import provenance
 from .sections import (diagnosis_section, metrics_table, noise_section, provenance_section, record_section,
                        recording_section, summary, timebase_section, tolerance_table)
-from .tolerances import Check, Tolerances, judge, verdict
+from ..validation.tolerances import Check, Tolerances, judge, verdict
 from .unit import DeliveredRecord, DiagnosisSummary, delivered_record, noise_summary
-from .validation import ValidationMetrics, metrics
+from ..validation.metrics import ValidationMetrics
+from .validation import metrics
 
 TRAINING, HELD_OUT = "training", "held out"
 
@@ -145,7 +146,7 @@ def validation_page(archive: str | Path, out: str | Path | None = None, *, n_job
     from ..calibration.staged import hessian_uncertainty
     from .archives import load_run
     from .pdf import chromium, print_pdf
-    from .tolerances import load_tolerances
+    from ..validation.tolerances import load_tolerances
     from .unit import read_diagnosis
 
     # everything the user named is checked before anything is computed

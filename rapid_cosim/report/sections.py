@@ -8,9 +8,9 @@ from typing import Sequence
 
 from .htmlkit import e, mark, num, table
 from .provenance import Provenance
-from .tolerances import LABELS, METRIC_TERMS, SOURCE_NOTE, Check, Tolerances, verdict
+from ..validation.tolerances import LABELS, METRIC_TERMS, SOURCE_NOTE, Check, Tolerances, verdict
 from .unit import DeliveredRecord, DiagnosisSummary, NoiseSummary
-from .validation import ValidationMetrics
+from ..validation.metrics import ValidationMetrics
 
 UNITS = {"rmse": "pu", "peak_change": "pu", "settled_change": "pu", "rise_time": "s", "time_to_peak": "s",
          "settling_time": "s"}

@@ -61,7 +61,7 @@ from typing import Mapping
 
 from ..errors import ConfigError
 from ..experiment.schema import METRIC_TERMS
-from .validation import ValidationMetrics
+from .metrics import ValidationMetrics
 
 # METRIC_TERMS (each metric's terms) lives in experiment.schema, with every key docs/config.md lists.
 # term -> (lowest, highest) accepted value: a band of zero would fail every model, and a
