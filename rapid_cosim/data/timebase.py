@@ -137,74 +137,106 @@ def inspect(time: np.ndarray, source: str = "", repairs: Repairs = Repairs()) ->
 def settle(time: np.ndarray, columns: Mapping[str, np.ndarray], rows: np.ndarray | None, source: str,
            time_name: str = "time") -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray | None, Repairs]:
     """Stamps as recorded -> strictly increasing stamps, by the safe repairs of the module
-    docstring. ``rows`` (file rows, for messages; None: 1-based sample numbers) follow
-    their samples. Raises :class:`DataError` naming rows where no repair is safe."""
-    t = np.asarray(time, dtype=float)
-    cols = {k: np.asarray(v, dtype=float) for k, v in columns.items()}
-    label = (lambda i: int(rows[i])) if rows is not None else (lambda i: i + 1)
-    what = "row" if rows is not None else "sample"
-    bad = np.flatnonzero(~np.isfinite(t))
-    if bad.size:
-        raise DataError(f"column '{time_name}': time is {t[bad[0]]} at {what} {label(bad[0])} (missing or not "
-                        "finite); every sample needs a time", source, label(bad[0]) if rows is not None else None)
-    words: list[str] = []
-    reordered = 0
+    docstring, in their order: every stamp a number, late frames sorted into place,
+    repeated frames merged. ``rows`` (file rows, for messages; None: 1-based sample
+    numbers) follow their samples. Raises :class:`DataError` naming rows where no repair
+    is safe."""
+    samples = _Samples(np.asarray(time, dtype=float), {k: np.asarray(v, dtype=float) for k, v in columns.items()},
+                       None if rows is None else np.asarray(rows), np.arange(1, len(time) + 1), source, time_name)
+    samples.check_finite()
+    samples, reordered, sorted_words = _sorted(samples)
+    samples, repeated, merged_words = _merged(samples)
+    return samples.t, samples.cols, samples.rows, Repairs(repeated, reordered, sorted_words + merged_words)
+
+
+@dataclass(frozen=True, eq=False)
+class _Samples:
+    """Stamps and their columns as the repairs leave them, each sample still naming where
+    it came from in the file (its row, else its sample number) for the messages."""
+
+    t: np.ndarray
+    cols: dict[str, np.ndarray]
+    rows: np.ndarray | None
+    numbers: np.ndarray  # 1-based sample numbers in the file
+    source: str
+    time_name: str
+
+    @property
+    def what(self) -> str:
+        return "row" if self.rows is not None else "sample"
+
+    def label(self, i: int) -> int:
+        return int(self.rows[i]) if self.rows is not None else int(self.numbers[i])
+
+    def line(self, i: int) -> int | None:
+        """The file line a :class:`DataError` names (sample numbers are not lines)."""
+        return self.label(i) if self.rows is not None else None
+
+    def taking(self, index: np.ndarray) -> "_Samples":
+        return _Samples(self.t[index], {k: v[index] for k, v in self.cols.items()},
+                        None if self.rows is None else self.rows[index], self.numbers[index], self.source,
+                        self.time_name)
+
+    def check_finite(self) -> None:
+        bad = np.flatnonzero(~np.isfinite(self.t))
+        if bad.size:
+            raise DataError(f"column '{self.time_name}': time is {self.t[bad[0]]} at {self.what} {self.label(bad[0])} "
+                            "(missing or not finite); every sample needs a time", self.source, self.line(bad[0]))
+
+
+def _sorted(s: _Samples) -> tuple[_Samples, int, tuple[str, ...]]:
+    """Late frames sorted into place; a stamp further back than a late frame can be (a
+    clock reset, two recordings joined) is a :class:`DataError`."""
+    t = s.t
     back = np.flatnonzero(np.diff(t) < 0)
-    if back.size:
-        ahead = t[:-1] > t[1:]
-        step = nominal_step(np.sort(t))
-        # how far each stamp lies before the latest stamp seen so far
-        latest = np.maximum.accumulate(t)
-        behind = latest - t
-        worst = int(np.argmax(behind))
-        if behind[worst] > MAX_BACKSTEP * step * (1 + 1e-6):
-            first = int(np.flatnonzero(behind > MAX_BACKSTEP * step * (1 + 1e-6))[0])
-            earlier = int(np.flatnonzero(t[:first] == latest[first])[0])
-            raise DataError(f"column '{time_name}': time goes back from {latest[first]:g} s ({what} {label(earlier)}) to "
-                            f"{t[first]:g} s ({what} {label(first)}), {behind[first] / step:.3g} frames of "
-                            f"{_ms(step)} ms; a late frame may come at most {MAX_BACKSTEP:g} frame early, so this looks "
-                            "like a clock reset or two recordings joined: split the file or fix its time column",
-                            source, label(first) if rows is not None else None)
-        order = np.argsort(t, kind="stable")
-        reordered = int(np.count_nonzero(ahead))
-        first = int(back[0]) + 1
-        words.append(f"{reordered} stamp(s) out of order sorted into place (first at {what} {label(first)}, "
-                     f"{t[first]:g} s after {t[first - 1]:g} s)")
-        t = t[order]
-        cols = {k: v[order] for k, v in cols.items()}
-        rows = None if rows is None else np.asarray(rows)[order]
-        label = (lambda i: int(rows[i])) if rows is not None else (lambda i: i + 1)
-        if rows is None:  # sample numbers of the sorted order mean nothing: keep the file's
-            numbers = order + 1
-            label = (lambda i: int(numbers[i]))
+    if not back.size:
+        return s, 0, ()
+    step = nominal_step(np.sort(t))
+    latest = np.maximum.accumulate(t)  # how far each stamp lies before the latest stamp seen so far
+    behind = latest - t
+    if behind.max() > MAX_BACKSTEP * step * (1 + 1e-6):
+        first = int(np.flatnonzero(behind > MAX_BACKSTEP * step * (1 + 1e-6))[0])
+        earlier = int(np.flatnonzero(t[:first] == latest[first])[0])
+        raise DataError(f"column '{s.time_name}': time goes back from {latest[first]:g} s ({s.what} "
+                        f"{s.label(earlier)}) to {t[first]:g} s ({s.what} {s.label(first)}), "
+                        f"{behind[first] / step:.3g} frames of {_ms(step)} ms; a late frame may come at most "
+                        f"{MAX_BACKSTEP:g} frame early, so this looks like a clock reset or two recordings joined: "
+                        "split the file or fix its time column", s.source, s.line(first))
+    reordered = int(np.count_nonzero(t[:-1] > t[1:]))
+    first = int(back[0]) + 1
+    words = (f"{reordered} stamp(s) out of order sorted into place (first at {s.what} {s.label(first)}, "
+             f"{t[first]:g} s after {t[first - 1]:g} s)",)
+    return s.taking(np.argsort(t, kind="stable")), reordered, words
+
+
+def _merged(s: _Samples) -> tuple[_Samples, int, tuple[str, ...]]:
+    """A run of equal stamps merged into its first sample, a value missing there taken
+    from a copy; copies that disagree are a :class:`DataError` (which one the recorder
+    meant cannot be told)."""
+    t = s.t
     same = np.flatnonzero(np.diff(t) == 0)
-    repeated = 0
-    if same.size:
-        drop = np.zeros(t.size, dtype=bool)
-        for i in same:  # a run of equal stamps merges into its first sample
-            j = i + 1
-            head = i
-            while head > 0 and t[head - 1] == t[i]:
-                head -= 1
-            for name, v in cols.items():
-                a, b = v[head], v[j]
-                if np.isfinite(a) and np.isfinite(b) and a != b:
-                    raise DataError(f"column '{name}': time {t[j]:g} s is written twice ({what}s {label(head)} and "
-                                    f"{label(j)}) with different values ({a:g} and {b:g}); which one the recorder "
-                                    "meant cannot be told: remove one of them", source,
-                                    label(j) if rows is not None else None)
-                if not np.isfinite(a) and np.isfinite(b):
-                    v[head] = b
-            drop[j] = True
-        repeated = int(drop.sum())
-        first = int(same[0]) + 1
-        words.append(f"{repeated} repeated stamp(s) dropped, their values agreeing with the first copy (first at "
-                     f"{what} {label(first)}, {t[first]:g} s)")
-        keep = ~drop
-        t = t[keep]
-        cols = {k: v[keep] for k, v in cols.items()}
-        rows = None if rows is None else np.asarray(rows)[keep]
-    return t, cols, rows, Repairs(repeated, reordered, tuple(words))
+    if not same.size:
+        return s, 0, ()
+    drop = np.zeros(t.size, dtype=bool)
+    for i in same:  # once per repeated stamp, a few in a recording: not an inner loop
+        j = i + 1
+        head = i
+        while head > 0 and t[head - 1] == t[i]:
+            head -= 1
+        for name, v in s.cols.items():
+            a, b = v[head], v[j]
+            if np.isfinite(a) and np.isfinite(b) and a != b:
+                raise DataError(f"column '{name}': time {t[j]:g} s is written twice ({s.what}s {s.label(head)} and "
+                                f"{s.label(j)}) with different values ({a:g} and {b:g}); which one the recorder "
+                                "meant cannot be told: remove one of them", s.source, s.line(j))
+            if not np.isfinite(a) and np.isfinite(b):
+                v[head] = b
+        drop[j] = True
+    repeated = int(drop.sum())
+    first = int(same[0]) + 1
+    words = (f"{repeated} repeated stamp(s) dropped, their values agreeing with the first copy (first at "
+             f"{s.what} {s.label(first)}, {t[first]:g} s)",)
+    return s.taking(~drop), repeated, words
 
 
 def check_step(base: TimeBase, limit: float, time_name: str = "time") -> None:
