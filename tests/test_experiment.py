@@ -96,6 +96,25 @@ def test_good_config_loads(tmp_path):
     assert len(exp.data) == 201
 
 
+def test_a_spec_is_read_and_checked_without_its_recording(tmp_path):
+    from rapid_cosim.experiment.config import experiment_from
+    from rapid_cosim.experiment.spec import experiment_spec
+
+    path = tmp_path / "test1" / "config.toml"  # no recording beside it
+    path.parent.mkdir()
+    spec = experiment_spec(GOOD, path)
+    assert (spec.name, spec.model, spec.outputs, spec.noise, spec.noise_sigma) == (
+        "test1", "iGrGen.TestBenches.StagedTest", {"pm": "pm"}, "pre-step", None)
+    assert [s.name for s in spec.estimate] == ["gov.R", "gov.Ts", "meas.offset"]
+    with pytest.raises(ConfigError, match="'other' is not an output"):  # a setting's mistake, before any read
+        experiment_spec(edit('noise = "pre-step"', "noise = { other = 0.1 }"), path)
+    with pytest.raises(ConfigError, match="data file not found") as e:
+        experiment_from(spec)
+    assert "data.file" in str(e.value)
+    exp = load_experiment(make(tmp_path))
+    assert experiment_from(experiment_spec(GOOD, exp.config_path)).noise_sigma == exp.noise_sigma
+
+
 def test_defaults(tmp_path):
     text = """
 [experiment]

@@ -80,45 +80,34 @@ must be declared identically everywhere (same bounds, label, scale, start); a
 Every mistake is a :class:`ConfigError` naming the file and the key (``estimate."gov.R".min``);
 unreadable measurements stay :class:`DataError` naming the data file and row.
 
-Over 450 lines: the schema above and the check of each section it describes are read
-together, and :func:`parse_experiment` still both checks the sections and reads, flags,
-masks and resamples the data; its split into a spec without I/O and a loader is not done
-yet (issue 43).
+Reading is two steps: :func:`~rapid_cosim.experiment.spec.experiment_spec` reads and
+checks the sections without the measurements (:class:`~rapid_cosim.experiment.spec.ExperimentSpec`),
+and :func:`experiment_from` reads, flags, masks and resamples the recordings and checks
+what depends on them; :func:`parse_experiment` is both.
 """
 
 from __future__ import annotations
 
-import json
-import math
-import re
-import tomllib
 import warnings
 from pathlib import Path
-from typing import Any, Sequence
 
 import numpy as np
 
-from ..data import MeasuredData, MissingColumn, close_matches, describe_missing, load_measurements, noise_level
+from ..data import MeasuredData, MissingColumn, describe_missing, load_measurements, noise_level
 from ..data import split_hdf5_path
-from ..data.csv_table import DECIMALS, DELIMITERS
-from ..data.readers import TIME_UNITS
 from ..errors import ConfigError, DataError
 from ..simulator.rocof import WINDOW
-from . import documented
-from .definition import (CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, SCALES, EstimateSpec, Experiment,
-                         SimulationSettings)
-from .electrical import check_machine, check_rocof_column, with_rocof_noise, without_unfit
+from .definition import CONFIG_NAME, DEFAULT_TIMEOUT, NOISE_PRE_STEP, Experiment, SimulationSettings
+from .electrical import check_rocof_column, with_rocof_noise, without_unfit
+from .reader import ConfigReader, positive
 from .recorder import read_noise_models
-from .recording import (Bridge, Recording, RecordingWarning, apply_flags, apply_limits, blanks, bridges, check_step,
-                        exclude, read_spec)
-from .schema import CONFIG, ESTIMATE_ENTRY
-from .signals import read_inputs, read_outputs
-from .toml_writer import config_key, dotted_items
+from .recording import Bridge, Recording, RecordingWarning, apply_flags, apply_limits, blanks, bridges, check_step, \
+    exclude
+from .spec import ExperimentSpec, experiment_spec, parameter_tables
+from .toml_writer import config_key
 
-_SECTIONS: dict[str, frozenset[str] | None] = CONFIG.accepted()  # None: names the user chooses (.schema)
-_REQUIRED_SECTIONS = ("experiment", "data")
-_SPEC_KEYS = ESTIMATE_ENTRY.names
-_NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
+__all__ = ["load_experiment", "parse_experiment", "experiment_from", "experiment_spec", "parameter_tables",
+           "config_key"]
 
 
 def load_experiment(path: str | Path) -> Experiment:
@@ -141,71 +130,25 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
     """An experiment from its config text; ``path`` locates relative data files and names
     the config in errors. With ``data`` given (and ``files`` for inputs read from other
     files: a run re-built from its archive), no file is read."""
-    path = Path(path)
-    file = str(path)
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(_toml_message(e, text), file) from None
-    if isinstance(raw.get("fixed"), dict) and documented.KEY in raw["fixed"]:  # written out: see documented
-        text = documented.expand(text, raw, path)
-        raw = tomllib.loads(text)
-    cfg = _Reader(file)
+    return experiment_from(experiment_spec(text, path), data, files)
 
-    cfg.check_keys(raw, frozenset(_SECTIONS), "")
-    for section in _REQUIRED_SECTIONS:
-        if section not in raw:
-            raise ConfigError(f"missing section [{section}]", file, section)
-    sections = {s: cfg.table(raw.get(s, {}), s) for s in _SECTIONS}
-    for s, known in _SECTIONS.items():
-        if known is not None:
-            cfg.check_keys(sections[s], known, s)
 
-    exp = sections["experiment"]
-    name = cfg.string(exp, "experiment", "name", default=path.resolve().parent.name)
-    if not _NAME_RE.match(name):
-        raise ConfigError(f"name {name!r} must be letters, digits, '_', '-' or '.' "
-                          f"(it names search dimensions <param>@<name> and archive groups)",
-                          file, "experiment.name")
-    model = _read_model(exp, path, cfg)
-    description = cfg.string(exp, "experiment", "description", default="", allow_empty=True)
-
-    d = sections["data"]
-    data_file = cfg.string(d, "data", "file")
-    timestamp = cfg.string(d, "data", "timestamp") if "timestamp" in d else None
-    time_column = timestamp or cfg.string(d, "data", "time", default="time")
-    event_time = d.get("event_time")
-    if event_time is not None and (timestamp is None or isinstance(event_time, bool)
-                                   or not isinstance(event_time, (str, int, float))):
-        raise ConfigError("event_time (a timestamp, or epoch seconds) goes with a timestamp column",
-                          file, "data.event_time")
-    out_table = cfg.table(cfg.require(d, "data", "outputs"), "data.outputs")
-    if not out_table:
-        raise ConfigError("needs at least one model output -> data column", file, "data.outputs")
-    output_specs = read_outputs(out_table, cfg)
-    outputs = {out: spec.column for out, spec in output_specs.items()}
-
-    fixed = _read_fixed(sections["fixed"], cfg)
-    estimate = _read_estimate(sections["estimate"], cfg)
-    both = sorted(set(fixed) & {s.name for s in estimate})
-    if both:
-        raise ConfigError(f"{', '.join(both)} is both fixed and estimated; keep one",
-                          file, config_key("estimate", both[0]))
-    check_machine(outputs, fixed, estimate, cfg)
-
-    f = sections["fitness"]
-    pre_step_end = cfg.number(f["pre_step_end"], "fitness.pre_step_end") if "pre_step_end" in f else None
-    inputs = read_inputs(sections["inputs"], cfg, pre_step_end)
-    recorded = read_spec(d, cfg)
-    dialect = _dialect(d, cfg)
+def experiment_from(spec: ExperimentSpec, data: MeasuredData | None = None,
+                    files: dict[str, MeasuredData] | None = None) -> Experiment:
+    """The experiment a spec describes: its recordings read (unless ``data`` and ``files``
+    are given), flagged, limited, resampled, windowed, their holes bridged or excluded,
+    and the settings that depend on them (noise levels, the simulated span) read."""
+    cfg = ConfigReader(spec.file)
+    outputs, output_specs, inputs, recorded = spec.outputs, spec.output_specs, spec.inputs, spec.recorded
     given = data is not None
     if data is None:
-        data = _load_data(path, data_file, time_column, outputs, file, timestamp, event_time,
-                          time_unit=_time_unit(d, cfg), dialect=dialect)
+        data = _load_data(spec.path, spec.data_file, spec.time_column, outputs, spec.file, spec.timestamp,
+                          spec.event_time, time_unit=spec.time_unit, dialect=spec.dialect)
     else:
         for out, col in outputs.items():
             if col not in data.columns:
-                raise ConfigError(describe_missing(col, list(data.names)), file, config_key("data.outputs", out))
+                raise ConfigError(describe_missing(col, list(data.names)), spec.file,
+                                  config_key("data.outputs", out))
     check_step(data, cfg, "data.time")
     blank = blanks(data, [*outputs.values(), *(s.column for s in inputs if s.file is None)])
     with warnings.catch_warnings():
@@ -214,77 +157,57 @@ def parse_experiment(text: str, path: str | Path, data: MeasuredData | None = No
         data, masked = apply_flags(data, recorded, cfg)
         data, more = apply_limits(data, recorded, {s.column: s.frequency for s in inputs if s.file is None and
                                                    s.frequency},
-                                  {spec.column: spec.rating for spec in output_specs.values() if spec.rating})
+                                  {o.column: o.rating for o in output_specs.values() if o.rating})
     masked += more
-    if "resample" in d:
-        if recorded.flags is not None:
-            raise ConfigError("flags and resample do not go together: a STAT word cannot be interpolated; "
-                              "resample the recording after masking its invalid frames", file, "data.resample")
-        step = _positive(cfg.number(d["resample"], "data.resample"), cfg, "data.resample")
+    if spec.resample is not None:
+        step = spec.resample
         data = data.resample(data.time[0] + step * np.arange(int((data.time[-1] - data.time[0]) / step + 1e-9) + 1))
 
-    window = _read_window(f, data, cfg)
-    weights = _read_weights(f, outputs, cfg)
-    inside = _inside(data, window, outputs, weights, cfg)
-    offset = cfg.boolean(f, "fitness", "offset", default=False)
+    window = _read_window(spec.fitness, data, cfg)
+    inside = _inside(data, window, outputs, spec.weights, cfg)
+    pre_step_end = spec.pre_step_end
     if pre_step_end is not None and not data.time[0] < pre_step_end <= data.time[-1]:
         raise ConfigError(f"{pre_step_end:g} s is outside the record, which spans "
                           f"{data.time[0]:g} s to {data.time[-1]:g} s",
-                          file, "fitness.pre_step_end")
-    noise, noise_sigma = _read_noise(f, outputs, data, pre_step_end, cfg)
-    if noise_sigma is not None and noise == NOISE_PRE_STEP:  # the level of the compared, converted values
-        noise_sigma = {out: sigma * output_specs[out].conversion.gain for out, sigma in noise_sigma.items()}
-    noise_models = read_noise_models(sections["noise"], outputs, weights, inside, cfg)
-    simulation = _read_simulation(sections["simulation"], inside, cfg)
+                          spec.file, "fitness.pre_step_end")
+    noise_sigma = spec.noise_sigma
+    if spec.noise == NOISE_PRE_STEP:  # the level of the compared, converted values
+        noise_sigma = {out: sigma * output_specs[out].conversion.gain
+                       for out, sigma in _pre_step_noise(outputs, data, pre_step_end, cfg).items()}
+    noise_models = read_noise_models(spec.noise_tables, outputs, spec.weights, inside, cfg)
+    simulation = _read_simulation(spec.simulation, inside, cfg)
     files = dict(files or {})
-    for spec in inputs:
-        if spec.file is not None and spec.file not in files:
-            loaded = _load_data(path, spec.file, spec.time, {spec.name: spec.column}, file, None, None,
-                                key=config_key("inputs", spec.name), dialect=dialect)
-            check_step(loaded, cfg, config_key("inputs", spec.name))
-            files[spec.file], more = apply_limits(loaded, recorded, {spec.column: spec.frequency}
-                                                  if spec.frequency else {}, {})
+    for s in inputs:
+        if s.file is not None and s.file not in files:
+            loaded = _load_data(spec.path, s.file, s.time, {s.name: s.column}, spec.file, None, None,
+                                key=config_key("inputs", s.name), dialect=spec.dialect)
+            check_step(loaded, cfg, config_key("inputs", s.name))
+            files[s.file], more = apply_limits(loaded, recorded, {s.column: s.frequency} if s.frequency else {}, {})
             masked += more
     bridged = check_inputs(inputs, data, files, simulation, cfg)
     left_out = [b.excluded for b in bridged if b.excluded]
     if left_out:
         data = exclude(data, list(outputs.values()), left_out)
-        inside = _inside(data, window, outputs, weights, cfg)
-    timebases = {data_file: data.timebase, **{name: d.timebase for name, d in files.items()}}
+        inside = _inside(data, window, outputs, spec.weights, cfg)
+    timebases = {spec.data_file: data.timebase, **{name: d.timebase for name, d in files.items()}}
 
     experiment = Experiment(
-        name=name, config_path=path, config_text=text, model=model, description=description,
-        data=data, outputs=outputs, fixed=fixed, estimate=estimate, weights=weights,
-        window=window, offset=offset, noise=noise, noise_sigma=noise_sigma,
-        pre_step_end=pre_step_end, simulation=simulation, time_column=time_column,
+        name=spec.name, config_path=spec.path, config_text=spec.text, model=spec.model,
+        description=spec.description, data=data, outputs=outputs, fixed=spec.fixed, estimate=spec.estimate,
+        weights=spec.weights, window=window, offset=spec.offset, noise=spec.noise, noise_sigma=noise_sigma,
+        pre_step_end=pre_step_end, simulation=simulation, time_column=spec.time_column,
         conversions={o: s.conversion for o, s in output_specs.items() if not s.conversion.identity},
         inputs=inputs, files=files, noise_models=noise_models,
         recording=Recording(timebases, tuple(blank), tuple(masked), tuple(bridged),
-                            notes=tuple(f"{name}: {note}" for name, d in {data_file: data, **files}.items()
+                            notes=tuple(f"{name}: {note}" for name, d in {spec.data_file: data, **files}.items()
                                         for note in d.notes)),
     )
     check_rocof_column(experiment, cfg)
     return with_rocof_noise(without_unfit(experiment))
 
 
-def _read_model(exp: dict, path: Path, cfg: "_Reader") -> str:
-    """A bench of the package (``model``), or any FMU file (``fmu``, or a ``model`` ending
-    in .fmu), made absolute from the config's folder."""
-    if ("model" in exp) == ("fmu" in exp):
-        raise ConfigError("give either model (a class of the package) or fmu (an FMU file), not both or neither",
-                          cfg.file, "experiment.model")
-    key = "fmu" if "fmu" in exp else "model"
-    value = cfg.string(exp, "experiment", key)
-    if key == "model" and not value.endswith(".fmu"):
-        return value
-    if not value.endswith(".fmu"):
-        raise ConfigError(f"{value!r} is not an .fmu file", cfg.file, f"experiment.{key}")
-    fmu = Path(value)
-    return str(fmu if fmu.is_absolute() else (path.parent / fmu).resolve())
-
-
 def check_inputs(inputs, data: MeasuredData, files: dict[str, MeasuredData], simulation,
-                 cfg: "_Reader") -> list[Bridge]:
+                 cfg: ConfigReader) -> list[Bridge]:
     """Each input's column exists and covers the simulated span; its holes are bridged up
     to what the input allows, and longer ones refused (:mod:`.recording`)."""
     out = []
@@ -298,7 +221,7 @@ def check_inputs(inputs, data: MeasuredData, files: dict[str, MeasuredData], sim
     return out
 
 
-def _inside(data: MeasuredData, window, outputs: dict[str, str], weights, cfg: "_Reader") -> MeasuredData:
+def _inside(data: MeasuredData, window, outputs: dict[str, str], weights, cfg: ConfigReader) -> MeasuredData:
     """The samples inside the fitness window; each output of weight has some valid."""
     try:
         inside = data.window(*window)
@@ -309,37 +232,6 @@ def _inside(data: MeasuredData, window, outputs: dict[str, str], weights, cfg: "
             raise ConfigError(f"no valid samples of column '{col}' (output {out}) in the "
                               f"window {list(window)} s", cfg.file, "fitness.window")
     return inside
-
-
-def _time_unit(d: dict, cfg: "_Reader") -> str:
-    unit = cfg.string(d, "data", "time_unit", default="s")
-    if unit not in TIME_UNITS:
-        raise ConfigError(f"time_unit {unit!r} is not one of {', '.join(TIME_UNITS)}", cfg.file, "data.time_unit")
-    return unit
-
-
-def _dialect(d: dict, cfg: "_Reader") -> tuple[str | None, str]:
-    """How the experiment's CSV files are written: the delimiter (None: detected) and
-    the decimal separator."""
-    delimiter = None
-    if "delimiter" in d:
-        delimiter = cfg.string(d, "data", "delimiter", allow_empty=True)  # a tab is blank
-        if delimiter not in DELIMITERS:
-            raise ConfigError(f"delimiter {_quoted(delimiter)} is not one of {', '.join(map(_quoted, DELIMITERS))}; "
-                              "leave it out to detect it", cfg.file, "data.delimiter")
-    decimal = cfg.string(d, "data", "decimal", default=".")
-    if decimal not in DECIMALS:
-        raise ConfigError(f"decimal {_quoted(decimal)} is not one of {', '.join(map(_quoted, DECIMALS))}",
-                          cfg.file, "data.decimal")
-    if decimal == "," == delimiter:
-        raise ConfigError('decimal = "," needs a delimiter other than "," (one comma cannot separate both fields '
-                          'and decimals): set delimiter = ";" or "\\t", or leave it out to detect it',
-                          cfg.file, "data.decimal")
-    return delimiter, decimal
-
-
-def _quoted(text: str) -> str:
-    return json.dumps(text)  # as TOML writes it: "\t" for a tab
 
 
 def _load_data(config: Path, data_file: str, time_column: str, outputs: dict[str, str],
@@ -364,67 +256,7 @@ def _load_data(config: Path, data_file: str, time_column: str, outputs: dict[str
     return data
 
 
-def _read_fixed(table: dict, cfg: "_Reader") -> dict[str, float]:
-    fixed: dict[str, float] = {}
-    for name, value in dotted_items(table, lambda v: not isinstance(v, dict)):
-        key = config_key("fixed", name)
-        cfg.parameter_name(name, key)
-        if name in fixed:
-            raise ConfigError(f"'{name}' is given twice (quoted and as dotted keys)", cfg.file, key)
-        fixed[name] = cfg.number(value, key)
-    return fixed
-
-
-def _read_estimate(table: dict, cfg: "_Reader", section: str = "estimate") -> tuple[EstimateSpec, ...]:
-    def is_spec(v):
-        return (not isinstance(v, dict) or not v or bool(_SPEC_KEYS & v.keys())
-                or any(not isinstance(x, dict) for x in v.values()))
-
-    specs: dict[str, EstimateSpec] = {}
-    for name, value in dotted_items(table, is_spec):
-        key = config_key(section, name)
-        cfg.parameter_name(name, key)
-        if name in specs:
-            raise ConfigError(f"'{name}' is given twice (quoted and as dotted keys)", cfg.file, key)
-        if not isinstance(value, dict):
-            raise ConfigError(f"expected a table such as {{ min = 0.02, max = 0.12 }}, "
-                              f"got {value!r}", cfg.file, key)
-        cfg.check_keys(value, _SPEC_KEYS, key)
-        lo = cfg.number(cfg.require(value, key, "min"), f"{key}.min")
-        hi = cfg.number(cfg.require(value, key, "max"), f"{key}.max")
-        if not lo < hi:
-            raise ConfigError(f"min ({lo:g}) must be less than max ({hi:g})", cfg.file, key)
-        scale = cfg.string(value, key, "scale", default="linear")
-        if scale not in SCALES:
-            raise ConfigError(f"scale {scale!r} is not supported; use one of {', '.join(SCALES)}",
-                              cfg.file, f"{key}.scale")
-        if scale == "log" and not lo > 0:
-            raise ConfigError(f"scale \"log\" needs min > 0, got {lo:g}", cfg.file, f"{key}.min")
-        start = None
-        if "start" in value:
-            start = cfg.number(value["start"], f"{key}.start")
-            if not lo <= start <= hi:
-                raise ConfigError(f"start {start:g} is outside [{lo:g}, {hi:g}]",
-                                  cfg.file, f"{key}.start")
-        specs[name] = EstimateSpec(
-            name=name, min=lo, max=hi, label=cfg.string(value, key, "label", default=name),
-            per_experiment=cfg.boolean(value, key, "per_experiment", default=False),
-            scale=scale, start=start)
-    return tuple(specs.values())
-
-
-def parameter_tables(fixed: dict, estimate: dict, file: str,
-                     section: str = "estimate") -> tuple[dict[str, float], dict[str, EstimateSpec]]:
-    """A structure file's ``[fixed]`` and ``[estimate]`` (or ``[optional]``) read and
-    checked as a config's are, dotted keys flattened, every error naming ``file`` and its
-    key: the tables become the tests' configs, and an error named by a test's config
-    sends the user to the wrong file."""
-    cfg = _Reader(file)
-    values = _read_fixed({k: v for k, v in fixed.items() if k != documented.KEY}, cfg)
-    return values, {s.name: s for s in _read_estimate(estimate, cfg, section)}
-
-
-def _read_window(f: dict, data: MeasuredData, cfg: "_Reader") -> tuple[float, float]:
+def _read_window(f: dict, data: MeasuredData, cfg: ConfigReader) -> tuple[float, float]:
     t_first, t_last = float(data.time[0]), float(data.time[-1])
     if "window" not in f:
         return t_first, t_last
@@ -442,66 +274,24 @@ def _read_window(f: dict, data: MeasuredData, cfg: "_Reader") -> tuple[float, fl
     return t0, t1
 
 
-def _read_weights(f: dict, outputs: dict[str, str], cfg: "_Reader") -> dict[str, float]:
-    weights = {out: 1.0 for out in outputs}
-    if "weights" in f:
-        table = cfg.table(f["weights"], "fitness.weights")
-        for out, w in table.items():
-            key = config_key("fitness.weights", out)
-            if out not in outputs:
-                raise ConfigError(f"'{out}' is not an output{_suggest(out, list(outputs))}; "
-                                  f"outputs: {', '.join(outputs)}", cfg.file, key)
-            w = cfg.number(w, key)
-            if w < 0:
-                raise ConfigError(f"weight {w:g} is negative", cfg.file, key)
-            weights[out] = w
-        if not any(w > 0 for w in weights.values()):
-            raise ConfigError("at least one weight must be positive", cfg.file, "fitness.weights")
-    return weights
-
-
-def _read_noise(f: dict, outputs: dict[str, str], data: MeasuredData, pre_step_end: float | None,
-                cfg: "_Reader") -> tuple[Any, dict[str, float] | None]:
-    if "noise" not in f:
-        return None, None
-    noise = f["noise"]
-    if isinstance(noise, str):
-        if noise != NOISE_PRE_STEP:
-            raise ConfigError(f"expected \"{NOISE_PRE_STEP}\", a number or a table per output, "
-                              f"got {noise!r}{_suggest(noise, [NOISE_PRE_STEP])}",
+def _pre_step_noise(outputs: dict[str, str], data: MeasuredData, pre_step_end: float,
+                    cfg: ConfigReader) -> dict[str, float]:
+    """Each output's noise level from its samples before ``pre_step_end`` (``noise =
+    "pre-step"``), in the recording's units."""
+    sigma = {}
+    for out, col in outputs.items():
+        try:
+            sigma[out] = noise_level(data, col, pre_step_end).sigma
+        except DataError as e:
+            raise ConfigError(e.detail, cfg.file, "fitness.pre_step_end") from None
+        if not sigma[out] > 0:
+            raise ConfigError(f"column '{col}' is constant before {pre_step_end:g} s, so its "
+                              f"noise level is zero; give noise as a number",
                               cfg.file, "fitness.noise")
-        if pre_step_end is None:
-            raise ConfigError(f"noise = \"{NOISE_PRE_STEP}\" needs pre_step_end (the end of the "
-                              f"quiet samples before the step)", cfg.file, "fitness.pre_step_end")
-        sigma = {}
-        for out, col in outputs.items():
-            try:
-                sigma[out] = noise_level(data, col, pre_step_end).sigma
-            except DataError as e:
-                raise ConfigError(e.detail, cfg.file, "fitness.pre_step_end") from None
-            if not sigma[out] > 0:
-                raise ConfigError(f"column '{col}' is constant before {pre_step_end:g} s, so its "
-                                  f"noise level is zero; give noise as a number",
-                                  cfg.file, "fitness.noise")
-        return noise, sigma
-    if isinstance(noise, dict):
-        sigma = {}
-        for out, v in noise.items():
-            key = config_key("fitness.noise", out)
-            if out not in outputs:
-                raise ConfigError(f"'{out}' is not an output{_suggest(out, list(outputs))}",
-                                  cfg.file, key)
-            sigma[out] = _positive(cfg.number(v, key), cfg, key)
-        missing = [o for o in outputs if o not in sigma]
-        if missing:
-            raise ConfigError(f"no noise level for output(s) {', '.join(missing)}",
-                              cfg.file, "fitness.noise")
-        return dict(noise), sigma
-    value = _positive(cfg.number(noise, "fitness.noise"), cfg, "fitness.noise")
-    return value, {out: value for out in outputs}
+    return sigma
 
 
-def _read_simulation(s: dict, inside: MeasuredData, cfg: "_Reader") -> SimulationSettings:
+def _read_simulation(s: dict, inside: MeasuredData, cfg: ConfigReader) -> SimulationSettings:
     first, last = float(inside.time[0]), float(inside.time[-1])
     start = cfg.number(s.get("start_time", 0.0), "simulation.start_time")
     if start > first:
@@ -512,7 +302,7 @@ def _read_simulation(s: dict, inside: MeasuredData, cfg: "_Reader") -> Simulatio
         raise ConfigError(f"stop_time {stop:g} s ends before the last sample used ({last:g} s); "
                           f"shorten fitness.window or simulate longer", cfg.file, "simulation.stop_time")
     if "output_interval" in s:
-        interval = _positive(cfg.number(s["output_interval"], "simulation.output_interval"),
+        interval = positive(cfg.number(s["output_interval"], "simulation.output_interval"),
                              cfg, "simulation.output_interval")
     else:
         dt = float(np.median(np.diff(inside.time))) if len(inside) > 1 else (stop - start) / 100
@@ -520,84 +310,12 @@ def _read_simulation(s: dict, inside: MeasuredData, cfg: "_Reader") -> Simulatio
     if interval > stop - start:
         raise ConfigError(f"output_interval {interval:g} s is longer than the simulation "
                           f"({start:g} s to {stop:g} s)", cfg.file, "simulation.output_interval")
-    timeout = _positive(cfg.number(s.get("timeout", DEFAULT_TIMEOUT), "simulation.timeout"),
+    timeout = positive(cfg.number(s.get("timeout", DEFAULT_TIMEOUT), "simulation.timeout"),
                         cfg, "simulation.timeout")
     step = None
     if "communication_step" in s:
-        step = _positive(cfg.number(s["communication_step"], "simulation.communication_step"),
+        step = positive(cfg.number(s["communication_step"], "simulation.communication_step"),
                          cfg, "simulation.communication_step")
     return SimulationSettings(start, stop, interval, timeout, step)
-
-
-class _Reader:
-    """Typed access to parsed TOML that raises ConfigError naming file and key."""
-
-    def __init__(self, file: str):
-        self.file = file
-
-    def check_keys(self, table: dict, known: frozenset[str], where: str) -> None:
-        for k in table:
-            if k not in known:
-                what = f"top-level key '{k}'" if not where else f"key '{k}'"
-                raise ConfigError(f"unknown {what}{_suggest(k, sorted(known))}; allowed: "
-                                  f"{', '.join(sorted(known))}", self.file, config_key(where, k))
-
-    def table(self, value, key: str) -> dict:
-        if not isinstance(value, dict):
-            raise ConfigError(f"expected a table, got {value!r}", self.file, key)
-        return value
-
-    def require(self, table: dict, where: str, k: str):
-        if k not in table:
-            raise ConfigError(f"missing required key '{k}'", self.file, config_key(where, k))
-        return table[k]
-
-    def string(self, table: dict, where: str, k: str, default: str | None = None,
-               allow_empty: bool = False) -> str:
-        value = self.require(table, where, k) if default is None else table.get(k, default)
-        if not isinstance(value, str) or not (value.strip() or allow_empty):
-            raise ConfigError(f"expected a non-empty string, got {value!r}", self.file, config_key(where, k))
-        return value
-
-    def boolean(self, table: dict, where: str, k: str, default: bool) -> bool:
-        value = table.get(k, default)
-        if not isinstance(value, bool):
-            raise ConfigError(f"expected true or false, got {value!r}", self.file, config_key(where, k))
-        return value
-
-    def number(self, value, key: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"expected a number, got {value!r}", self.file, key)
-        value = float(value)
-        if not math.isfinite(value):
-            raise ConfigError(f"expected a finite number, got {value}", self.file, key)
-        return value
-
-    def parameter_name(self, name: str, key: str) -> None:
-        if "@" in name or not name.strip():
-            raise ConfigError(f"'{name}' is not a parameter name ('@' is reserved for "
-                              f"per-experiment dimensions)", self.file, key)
-
-
-def _positive(value: float, cfg: _Reader, key: str) -> float:
-    if not value > 0:
-        raise ConfigError(f"must be positive, got {value:g}", cfg.file, key)
-    return value
-
-
-def _suggest(word: str, candidates: Sequence[str]) -> str:
-    close = close_matches(word, list(candidates))
-    return f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ""
-
-
-def _toml_message(e: tomllib.TOMLDecodeError, text: str) -> str:
-    message = f"invalid TOML: {e}"
-    m = re.search(r"at line (\d+)", str(e))
-    if m:
-        lines = text.splitlines()
-        n = int(m.group(1))
-        if 1 <= n <= len(lines):
-            message += f"\n    {n} | {lines[n - 1]}"
-    return message
 
 
