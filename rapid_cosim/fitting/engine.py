@@ -175,6 +175,23 @@ class DaskEngine:
         self._connected = None
 
 
+@contextmanager
+def dask_client(scheduler: str | None = None, workers: int = 2):
+    """A dask.distributed client of the cluster at ``scheduler``, or of a LocalCluster of
+    ``workers`` processes on this machine, one thread each (as :class:`JoblibEngine`'s
+    workers: a unit's numbers then do not depend on where it runs), closed on leaving."""
+    from distributed import Client, LocalCluster
+
+    cluster = None if scheduler else LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                                  dashboard_address=None)
+    try:
+        with Client(scheduler or cluster) as client:
+            yield client
+    finally:
+        if cluster is not None:
+            cluster.close()
+
+
 def make_engine(n_jobs: int = 1, backend: str = "loky", scheduler: str | None = None) -> Engine:
     """The engine for ``n_jobs`` workers of a joblib-style ``backend`` name (what the
     CLI's ``--n-jobs``, ``--joblib-backend`` and ``--scheduler`` say)."""

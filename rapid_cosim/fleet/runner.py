@@ -26,6 +26,7 @@ from typing import Callable
 
 from ..compiler import package_digest, resolve_models
 from ..errors import ConfigError
+from ..fitting.engine import dask_client
 from ..version import __version__
 from .playback import RULES
 from .spec import FleetSpec, UnitEntry, load_fleet
@@ -102,28 +103,22 @@ def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, sched
 
 def _distribute(todo, options: FleetOptions, folder: Path, workers: int, scheduler: str | None,
                 progress: bool) -> dict[str, UnitResult]:
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import as_completed
     from tqdm import tqdm
 
-    cluster = None if scheduler else LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                                  dashboard_address=None)
     out = {}
-    try:
-        with Client(scheduler or cluster) as client:
-            futures = {client.submit(run_unit, entry, options, key=f"unit-{entry.name}-{digest[:12]}", retries=3):
-                       (entry, digest) for entry, digest in todo}
-            bar = tqdm(total=len(todo), unit="unit", disable=not progress, desc="units")
-            for future in as_completed(futures):
-                entry, digest = futures[future]
-                row = future.result()
-                row.digest = digest
-                _write(folder / f"{entry.name}.json", row.to_json())  # kept as it finishes: a rerun skips it
-                out[entry.name] = row
-                bar.update(1)
-            bar.close()
-    finally:
-        if cluster is not None:
-            cluster.close()
+    with dask_client(scheduler, workers) as client:
+        futures = {client.submit(run_unit, entry, options, key=f"unit-{entry.name}-{digest[:12]}", retries=3):
+                   (entry, digest) for entry, digest in todo}
+        bar = tqdm(total=len(todo), unit="unit", disable=not progress, desc="units")
+        for future in as_completed(futures):
+            entry, digest = futures[future]
+            row = future.result()
+            row.digest = digest
+            _write(folder / f"{entry.name}.json", row.to_json())  # kept as it finishes: a rerun skips it
+            out[entry.name] = row
+            bar.update(1)
+        bar.close()
     return out
 
 
