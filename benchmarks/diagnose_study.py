@@ -224,14 +224,14 @@ def report(results, single_result) -> None:
               f"{sum(r.diagnosis.effect == 'unexplained' for r in null)}; an effect named "
               f"{sum(r.outcome not in ('none', 'unexplained', 'ambiguous') for r in null)}; ambiguous "
               f"{sum(r.diagnosis.effect == 'ambiguous' for r in null)}")
-        p = [r.diagnosis.adequacy["before"]["p"] for r in null]
+        p = [r.diagnosis.adequacy.before.p for r in null]
         print(f"  base model's campaign p-value on effect-free campaigns: median {np.median(p):.2f}, under 0.05 in "
               f"{sum(v < 0.05 for v in p)} of {len(p)} (a calibrated null: about 5 %)")
     judged = [(r, a) for r in results if r.case.truth not in FOREIGN
-              for label, a in r.diagnosis.candidate_adequacy.items() if label in _labels(r.case.truth)]
+              for label, a in r.diagnosis.adequacy.judged.items() if label in _labels(r.case.truth)]
     if judged:
-        print(f"the true model judged adequate: {sum(a['adequate'] for _, a in judged)}/{len(judged)}"
-              + "".join(f"\n  inadequate: {r.case.label} (p {a['p']:.2g})" for r, a in judged if not a["adequate"]))
+        print(f"the true model judged adequate: {sum(a.adequate for _, a in judged)}/{len(judged)}"
+              + "".join(f"\n  inadequate: {r.case.label} (p {a.p:.2g})" for r, a in judged if not a.adequate))
     foreign = [r for r in results if r.case.foreign]
     if foreign:
         print(f"outside the catalogue: unexplained {sum(r.correct for r in foreign)}/{len(foreign)}; a wrong name as "
@@ -253,9 +253,9 @@ def report(results, single_result) -> None:
     pairs = [r for r in results if "+" in r.case.truth]
     if pairs:
         print(f"pairs, both named: {sum(r.correct for r in pairs)}/{len(pairs)}")
-    uncertain = [r for r in results if r.diagnosis.search["uncertain"]]
+    uncertain = [r for r in results if r.diagnosis.searched.search["uncertain"]]
     print(f"campaigns whose verdict says the search was uncertain: {len(uncertain)}"
-          + "".join(f"\n  {r.case.label}: {r.diagnosis.search['warning']}" for r in uncertain))
+          + "".join(f"\n  {r.case.label}: {r.diagnosis.searched.search['warning']}" for r in uncertain))
     checked = [r for r in results if getattr(r, "check", None) is not None]
     if checked:
         missed = [r for r in checked if r.check > 2.0]
@@ -263,14 +263,14 @@ def report(results, single_result) -> None:
               f"{len(checked)} (a local fit from the true parameters found better by more than 2 in BIC in "
               f"{len(missed)})")
     if single_result is not None:
-        d = single_result.diagnosis
+        d = single_result.diagnosis.named
         print(f"single step size, deadband hidden: verdict {d.effect}"
               + (f" between {' and '.join(d.candidates)}" if d.effect == "ambiguous" else "")
               + (f"; next: {d.separating_test['advice']}" if d.separating_test else ""))
     for r in results:
         if not r.correct:
-            print(f"  missed {r.case.label}: {r.diagnosis.verdict} {r.diagnosis.candidates} "
-                  f"({r.diagnosis.reason[:160]})")
+            print(f"  missed {r.case.label}: {r.diagnosis.named.verdict} {r.diagnosis.named.candidates} "
+                  f"({r.diagnosis.named.reason[:160]})")
 
 
 def _labels(truth: str) -> tuple[str, ...]:

@@ -86,7 +86,7 @@ def measure(label: str, workload, options, counter: Counter, work: Path) -> None
         rows.append((time.perf_counter() - t0, counter.sets - before[0], counter.seconds - before[1], d))
     (wall1, sets, seconds, d), (wall2, *_rest) = rows
     tests = len(training) + len(heldout)
-    print(f"{label}: {d.verdict} (adequate: {d.adequate})")
+    print(f"{label}: {d.named.verdict} (adequate: {d.adequate})")
     print(f"  wall time {wall2:6.1f} s on 2 workers, {wall1:6.1f} s in one process")
     print(f"  {sets} parameter sets simulated ({sets / max(tests, 1):.0f} per test over {tests} tests)"
           f" = {1e3 * seconds / max(sets, 1):.3f} ms per set; outside the simulator {1 - seconds / wall1:.0%}"

@@ -193,9 +193,9 @@ def judge(folder: Path, kind: str, work: Path) -> dict:
     d = rc.diagnose([exp], workdir=scratch / "diagnosis", seed=1, package=ROOT / "modelica" / "iGrGen",
                     fmu_dir=ROOT / "fmus", log=lambda *_: None)
     se = {k: (hi - lo) / 2 / 1.645 for k, (lo, hi) in d.parameter_intervals.items()}
-    return {"structure": verdict.structure, "candidates": verdict.candidates, "effect": d.verdict,
+    return {"structure": verdict.structure, "candidates": verdict.candidates, "effect": d.named.verdict,
             "parameters": d.parameters_after, "se": se,
-            "variance_ratio": d.adequacy["after"]["pooled_variance_ratio"], "seconds": time.perf_counter() - t0,
+            "variance_ratio": d.adequacy.after.pooled_variance_ratio, "seconds": time.perf_counter() - t0,
             "recording": exp.recording.lines()}
 
 

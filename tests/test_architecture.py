@@ -213,15 +213,28 @@ RESULT_NAMES = ("Result", "Verdict", "Judgement", "Recommendation", "Identificat
                 "Fit", "Playback", "Delivery", "Report", "Fidelity")
 # Untyped fields still on a result, each with why it stays (the rule keeps new ones out).
 UNTYPED_LEFT = {
-    "Diagnosis": "the diagnosis's evidence, written as diagnosis.json; its split into small dataclasses is left "
-                 "(issue 43)",
-    "Identification.explanation": "the diagnosis flattened for identification.json; typed with Diagnosis's split",
+    # the diagnosis: its verdict, adequacy and ranking are typed; the evidence below is written into
+    # diagnosis.json as it is built, and only the report reads it back (from the JSON, not these fields)
+    "DiagnosisVerdict.separating_test": "the separating test's design, as diagnosis.json holds it",
+    "DiagnosisVerdict.held_out": "the held-out check's figures (Verdict.held_out), written as they are",
+    "AdequacyJudgement.unexplained": "where the remainder lies (misfit_locations), written as it is",
+    "AdequacyJudgement.materiality": "each named effect's gap and size shares, written as they are",
+    "SearchReport.search": "each candidate's multistart waterfall and warning, written as it is",
+    "SearchReport.profiles": "the named effects' profile likelihoods, written as they are",
+    "SearchReport.variants": "the effect's variants tried, written as they are",
+    "Diagnosis.features": "the recordings' features (Features.to_json), written as they are",
+    "Diagnosis.gap_before": "each test's gap figures, written as they are",
+    "Diagnosis.gap_after": "each test's gap figures, written as they are",
+    "Diagnosis.noise": "each recorder's noise model with its uncertainty, written as it is",
+    "Diagnosis.residuals": "per test, the residual arrays by name, as diagnosis.h5 holds them for the figures",
+    "Diagnosis.timing": "the stamps' jitter and the variance it could add (jitter_share), written as it is",
+    "Identification.explanation": "the diagnosis flattened for identification.json, as the report reads it",
     "Identification.recordings": "Recording.summary(), a JSON summary the report and the story print",
     "Verdict.held_out": "the held-out check's figures, written into diagnosis.json as they are",
     "StructureVerdict.effects": "the effect catalogue's diagnosis on the winner, as its JSON",
     "StructureVerdict.separating_test": "the separating test's design, as structures.json holds it",
     "StructureFit.tests": "the adequacy test per test as Adequacy.to_json writes it (identify reads four of its "
-                          "keys into TestFidelity); typed with the Diagnosis's split",
+                          "keys into TestFidelity)",
     "StructureFit.identifiability": "identifiability()'s report, written into structures.json as it is",
     "StructureFit.separating_step": "best_separating_step()'s design, written as it is",
 }

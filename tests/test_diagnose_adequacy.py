@@ -91,6 +91,6 @@ def test_misfit_locations_name_the_phase_and_the_scaling(study, tmp_path):
     case = draw_case("valve_curve", 2, package=package, fmu_dir=fmu_dir)
     d = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False, max_effects=1, candidates=("delay",)),
                  package=package, fmu_dir=fmu_dir).diagnosis
-    where = d.unexplained["where"]
+    where = d.adequacy.unexplained["where"]
     assert where["flagged"], where
     assert max(where["phases"].values()) > 1.5

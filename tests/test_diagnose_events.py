@@ -74,16 +74,17 @@ def test_diagnose_names_what_is_hidden_in_a_recorded_event(repo, package, tmp_pa
     options = DiagnoseOptions(write_model=False, max_effects=1, candidates=("rate_limit", "delay"))
     result = diagnose([exp], workdir=tmp_path / "work", options=options, package=root / "iGrGen",
                       fmu_dir=root / "fmus", log=lambda *_: None)
-    assert result.effect == expected, result.reason
-    assert result.adequate, result.adequacy["after"]
+    assert result.effect == expected, result.named.reason
+    assert result.adequate, result.adequacy.after
     if hidden:  # the binding opening rate found
         assert result.parameters_after["gov.rate_open"] == pytest.approx(0.004, rel=0.1)
     # One under-frequency event barely moves the closing valve: the closing rate is not
     # decided (binding at 0.007 or free at 0.2 are 2 apart in BIC). Fewer than three starts
     # reaching the best must then be said in the verdict, with the point it competes with.
-    for label in result.search["uncertain"]:
-        assert label in result.reason and "next basin" in result.reason, result.reason
-        assert result.search["candidates"][label]["reached"] < 3
+    search, reason = result.searched.search, result.named.reason
+    for label in search["uncertain"]:
+        assert label in reason and "next basin" in reason, reason
+        assert search["candidates"][label]["reached"] < 3
     notes = result.features["tests"][0]["notes"]
     assert any("recorded input f_dev" in n and "-71 mHz" in n for n in notes), notes
     after = result.gap_after["event1"]["rmse_over_noise"]

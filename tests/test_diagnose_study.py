@@ -39,7 +39,7 @@ def test_the_hidden_effect_is_named_first(results):
     campaigns, _ = results
     effects = [r for r in campaigns if r.case.truth != "none"]
     correct = sum(r.correct for r in effects)
-    assert correct >= 0.9 * len(effects), [(r.case.label, r.diagnosis.effect, r.diagnosis.candidates)
+    assert correct >= 0.9 * len(effects), [(r.case.label, r.diagnosis.effect, r.diagnosis.named.candidates)
                                            for r in effects if not r.correct]
 
 
@@ -48,8 +48,8 @@ def test_an_effect_free_campaign_with_slow_recorder_noise_is_none_and_adequate(r
     null = [r for r in campaigns if r.case.truth == "none"]
     assert null and all(r.case.noise.ar1_sigma > 0 and r.case.noise.tau for r in null)  # white plus slow noise
     for r in null:
-        assert r.diagnosis.effect == "none" and r.diagnosis.adequate, (r.case.label, r.diagnosis.reason,
-                                                                       r.diagnosis.adequacy["after"]["p"])
+        assert r.diagnosis.effect == "none" and r.diagnosis.adequate, (r.case.label, r.diagnosis.named.reason,
+                                                                       r.diagnosis.adequacy.after.p)
 
 
 def test_the_gap_shrinks_by_half_once_the_effect_is_added(results):
@@ -62,7 +62,7 @@ def test_the_gap_shrinks_by_half_once_the_effect_is_added(results):
 
 def test_one_step_size_cannot_exclude_a_deadband_so_none_carries_it_as_a_caveat(results):
     _, single = results
-    d = single.diagnosis
+    d = single.diagnosis.named
     # a deadband cannot beat none decisively on one step size: the verdict is none, with
     # the deadband as a caveat that the data cannot exclude at a material size
     assert d.effect == "none", (d.effect, d.reason)
@@ -105,7 +105,7 @@ def test_a_variant_of_form_is_not_blamed_on_the_documentation(study, tmp_path):
     case = draw_case("load_controller_filtered", 2, package=package, fmu_dir=fmu_dir)
     result = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False, max_effects=2), package=package,
                       fmu_dir=fmu_dir)
-    d = result.diagnosis
+    d = result.diagnosis.named
     assert result.correct and not result.documentation_blamed, (d.verdict, d.candidates, d.reason)
 
 
@@ -114,6 +114,6 @@ def test_two_hidden_effects_are_both_named_greedily(study, tmp_path):
     case = draw_case("rate_limit+load_controller", 1, package=package, fmu_dir=fmu_dir)
     result = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False, max_effects=2), package=package,
                       fmu_dir=fmu_dir)
-    d = result.diagnosis
+    d = result.diagnosis.named
     assert set(d.effects) == {"rate_limit", "load_controller"}, (d.effect, d.effects, d.reason)
     assert result.gap_shrink >= 0.5

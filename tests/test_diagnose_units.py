@@ -184,7 +184,8 @@ def test_an_unexplained_or_ambiguous_diagnosis_is_saved_and_said_in_words(tmp_pa
     import json
 
     from rapid_cosim.diagnose.catalogue import AMBIGUOUS, UNEXPLAINED, VerdictKind
-    from rapid_cosim.diagnose.result import Diagnosis
+    from rapid_cosim.diagnose.adequacy import Adequacy
+    from rapid_cosim.diagnose.result import AdequacyJudgement, Diagnosis, DiagnosisVerdict, SearchReport
     from rapid_cosim.diagnose.limits import verdict_text
     from rapid_cosim.diagnose.selection import Verdict
 
@@ -192,11 +193,16 @@ def test_an_unexplained_or_ambiguous_diagnosis_is_saved_and_said_in_words(tmp_pa
         v = Verdict(effect, candidates=["delay", "deadband"], reason="nothing fits")
         said = verdict_text(v, type("Fit", (), {"adequate": False})())
         assert said in ("unexplained", "ambiguous + unexplained remainder") and "VerdictKind" not in said
-        d = Diagnosis(effect, [], list(v.candidates), v.said, said, False, {}, None, {}, [], [], [], None, None, {},
-                      {}, {}, {}, {}, {}, {}, {}, {}, {}, {}, {}, None, None, {}, ["t1"], [], "now")
+        unfit = Adequacy(False, 2.0, 0.001, 0.05, 100, ())
+        d = Diagnosis(DiagnosisVerdict(effect, [], list(v.candidates), v.said, said, [], None, None),
+                      AdequacyJudgement(unfit, unfit, {"final": unfit}, None, {}), SearchReport([], [], {}, {}, {}),
+                      {}, {}, {}, {}, {}, {}, {}, {}, None, None, {}, ["t1"], [], "now")
         js, h5 = d.save(tmp_path / effect)
         with h5py.File(h5) as f:
             assert f.attrs["effect"] == effect
-        assert json.loads(js.read_text())["effect"] == effect
+        written = json.loads(js.read_text())
+        assert written["effect"] == effect and written["adequate"] is False
+        assert written["candidate_adequacy"] == {"final": {"adequate": False, "p": 0.001, "pooled_variance_ratio": 2.0}}
+        assert list(written)[:6] == ["effect", "effects", "candidates", "reason", "verdict", "adequate"]
         assert VerdictKind.of(effect) is VerdictKind(effect) and f"{VerdictKind.of(effect)}" == effect
     assert VerdictKind.of("rate_limit") is VerdictKind.NAMED

@@ -10,37 +10,71 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from .adequacy import Adequacy
+from .selection import Ranked
 
-@dataclass
-class Diagnosis:
-    """The verdict with its evidence, as the JSON report holds it.
 
-    ``effect`` is a catalogue name, ``none``, ``ambiguous`` or ``unexplained``;
-    ``effects`` lists the effects named; ``adequate`` says whether the final model fits
-    to the noise (:mod:`.adequacy`: per test, with p-values against the computed null,
-    under ``adequacy``); ``verdict`` is the sentence, e.g. ``"rate_limit + unexplained
-    remainder"``. ``noise``: each recorder's noise model with its uncertainty and the
-    quiet data's autocorrelation; ``search``: each candidate's multistart waterfall and
-    which were uncertain; ``profiles``: the named effects' profile likelihoods;
-    ``timing``: the time stamps' jitter and the variance it could add; ``variants``: the
-    effect's variants tried when a documented constant joined it (:mod:`.variants`);
-    ``candidate_adequacy``: the adequacy of the base, the final model and any candidate
-    the options asked to judge."""
+@dataclass(frozen=True)
+class DiagnosisVerdict:
+    """What was named: ``effect`` is a catalogue name, ``none``, ``ambiguous`` or
+    ``unexplained``; ``effects`` the effects named; ``candidates`` those the data could not
+    tell apart; ``reason`` the verdict's notes said once; ``verdict`` the sentence, e.g.
+    ``"rate_limit + unexplained remainder"``; what no test excluded, and the staged test
+    that would separate the candidates."""
 
     effect: str
     effects: list[str]
     candidates: list[str]
     reason: str
     verdict: str
-    adequate: bool
-    adequacy: dict
-    unexplained: dict | None
-    materiality: dict
-    ranking: list[dict]
-    second_effect_ranking: list[dict]
     not_excluded: list[str]
     separating_test: dict | None
     held_out: dict | None
+
+
+@dataclass(frozen=True)
+class AdequacyJudgement:
+    """Whether the model fits to the noise (:mod:`.adequacy`: per test, with p-values
+    against the computed null), before (the base model) and after (the final one); each
+    candidate the options asked to judge; what remains unexplained and whether the named
+    effects matter (:mod:`.materiality`)."""
+
+    before: Adequacy
+    after: Adequacy
+    judged: dict[str, Adequacy]
+    unexplained: dict | None
+    materiality: dict
+
+    @property
+    def adequate(self) -> bool:
+        return self.after.adequate
+
+
+@dataclass(frozen=True)
+class SearchReport:
+    """How the candidates were searched: the ranking by the criterion, the second
+    effect's, each candidate's multistart waterfall and which were uncertain
+    (``search``), the named effects' profile likelihoods, and the effect's variants
+    tried when a documented constant joined it (:mod:`.variants`)."""
+
+    ranking: list[Ranked]
+    second_effect_ranking: list[Ranked]
+    search: dict
+    profiles: dict
+    variants: dict
+
+
+@dataclass
+class Diagnosis:
+    """The verdict with its evidence: what was named (:class:`DiagnosisVerdict`), the
+    adequacy (:class:`AdequacyJudgement`), the search (:class:`SearchReport`), and the
+    rest as the JSON report holds it: ``noise``, each recorder's noise model with its
+    uncertainty and the quiet data's autocorrelation; ``timing``, the time stamps' jitter
+    and the variance it could add. :meth:`to_json` writes the one flat report."""
+
+    named: DiagnosisVerdict
+    adequacy: AdequacyJudgement
+    searched: SearchReport
     features: dict
     gap_before: dict[str, dict]
     gap_after: dict[str, dict]
@@ -48,11 +82,7 @@ class Diagnosis:
     parameters_after: dict[str, float]
     parameter_intervals: dict[str, list[float]]
     noise: dict
-    search: dict
-    profiles: dict
     timing: dict
-    variants: dict
-    candidate_adequacy: dict
     model_written: str | None
     model_file: str | None
     archives: dict[str, str]
@@ -62,9 +92,35 @@ class Diagnosis:
     residuals: dict[str, dict[str, np.ndarray]] = field(default_factory=dict, repr=False)
     exchanged_intervals: dict[str, list[float]] = field(default_factory=dict)  # at the swapped optimum
 
+    @property
+    def effect(self) -> str:
+        return self.named.effect
+
+    @property
+    def adequate(self) -> bool:
+        return self.adequacy.adequate
+
     def to_json(self) -> dict:
-        data = asdict(self)
-        data.pop("residuals")
+        """The report as diagnosis.json holds it: one flat table, its keys in the order
+        its readers and earlier files have them."""
+        n, a, s = self.named, self.adequacy, self.searched
+        data = {"effect": n.effect, "effects": n.effects, "candidates": n.candidates, "reason": n.reason,
+                "verdict": n.verdict, "adequate": a.adequate,
+                "adequacy": {"before": a.before.to_json(), "after": a.after.to_json()},
+                "unexplained": a.unexplained, "materiality": a.materiality,
+                "ranking": [asdict(r) for r in s.ranking],
+                "second_effect_ranking": [asdict(r) for r in s.second_effect_ranking],
+                "not_excluded": n.not_excluded, "separating_test": n.separating_test, "held_out": n.held_out,
+                "features": self.features, "gap_before": self.gap_before, "gap_after": self.gap_after,
+                "parameters_before": self.parameters_before, "parameters_after": self.parameters_after,
+                "parameter_intervals": self.parameter_intervals, "noise": self.noise, "search": s.search,
+                "profiles": s.profiles, "timing": self.timing, "variants": s.variants,
+                "candidate_adequacy": {label: {"adequate": j.adequate, "p": j.p,
+                                               "pooled_variance_ratio": j.pooled_variance_ratio}
+                                       for label, j in a.judged.items()},
+                "model_written": self.model_written, "model_file": self.model_file, "archives": self.archives,
+                "training": self.training, "heldout": self.heldout, "created": self.created,
+                "exchanged_intervals": self.exchanged_intervals}
         return json.loads(json.dumps(data, default=_jsonable))
 
     def save(self, folder: str | Path) -> tuple[Path, Path]:
@@ -76,7 +132,7 @@ class Diagnosis:
         js.write_text(json.dumps(self.to_json(), indent=2) + "\n")
         h5 = folder / "diagnosis.h5"
         with h5py.File(h5, "w") as f:
-            f.attrs["effect"] = str(self.effect)  # a plain string: h5py takes no str subclass
+            f.attrs["effect"] = str(self.named.effect)  # a plain string: h5py takes no str subclass
             f.attrs["json"] = json.dumps(self.to_json())
             for test, arrays in self.residuals.items():
                 g = f.create_group(test)

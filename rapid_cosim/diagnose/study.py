@@ -39,10 +39,11 @@ class CaseResult:
     gap_shrink: float | None = field(init=False)
 
     def __post_init__(self):
-        d = self.diagnosis
+        d = self.diagnosis.named
         self.named_first = d.effects[0] if d.effects else d.effect
         # no model was added for these verdicts, so there is no shrink to measure
-        self.gap_shrink = None if d.effect in (NONE, AMBIGUOUS, UNEXPLAINED) else _shrink(d, self.case.noise.sigma)
+        self.gap_shrink = None if d.effect in (NONE, AMBIGUOUS, UNEXPLAINED) else _shrink(self.diagnosis,
+                                                                                           self.case.noise.sigma)
 
     @property
     def outcome(self) -> str:
@@ -59,7 +60,7 @@ class CaseResult:
         them named; with a foreign one, ``unexplained``; with a variant of an effect, the
         variant or its parent named, or the variant among the stories the verdict cannot
         tell apart."""
-        d = self.diagnosis
+        d = self.diagnosis.named
         if self.case.foreign:
             return d.effect == UNEXPLAINED
         if len(self.case.effects) > 1:
@@ -75,7 +76,7 @@ class CaseResult:
         right, and the verdict does not also name the variant it cannot rule out."""
         if any(e.startswith("doc_") for e in self.case.effects):
             return False
-        d = self.diagnosis
+        d = self.diagnosis.named
         named = set(d.effects) | {c for label in d.candidates for c in label.split("+")}
         blamed = any(e.startswith("doc_") for e in named)
         return blamed and not (named & set(VARIANTS))

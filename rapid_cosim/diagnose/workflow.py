@@ -11,7 +11,7 @@ catalogue, built like any other bench.
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, replace
+from dataclasses import replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable, Sequence
@@ -33,7 +33,7 @@ from .context import Context, DiagnoseOptions, split_holdout
 from .features import Features, residual_features
 from .intervals import exchanged, intervals
 from .limits import check_material, inadequate, verdict_text
-from .result import Diagnosis
+from .result import AdequacyJudgement, Diagnosis, DiagnosisVerdict, SearchReport
 from .selection import Ranked, Verdict, bic, decide, decisive, gap, rank, score, settle_on_heldout
 from .separate import separating_test
 from .variants import check_variants
@@ -139,20 +139,18 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     residuals = {name: {"time": t.time, "before": t.residual, "after": after_tests[name].residual,
                         "whitened_before": t.whitened, "whitened_after": after_tests[name].whitened}
                  for name, t in before_tests.items()}
+    named = DiagnosisVerdict(verdict.effect, verdict.effects, verdict.candidates, verdict.said,
+                             verdict_text(verdict, fit_after), not_excluded, separating, verdict.held_out)
+    found = features.to_json()
+    exchanged_bands = exchanged(final_fit, bands, ctx.noise)
+    noise_report = _noise_report(ctx)
+    searched = SearchReport(ranking, second, search, _profiles(ctx, final_fit), variants)
     return Diagnosis(
-        effect=verdict.effect, effects=verdict.effects, candidates=verdict.candidates, reason=verdict.said,
-        verdict=verdict_text(verdict, fit_after), adequate=fit_after.adequate,
-        adequacy={"before": fit_before.to_json(), "after": fit_after.to_json()}, unexplained=unexplained,
-        materiality=materiality,
-        ranking=[asdict(r) for r in ranking], second_effect_ranking=[asdict(r) for r in second],
-        not_excluded=not_excluded, separating_test=separating, held_out=verdict.held_out,
-        features=features.to_json(), gap_before=gap_before, gap_after=gap_after,
+        named, AdequacyJudgement(fit_before, fit_after, judged, unexplained, materiality), searched,
+        features=found, gap_before=gap_before, gap_after=gap_after,
         parameters_before=base.parameters, parameters_after=final_fit.parameters,
-        parameter_intervals=bands, exchanged_intervals=exchanged(final_fit, bands, ctx.noise),
-        noise=_noise_report(ctx), search=search, profiles=_profiles(ctx, final_fit),
-        timing=jitter_share(after_tests, ctx.noise), variants=variants,
-        candidate_adequacy={label: {"adequate": a.adequate, "p": a.p, "pooled_variance_ratio": a.pooled_variance_ratio}
-                            for label, a in judged.items()},
+        parameter_intervals=bands, exchanged_intervals=exchanged_bands,
+        noise=noise_report, timing=jitter_share(after_tests, ctx.noise),
         model_written=model_written, model_file=model_file, residuals=residuals,
         archives={label: str(f.archive) for label, f in ctx.fits.items()},
         training=[e.name for e in training], heldout=[e.name for e in heldout],

@@ -38,6 +38,7 @@ from ..diagnose.context import METHOD
 from ..diagnose.selection import THRESHOLD
 from ..structures.structure import Structure, on_structure
 from ..structures.select import StructureFit, StructureVerdict, select_structure
+from ..diagnose.result import Diagnosis
 from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
 from ..exchange import MODELS
 from ..errors import CheckFailed
@@ -207,8 +208,9 @@ def _recommend(records: list[StandardRecord]) -> tuple[str | None, str, str | No
     return chosen.model, reason, None if chosen is first else first.fit, tying
 
 
-def _explanation(d) -> dict:
-    return {"verdict": d.verdict, "effect": d.effect, "effects": list(d.effects), "adequate": d.adequate,
+def _explanation(d: Diagnosis) -> dict:
+    n, after = d.named, d.adequacy.after.to_json()
+    return {"verdict": n.verdict, "effect": n.effect, "effects": list(n.effects), "adequate": d.adequate,
             "parameters": d.parameters_after, "intervals": d.parameter_intervals, "noise": d.noise,
-            "p": d.adequacy["after"]["p"], "tests": d.adequacy["after"]["tests"],
-            "not_excluded": list(d.not_excluded), "separating_test": d.separating_test}
+            "p": after["p"], "tests": after["tests"],
+            "not_excluded": list(n.not_excluded), "separating_test": n.separating_test}

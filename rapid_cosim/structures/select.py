@@ -102,11 +102,12 @@ def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Se
 
     d = diagnose([structure.experiment(e) for e in training], [structure.experiment(e) for e in heldout],
                  workdir=workdir, options=options, package=package, fmu_dir=fmu_dir, log=log)
-    return {"structure": structure.name, "effect": d.effect, "effects": d.effects, "verdict": d.verdict,
-            "adequate": d.adequate, "candidates": d.candidates, "reason": d.reason,
-            "ranking": [{"label": r["label"], "delta": r["delta"], "parameters": r["parameters"]}
-                        for r in d.ranking],
-            "variance_ratio_after": d.adequacy["after"]["pooled_variance_ratio"] if d.adequacy else None}
+    n = d.named
+    return {"structure": structure.name, "effect": n.effect, "effects": n.effects, "verdict": n.verdict,
+            "adequate": d.adequate, "candidates": n.candidates, "reason": n.reason,
+            "ranking": [{"label": r.label, "delta": r.delta, "parameters": r.parameters}
+                        for r in d.searched.ranking],
+            "variance_ratio_after": d.adequacy.after.pooled_variance_ratio}
 
 
 
