@@ -22,7 +22,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay bench-identify profile-identify fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay bench-identify profile-identify stories-diff fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -140,6 +140,9 @@ profile-identify: fmus  ## where an identification spends its time, by stage and
 
 bench-identify: fmus  ## identifications timed before and after the speed work in one run (per stage, simulations, answers side by side), and 10 fleet units on 2 workers
 	$(PY) benchmarks/identify_bench.py --work $(RESULTS)/bench-identify --json $(RESULTS)/bench-identify/study.json
+
+stories-diff: fmus  ## make demo, diagnose, identify and fleet under the code before the speed and house work (b2983af) and HEAD: printed stories and answer files compared, times and paths aside
+	$(PY) benchmarks/stories_diff.py --work $(RESULTS)/stories-diff
 
 bench-timebase: fmus  ## the committed ANDES events with only their time base changed (jitter, dropped frames, repeats, a gap, STAT flags): verdicts, estimates in SE, variance ratios, simulation cost; the electrical unit on untidy stamps
 	$(PY) benchmarks/timebase_study.py --work $(RESULTS)/bench-timebase --unit

@@ -171,62 +171,33 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
 
 def _calibrate_all(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches, package,
                    fmu_dir) -> list[tuple]:
-    """Every structure's (result, archive): the structures first, then their variants
-    from their optima (:meth:`Structure.optional_variants`); each fitted whole in one
-    worker process where the options give several local workers, else here with the
-    options' engine. Why whole fits in workers: a structure's batches are a few dozen
-    simulations each, and sending each batch to a pool cost more than it saved (an
-    identification of the electrical unit took 28 s on 2 workers, 15 s in one process)."""
-    runs: dict[str, tuple] = {}
-    first = [s for s in structures if s.nested_in is None or s.nested_in not in {t.name for t in structures}]
-    for wave in (first, [s for s in structures if s not in first]):
-        jobs = [_started(s, runs, package, fmu_dir) for s in wave]
-        for s, result in zip(wave, _run_jobs(jobs, training, fitted_noise, options, workdir, searches, package,
-                                              fmu_dir)):
-            runs[s.name] = result
-    return [runs[s.name] for s in structures]
-
-
-def _started(s: Structure, runs: dict[str, tuple], package, fmu_dir) -> tuple[Structure, dict | None]:
-    """A structure as fitted, and the multistart's options for it: a variant from its
-    nesting structure's optimum with its own parameters varied (``{"vary": ...}``, the
-    nested starts); others as they are (None: the run's own options)."""
-    if s.nested_in not in runs:
-        return s, None
-    from ..compiler import ensure_fmu
-
-    defaults = {n: p.start for n, p in get_simulator(ensure_fmu(s.bench, package=package, fmu_dir=fmu_dir))
-                .parameters.items() if p.start is not None}
-    return s.started_from(runs[s.nested_in][0].best(), defaults), {"vary": s.vary}
-
-
-def _run_jobs(jobs, training, fitted_noise, options: RunOptions, workdir: Path, searches, package,
-              fmu_dir) -> list[tuple]:
-    payload = (jobs, list(training), fitted_noise, options, workdir, tuple(searches), package, fmu_dir)
-    if options.n_jobs == 1 or options.backend not in LOCAL_PROCESSES or len(jobs) < 2:
-        return _calibrated(payload, np.arange(len(jobs)))
+    """Every structure's (result, archive), each fitted whole in one worker process where
+    the options give several local workers, else here with the options' engine. Why
+    whole fits in workers: a structure's batches are a few dozen simulations each, and
+    sending each batch to a pool cost more than it saved (an identification of the
+    electrical unit took 28 s on 2 workers, 15 s in one process)."""
+    payload = (list(structures), list(training), fitted_noise, options, workdir, tuple(searches), package, fmu_dir)
+    if options.n_jobs == 1 or options.backend not in LOCAL_PROCESSES or len(structures) < 2:
+        return _calibrated(payload, np.arange(len(structures)))
     from ..compiler import build_models
     from ..fitting.engine import JoblibEngine
 
-    benches = sorted({b for s, _ in jobs for b in (s.bench, s.input_bench) if b})
+    benches = sorted({b for s in structures for b in (s.bench, s.input_bench) if b})
     build_models(benches, package=package, fmu_dir=fmu_dir, log=lambda *_: None)  # once here, not per worker
     payload = (*payload[:3], replace(options, n_jobs=1), *payload[4:])
     parts = JoblibEngine(options.n_jobs, options.backend).map(_calibrated, payload,
-                                                                [np.array([k]) for k in range(len(jobs))])
+                                                                [np.array([k]) for k in range(len(structures))])
     return [run for part in parts for run in part]
 
 
 def _calibrated(payload, chunk) -> list[tuple]:
-    """Worker: the (result, archive) of the jobs ``chunk`` indexes (a structure and its
-    multistart's nested-start options, if any)."""
-    jobs, training, fitted_noise, options, workdir, searches, package, fmu_dir = payload
+    """Worker: the (result, archive) of the structures ``chunk`` indexes."""
+    structures, training, fitted_noise, options, workdir, searches, package, fmu_dir = payload
     out = []
     for k in chunk:
-        s, ms = jobs[int(k)]
-        own = options if ms is None else replace(options, estimator_options={
-            **options.estimator_options, "ms": {**options.estimator_options.get("ms", {}), **ms}})
+        s = structures[int(k)]
         inputs = inputs_from_experiments(on_structure(s, training, fitted_noise), package=package, fmu_dir=fmu_dir)
-        out.append(best_run(inputs, own, workdir / f"{s.name}.h5", searches, replace_stale=True))
+        out.append(best_run(inputs, options, workdir / f"{s.name}.h5", searches, replace_stale=True))
     return out
 
 
