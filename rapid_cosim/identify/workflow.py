@@ -71,7 +71,7 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
                            options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False, backend=backend,
                                                    scheduler=scheduler),
                            package=package, fmu_dir=fmu_dir, log=log, noise_fits=fitted_noise)
-    log(f"  {explanation.verdict}")
+    log(f"  {explanation.named.verdict}")
     log("the standard records:")
     options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs, backend=backend, scheduler=scheduler).check()
     d = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
@@ -128,18 +128,18 @@ def deliver(structures: Sequence[Structure], training: Sequence[Experiment], hel
     return Delivery(verdict, records, recommended, reason, candidates, fitted_noise, tied_with, ties)
 
 
-def _record(structure: Structure, fits: dict[str, StructureFit], explanation) -> StandardRecord:
+def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Diagnosis | None) -> StandardRecord:
     """The structure's kept fit: with the set of its optional parts that fits best by BIC,
     free only if that wins by the threshold."""
     plain = fits[structure.name]
     variants = [fits[v.name] for v in structure.optional_variants() if v.name in fits]
     freed = min(variants, key=lambda f: f.bic) if variants else None  # the parts the data call for
     use = freed if freed is not None and freed.bic <= plain.bic - THRESHOLD else plain
-    effects = list(explanation.effects) if explanation is not None else []
+    effects = list(explanation.named.effects) if explanation is not None else []
     missing = cannot_carry(structure.name, effects, freed=use is freed)
-    explained = explanation.adequacy["after"]["tests"] if explanation is not None else {}
+    explained = {t.test: t for t in explanation.adequacy.after.tests} if explanation is not None else {}
     per_test = {name: TestFidelity(t["rmse_over_noise"], t["variance_ratio"], t["p_holm"], t["adequate"],
-                                   explained.get(name, {}).get("rmse_over_noise"))
+                                   explained[name].rmse_over_noise if name in explained else None)
                 for name, t in use.tests.items()}
     failing = [n for n, t in per_test.items() if not t.adequate]
     if use.adequate:
