@@ -61,7 +61,7 @@ def normalised(text: str, tree: Path, results: Path) -> list[str]:
     text = re.sub(r"\d+(\.\d+)? s wall time", "<t> s wall time", text)
     text = re.sub(r"\b\d+(\.\d+)?\s?(s|ms|min)\b(?= |,|\)|$)", "<t>", text, flags=re.M)
     text = re.sub(r"\d{4}-\d\d-\d\d[T ]\d\d:\d\d(:\d\d(\.\d+)?)?(Z|[+-]\d\d:?\d\d)?", "<date>", text)
-    text = re.sub(r"\b[0-9a-f]{12,64}\b", "<digest>", text)
+    text = re.sub(r"\b(?=[0-9a-f]*[a-f])[0-9a-f]{12,64}\b", "<digest>", text)  # not a number's digits
     text = re.sub(r"^(test\d+\s+\S+\+\S+\s.*\s)\d+(\.\d+)?$", r"\1<t>", text, flags=re.M)  # demo's time column
     lines = [ln.rstrip() for ln in text.splitlines()]
     return [ln for ln in lines if ln and "it/s" not in ln and "s/it" not in ln and "%|" not in ln]

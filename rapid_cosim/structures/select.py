@@ -124,8 +124,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
     fitted_noise = fitted_noise or campaign_noise([*training, *heldout])
     noise = noise_floors([*training, *heldout], fitted_noise)
     fits, null = [], None
-    for s in structures:
-        log(f"  calibrating {s.name} ({', '.join(s.estimate)}) ...")
+    log(f"  calibrating {', '.join(s.name for s in structures)} ...")
     runs = _calibrate_all(structures, training, fitted_noise, options, workdir, searches, package, fmu_dir)
     for s, (result, archive) in zip(structures, runs):
         exps = on_structure(s, training, fitted_noise)
@@ -155,8 +154,8 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
                                  len(result.names), fit_ok.adequate, fit_ok.pooled_variance_ratio, held_score,
                                  ident.to_json(), step, str(archive),
                                  _at_bounds(s.estimate, result.best()), fit_ok.to_json()["tests"]))
-        log(f"    BIC {fits[-1].bic:.1f}, variance ratio {fit_ok.pooled_variance_ratio:.2f}, "
-            f"{ident.summary()}")
+        log(f"  {s.name} ({', '.join(s.estimate)}): BIC {fits[-1].bic:.1f}, variance ratio "
+            f"{fit_ok.pooled_variance_ratio:.2f}, {ident.summary()}")
     fits.sort(key=lambda f: f.bic)
     for f in fits:
         f.delta = f.bic - fits[0].bic
