@@ -361,6 +361,9 @@ def test_a_config_takes_its_documented_constants_from_a_record(tgov1_run, tmp_pa
     assert loaded.fixed == {"gov.VMAX": 0.9, "gov.VMIN": 0.1, "gov.Dt": 0.2}
     assert {k: v.start for k, v in loaded.estimate.items()} == {"gov.R": 0.055, "gov.T1": 0.4,
                                                                        "gov.T2": 2.0, "gov.T3": 5.5}
+    structure.write_text(structure.read_text().replace('"gov.R" =', "gov.R =").replace('"gov.T1" =', "gov.T1 ="))
+    dotted = Structure.load(structure)  # dotted keys take the record's starts as quoted ones do
+    assert (dotted.fixed, dotted.estimate) == (loaded.fixed, loaded.estimate)
 
     (tmp_path / "unit.dyr").write_text("1 'TGOV1' 1 0.05 0.5 one 0.0 2.5 7.5 0.0 /\n")
     with pytest.raises(ConfigError, match=r"\[fixed.documented\]: .*unit.dyr:1: field VMAX = 'one'"):

@@ -279,6 +279,16 @@ def test_checking_only_identifies_nothing_and_a_short_quiet_span_is_flagged(fmus
     assert ok.units[0].route is Route.FAILS and ok.units[0].flags == []
 
 
+def test_a_tie_is_flagged_from_the_identifications_fields_whole():
+    from rapid_cosim.fleet.unit_job import tie_flag
+
+    # the recommendation's sentence has a ';' inside its parentheses: a flag cut from it
+    # read "tie: first by BIC (IEEEG1, 7 estimated parameters"
+    assert tie_flag("TGOV1", "IEEEG1", ["TGOV1"]) == "tie: TGOV1 recommended, tying with IEEEG1 (the first by BIC)"
+    assert tie_flag("IEEEG1", None, ["TGOV1"]) == ("tie: IEEEG1 recommended (the first by BIC), TGOV1 tying with "
+                                                   "it but passed over")
+
+
 def test_a_parameter_on_its_bound_pulled_outward_is_held_out_of_the_score_test():
     """The constrained score test: a record's value on its structure's bound is the
     optimum there when the data pull it further out, so that parameter leaves the test;

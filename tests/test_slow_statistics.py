@@ -49,7 +49,7 @@ def test_the_workflow_names_the_hidden_effect_over_five_seeds(repo, tmp_path):
     null = [r for r in results if r.case.truth == "none"]
     assert sum(r.correct for r in effects) >= 0.9 * len(effects)
     assert all(r.named_first == "none" and r.diagnosis.adequate for r in null), \
-        [(r.case.label, r.diagnosis.verdict) for r in null if not (r.named_first == "none" and r.diagnosis.adequate)]
+        [(r.case.label, r.diagnosis.named.verdict) for r in null if not (r.named_first == "none" and r.diagnosis.adequate)]
     wrongly_named = [r for r in effects if not r.correct and r.named_first not in ("ambiguous", "none")]
     assert not wrongly_named, [(r.case.label, r.named_first) for r in wrongly_named]
     assert all(r.gap_shrink >= 0.5 for r in effects if r.correct)

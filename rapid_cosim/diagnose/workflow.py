@@ -51,7 +51,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     ``noise_fits``: the recorders' noise fits of these experiments, where the caller has
     them already (an identification shares one fit between its two parts)."""
     if not training:
-        raise ConfigError("diagnose needs at least one training experiment (every one was held out)")
+        raise ConfigError("diagnose needs at least one training experiment (none given, or every one held out)")
     for exp in [*training, *heldout]:
         try:
             check_base(exp.model)

@@ -1,5 +1,6 @@
-"""Experiments: ``definition`` (the :class:`Experiment` object and its parts), ``config``
-(the TOML schema and reader), ``construct`` (experiments made in code), ``toml_writer``
+"""Experiments: ``definition`` (the :class:`Experiment` object and its parts), ``spec``
+(a config read and checked without its recordings), ``config`` (the TOML schema and the
+loader of a spec's recordings), ``reader`` (typed access to a parsed config), ``construct`` (experiments made in code), ``toml_writer``
 (configs written by programs)."""
 
 from .config import config_key, load_experiment, parse_experiment

@@ -1,4 +1,4 @@
-"""Config file -> experiment: the TOML schema and its reader.
+"""Config file -> experiment: the TOML schema, and the loader that reads a spec's recordings.
 
 One TOML file per experiment, ``experiments/<name>/config.toml``; relative data paths are
 taken from the config file's folder. :func:`load_experiment` reads one file into an

@@ -3,7 +3,10 @@ describes, read and checked without reading the measurements. What can only be c
 against the data (the window, the noise level before the step, the simulated span, the
 inputs' coverage) is the loader's (:func:`rapid_cosim.experiment.config.experiment_from`).
 The one file read here is a ``documented`` record in ``[fixed]``, which is part of the
-config as an include is."""
+config as an include is. Since every section is checked here, before any recording is
+read, a config with several mistakes is told of the section's first (``[data]``'s
+resample and time unit, ``[fitness]``'s weights, offset and noise) before a missing or
+unreadable data file, where versions before the split named the file first."""
 
 from __future__ import annotations
 

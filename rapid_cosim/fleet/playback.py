@@ -32,7 +32,7 @@ unit (``false_alarm``): the bands' rate read off :data:`BAND_REPLICATES` replica
 the recorder's estimated noise added to the played-back curve, combined with the noise
 tests' ALPHA. A band that the noise alone fails more often than :data:`UNJUDGEABLE` is
 not judged on that recording, and said (``not_judged``, with its rate), as a time is
-not judged on a change under five noise levels (:mod:`rapid_cosim.report.validation`):
+not judged on a change under five noise levels (:mod:`rapid_cosim.validation.metrics`):
 a check that fails a correct record one time in three cannot tell right from wrong.
 On the benchmark's event these were a time to peak where the overshoot is marginal (its
 argmax wanders along a flat top) and a settling time read where a slow tail crosses a

@@ -54,6 +54,14 @@ class FleetOptions:
     check_only: bool = False  # play the records on file back and judge them; identify nothing
 
 
+def tie_flag(recommended: str, tied_with: str | None, ties: list[str]) -> str:
+    """The flag of a tie within the criterion's threshold, from the identification's
+    fields: which record was recommended and which it tied with."""
+    if tied_with is not None:  # a simpler record recommended in place of the first by BIC
+        return f"tie: {recommended} recommended, tying with {tied_with} (the first by BIC)"
+    return f"tie: {recommended} recommended (the first by BIC), {', '.join(ties)} tying with it but passed over"
+
+
 def run_unit(entry: UnitEntry, options: FleetOptions) -> UnitResult:
     """The unit's result (module docstring)."""
     t0 = time.perf_counter()
@@ -113,8 +121,8 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
         result.flags.append("no record recommended")
         return
     rec = ident.record(ident.recommended)
-    if ident.ties:  # the recommendation's first clause says which way the tie went
-        result.flags.append("tie: " + ident.reason.split(";")[0])
+    if ident.ties:
+        result.flags.append(tie_flag(ident.recommended, ident.tied_with, ident.ties))
     if rec.at_bounds:
         result.flags.append("at bounds: " + ", ".join(rec.at_bounds))
     if not rec.adequate:

@@ -115,11 +115,12 @@ class Structure:
                               str(path), "estimate")
         fixed, estimate = dict(raw.get("fixed", {})), dict(raw["estimate"])
         if documented.KEY in fixed:  # a .dyr/.dyd record of the unit, relative to the structure file
-            parameter_tables(fixed, estimate, str(path))  # the file's own errors before the record's
-            _, added, starts, _ = documented.record_constants(fixed.pop(documented.KEY), fixed, estimate,
-                                                              path.parent, str(path))
-            fixed = {**added, **fixed}
-            estimate = {k: {**v, "start": starts[k]} if k in starts else v for k, v in estimate.items()}
+            values, specs = parameter_tables(fixed, estimate, str(path))  # flat names; the file's own errors first
+            estimate = {n: spec.to_config() for n, spec in specs.items()}
+            _, added, starts, _ = documented.record_constants(fixed[documented.KEY], values, estimate, path.parent,
+                                                              str(path))
+            fixed = {**added, **values}
+            estimate = {n: {**v, "start": starts[n]} if n in starts else v for n, v in estimate.items()}
         optional = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.get("optional", {}).items()}
         carried = {v.pop("carries", "") for v in optional.values() if isinstance(v, dict)}
         if len(carried) > 1:

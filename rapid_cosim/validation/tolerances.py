@@ -1,4 +1,4 @@
-"""Tolerance bands of the validation report: each metric of :mod:`.validation` passes or
+"""Tolerance bands of the validation report: each metric of :mod:`.metrics` passes or
 fails against a band, and the bands are configurable.
 
 A band is the **largest** of the terms it is given (a term that cannot be evaluated,
