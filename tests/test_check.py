@@ -249,3 +249,29 @@ def test_diagnose_with_every_test_held_out_says_so(test1, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "[--holdout]: every experiment is held out (test1): keep at least one to fit on" in err
     assert not (tmp_path / "d").exists()
+
+
+def test_a_warning_said_many_times_is_printed_once_with_its_count(monkeypatch, capsys):
+    """A PMU-style recording's STAT-mask warning came once per worker and candidate (about
+    50 times, each with the source line under it): the CLI says each warning once, as a
+    sentence, and how often it recurred when the command ends."""
+    import argparse
+    import importlib
+    import warnings
+
+    cli_main = importlib.import_module("rapid_cosim.cli.main")  # the module: rapid_cosim.cli.main is its function
+
+    def command(args):
+        for _ in range(3):
+            warnings.warn("frames flagged invalid in unit.csv are masked", UserWarning)
+        warnings.warn("another cause", UserWarning)
+        return 0
+
+    parser = argparse.ArgumentParser()
+    parser.set_defaults(func=command, command="identify")
+    monkeypatch.setattr(cli_main, "build_parser", lambda: parser)
+    assert cli_main.main([]) == 0
+    err = capsys.readouterr().err
+    assert err.count("warning: frames flagged invalid in unit.csv are masked") == 1
+    assert err.count("warning: another cause") == 1
+    assert "warning said 3 times: frames flagged invalid" in err and "warnings.warn(" not in err
