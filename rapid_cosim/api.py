@@ -156,7 +156,6 @@ def default_archive(folder: str | Path | None = None) -> Path:
     return folder / f"run-{datetime.now():%Y%m%d-%H%M%S-%f}.h5"
 
 
-@pinned
 def calibrate(experiments: Sequence[str | Path | Experiment] | str | Path | Experiment, method: str = "pf:10+nm",
               *, seed: int = 1, n_jobs: int = 1, archive: str | Path | None = None,
               options: Mapping[str, Mapping[str, object]] | None = None, runner: str = DEFAULT_RUNNER,
@@ -170,7 +169,7 @@ def calibrate(experiments: Sequence[str | Path | Experiment] | str | Path | Expe
     run_options = RunOptions(method=method, seed=seed, n_jobs=n_jobs, backend=joblib_backend, runner=runner,
                              scheduler=scheduler, estimator_options={m: dict(o) for m, o in (options or {}).items()})
     return calibrate_with(experiments, run_options.check(), archive=archive, progress=progress, package=package,
-                          fmu_dir=fmu_dir, compiler=compiler)
+                          fmu_dir=fmu_dir, compiler=compiler)  # calibrate_with pins the threads
 
 
 @pinned
@@ -244,7 +243,6 @@ def _partial_result(view: RunArchive) -> EstimationResult:
                             int(view.evaluations().failed.sum()))
 
 
-@pinned
 def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[str | Path | Experiment] = (),
              workdir: str | Path | None = None, seed: int = 1, n_jobs: int = 1, write_model: bool = False,
              package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, log=print, **options):
@@ -255,7 +253,7 @@ def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[s
     from .diagnose.workflow import DiagnoseOptions
 
     return diagnose_with(training, DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=write_model, **options),
-                         heldout=heldout, workdir=workdir, package=package, fmu_dir=fmu_dir, log=log)
+                         heldout=heldout, workdir=workdir, package=package, fmu_dir=fmu_dir, log=log)  # pinned there
 
 
 @pinned
