@@ -120,7 +120,7 @@ bench-electrical: fmus  ## fourteen ANDES events, TGOV1, IEEEG1, TG Type I (gene
 		--json $(RESULTS)/electrical/study.json
 
 fleet: fmus  ## one grid event, every unit: the five synthetic units of experiments/fleet (records on file checked, the failing ones identified) on 2 local workers; results/fleet/fleet.html
-	$(RC) fleet experiments/fleet/fleet.toml --results $(RESULTS)/fleet --workers $(N_JOBS); \
+	$(RC) fleet experiments/fleet/fleet.toml --results $(RESULTS)/fleet --n-jobs $(N_JOBS); \
 		status=$$?; echo "make fleet: $$(( $$(date +%s) - $(T0) )) s wall time (exit status $$status)"
 
 fleet-png: fmus  ## the README's picture of make fleet's page (docs/fleet_report.png); runs make fleet if needed

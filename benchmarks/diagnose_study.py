@@ -33,6 +33,7 @@ from pathlib import Path
 
 import joblib
 import numpy as np
+from rapid_cosim.compiler.source import ModelSource
 
 ROOT = Path(__file__).resolve().parents[1]
 PAIRS = ("rate_limit+load_controller", "deadband+measurement_lag")
@@ -115,18 +116,18 @@ def main(argv: list[str]) -> int:
         if args.calibration_only:
             return 0
     t0 = time.perf_counter()
-    cases = [draw_case(t, s, package=package, fmu_dir=fmu_dir)
+    cases = [draw_case(t, s, source=ModelSource(package=package, fmu_dir=fmu_dir))
              for t in args.effects.split(",") if t for s in _seeds(args.seeds)]
-    cases += [draw_case(t, s, package=package, fmu_dir=fmu_dir, kind="event")
+    cases += [draw_case(t, s, source=ModelSource(package=package, fmu_dir=fmu_dir), kind="event")
               for t in args.event_effects.split(",") if t for s in _seeds(args.seeds)]
-    cases += [draw_case("none", s, package=package, fmu_dir=fmu_dir) for s in _seeds(args.null_seeds)]
-    single = draw_case("deadband", 1, SINGLE_SIZE, package=package, fmu_dir=fmu_dir)
+    cases += [draw_case("none", s, source=ModelSource(package=package, fmu_dir=fmu_dir)) for s in _seeds(args.null_seeds)]
+    single = draw_case("deadband", 1, SINGLE_SIZE, source=ModelSource(package=package, fmu_dir=fmu_dir))
     options = DiagnoseOptions(write_model=False, max_effects=args.max_effects)
 
     def one(case, label):
         opts = replace(options, judge=_truth_labels(case.truth))
         try:
-            result = run_case(case, work / label, options=opts, package=package, fmu_dir=fmu_dir)
+            result = run_case(case, work / label, options=opts, source=ModelSource(package=package, fmu_dir=fmu_dir))
             result.check = _reached_from_truth(result) if case.kind == "event" and case.truth == "rate_limit" \
                 else None
         except Exception as e:  # one campaign's crash is a finding, not the end of the study
@@ -162,13 +163,12 @@ def calibration(n: int, work: Path, package: Path, fmu_dir: Path, n_jobs: int, j
     options = DiagnoseOptions(write_model=False)
 
     def one(seed):
-        case = draw_case("none", seed, package=package, fmu_dir=fmu_dir)
+        case = draw_case("none", seed, source=ModelSource(package=package, fmu_dir=fmu_dir))
         folder = work / "calibration" / case.label
-        experiments = [load_experiment(p) for p in write_campaign(case, folder / "data", package=package,
-                                                                  fmu_dir=fmu_dir)]
+        experiments = [load_experiment(p) for p in write_campaign(case, folder / "data", source=ModelSource(package=package, fmu_dir=fmu_dir))]
         truth = {k: v for k, v in case.plant.items() if k in ("gov.R", "gov.Ts")}
-        fit = fit_truth(case.label, experiments[:-1], experiments[-1:], truth, folder / "fit", options, package,
-                        fmu_dir)
+        fit = fit_truth(case.label, experiments[:-1], experiments[-1:], truth, folder / "fit", options,
+                        ModelSource(package, fmu_dir))
         shutil.rmtree(folder, ignore_errors=True)
         return fit
 

@@ -49,6 +49,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from rapid_cosim.compiler.source import ModelSource
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments" / "electrical"))
@@ -83,7 +84,7 @@ def fit(folder: Path, kind: str, fmu_dir: Path = ROOT / "fmus"):
     """The event's calibration read as ``kind`` (made once: show and the table share it)."""
     import rapid_cosim as rc
 
-    return rc.calibrate([variant(folder, kind)], method="ms", seed=1, fmu_dir=fmu_dir)
+    return rc.calibrate([variant(folder, kind)], method="ms", seed=1, source=ModelSource(fmu_dir=fmu_dir))
 
 
 def errors(folder: Path, kind: str, fmu_dir: Path = ROOT / "fmus", fitted=None) -> dict[str, float]:
@@ -119,7 +120,7 @@ def redraws(folders: list[Path], draws: int, workdir: Path) -> dict:
         for k in range(draws):
             f_noise, p_noise = generate.recorder_noise(clean["time"].size, np.random.default_rng(10_000 + k))
             generate.write_data(work / "data.csv", clean["time"], clean["FREQ"] + f_noise, clean["P"] + p_noise)
-            fitted = rc.calibrate([variant(work, "P_e, H fixed")], method="ms", seed=1, fmu_dir=ROOT / "fmus")
+            fitted = rc.calibrate([variant(work, "P_e, H fixed")], method="ms", seed=1, source=ModelSource(fmu_dir=ROOT / "fmus"))
             rows.append(errors(work, "P_e, H fixed", fitted=fitted))
         e = {name: np.array([r[name] for r in rows]) for name in rows[0]}
         within = float(np.mean((np.abs(e[fast]) < 0.15) & (np.abs(e[slow]) < 0.15)))
@@ -145,6 +146,7 @@ def calibration(folders: list[Path], draws: int, workdir: Path, n_jobs: int = 2)
     import generate
     import joblib
 
+    from rapid_cosim.compiler.source import ModelSource
     from rapid_cosim.diagnose.false_alarms import fit_truth, summary, summary_text, to_json
     from rapid_cosim.diagnose.workflow import DiagnoseOptions
 
@@ -162,8 +164,8 @@ def calibration(folders: list[Path], draws: int, workdir: Path, n_jobs: int = 2)
         generate.write_data(work / "data.csv", clean["time"], clean["FREQ"] + f_noise, clean["P"] + p_noise)
         exp = variant(work, "P_e, H fixed")
         values = {f"gov.{n}": v for n, v in truth["params"].items()}
-        return fit_truth(f"{folder.name}-{k}", [exp], [], values, work / "fit", options, ROOT / "modelica" / "iGrGen",
-                         ROOT / "fmus")
+        return fit_truth(f"{folder.name}-{k}", [exp], [], values, work / "fit", options,
+                         ModelSource(ROOT / "modelica" / "iGrGen", ROOT / "fmus"))
 
     fits = joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(one)(f, k) for k in range(draws) for f in folders)
     s = summary(fits)
@@ -229,13 +231,13 @@ def structures(folders: list[Path], workdir: Path) -> dict:
     for folder in folders:
         governor = json.loads((folder / "truth.json").read_text())["governor"]
         verdicts = {kind: select_structure(candidates, [variant(folder, kind)], workdir=workdir / folder.name / kind[:3],
-                                           options=RunOptions(method="ms", seed=1), fmu_dir=ROOT / "fmus",
+                                           options=RunOptions(method="ms", seed=1), source=ModelSource(fmu_dir=ROOT / "fmus"),
                                            log=lambda *_: None)
                     for kind in ("P_e, H fixed", "P_m recorded")}
         true = next(c for c in candidates if c.name == governor)
         effects = {kind: effects_on(true, [variant(folder, kind)], [], workdir=workdir / folder.name / f"e{kind[:3]}",
                                     options=DiagnoseOptions(method="ms", seed=1, write_model=False),
-                                    package=ROOT / "modelica" / "iGrGen", fmu_dir=ROOT / "fmus", log=lambda *_: None)
+                                    source=ModelSource(package=ROOT / "modelica" / "iGrGen", fmu_dir=ROOT / "fmus"), log=lambda *_: None)
                    for kind in ("P_e, H fixed", "P_m recorded")}
         pe, pm = verdicts["P_e, H fixed"], verdicts["P_m recorded"]
         out[folder.name] = {"truth": governor, **{k: {
@@ -282,7 +284,7 @@ def hidden_effects(folders: list[Path], workdir: Path, fmu_dir: Path = ROOT / "f
             d = _optional_rates(folder, kind, work, fmu_dir) if ieeeg1 else effects_on(
                 tg, [variant(folder, kind)], [], workdir=work, options=DiagnoseOptions(method="ms", seed=1,
                                                                                       write_model=False),
-                package=ROOT / "modelica" / "iGrGen", fmu_dir=fmu_dir, log=lambda *_: None)
+                source=ModelSource(package=ROOT / "modelica" / "iGrGen", fmu_dir=fmu_dir), log=lambda *_: None)
             first = d["ranking"][0]
             errors = {k: first["parameters"][k] / v - 1 for k, v in true.items() if k in first["parameters"]}
             row[kind] = {"effect": d["effect"], "adequate": d["adequate"], "first": first["label"],
@@ -309,7 +311,7 @@ def _optional_rates(folder: Path, kind: str, workdir: Path, fmu_dir: Path) -> di
     plain = replace(plain, fixed={k: v for k, v in plain.fixed.items() if k not in rates}, optional=rates,
                     carries="rate_limit")
     v = select_structure([plain, plain.with_optional()], [variant(folder, kind)], workdir=workdir,
-                         options=RunOptions(method="ms", seed=1), fmu_dir=fmu_dir, log=lambda *_: None)
+                         options=RunOptions(method="ms", seed=1), source=ModelSource(fmu_dir=fmu_dir), log=lambda *_: None)
     best = v.ranking[0]
     label = {plain.name: "none", plain.with_optional().name: "rate_limit"}
     return {"effect": label.get(v.structure, v.structure), "adequate": best.adequate,

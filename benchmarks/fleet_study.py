@@ -25,6 +25,8 @@ import sys
 import threading
 import time
 from pathlib import Path
+from rapid_cosim.fitting.engine import EngineSpec
+from rapid_cosim.compiler.source import ModelSource
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -65,14 +67,13 @@ def run(folder: Path, units: int | list[int], workers: int, results: Path, *, pr
     from rapid_cosim.fleet import run_fleet
     from rapid_cosim.fleet.synthetic import PRE_EVENT_S, make_fleet
 
-    spec = make_fleet(folder, units, experiments=ROOT / "experiments", seed=1, fmu_dir=ROOT / "fmus",
+    spec = make_fleet(folder, units, experiments=ROOT / "experiments", seed=1, source=ModelSource(fmu_dir=ROOT / "fmus"),
                       pre_event=pre_event or PRE_EVENT_S)
     if results.exists():
         shutil.rmtree(results)
     t0 = time.perf_counter()
     with PeakMemory() as memory:
-        result = run_fleet(spec, results=results, workers=workers, package=ROOT / "modelica" / "iGrGen",
-                           fmu_dir=ROOT / "fmus", check_only=check_only, log=lambda *_: None)
+        result = run_fleet(spec, results=results, engine=EngineSpec(n_jobs=workers, backend="dask"), source=ModelSource(package=ROOT / "modelica" / "iGrGen", fmu_dir=ROOT / "fmus"), check_only=check_only, log=lambda *_: None)
     return result, time.perf_counter() - t0, memory.peak_mb
 
 

@@ -28,6 +28,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from rapid_cosim.compiler.source import ModelSource
 
 ROOT = Path(__file__).resolve().parents[1]
 BEFORE = "b2983af"  # the last commit before the speed work (issue 42)
@@ -67,7 +68,7 @@ def run_fleet(tree: Path, fleet: Path, work: Path) -> dict:
     """The synthetic fleet on 2 workers under ``tree``'s code: the wall time, each unit's
     seconds, path and recommended record."""
     code = ("import json, sys, time\nimport rapid_cosim as rc\nt0 = time.perf_counter()\n"
-            f"r = rc.fleet({str(fleet)!r}, results={str(work / ('fleet-' + tree.name))!r}, workers=2, "
+            f"r = rc.fleet({str(fleet)!r}, results={str(work / ('fleet-' + tree.name))!r}, "  # 2 workers, the default
             "progress=False, log=lambda *_: None)\n"
             "rows = [u.to_json() if hasattr(u, 'to_json') else u for u in r.units]\n"
             "print(json.dumps({'wall': time.perf_counter() - t0, 'units': [{'unit': u['unit'], 'route': "
@@ -118,7 +119,7 @@ def main(argv=None) -> None:
 
         spec = work / "fleet" / "fleet.toml"
         if not spec.exists():
-            make_fleet(work / "fleet", args.fleet, experiments=ROOT / "experiments", seed=1, fmu_dir=ROOT / "fmus")
+            make_fleet(work / "fleet", args.fleet, experiments=ROOT / "experiments", seed=1, source=ModelSource(fmu_dir=ROOT / "fmus"))
         fleets = {k: run_fleet(tree, spec, work) for k, tree in trees.items()}
     lines = []
     for name in units:

@@ -67,6 +67,16 @@ WORK = {
 }
 
 
+def _workers(rc, n: int) -> dict:
+    """identify's keyword for ``n`` workers: ``engine=`` since issue 43, ``n_jobs=`` before
+    (``make bench-identify`` runs this file under older revisions too)."""
+    import inspect
+
+    if "engine" in inspect.signature(rc.identify).parameters:
+        return {"engine": rc.EngineSpec(n_jobs=n)}
+    return {"n_jobs": n}
+
+
 class Clock:
     """Seconds by stage (each stage's own time, its nested stages' left out) and by (stage,
     kind of work): a kind's time goes to the stage running when it started, and to the
@@ -169,12 +179,12 @@ def profile_unit(unit: Path, work: Path) -> dict:
     clock = Clock()
     t0 = time.perf_counter()
     with instrumented(clock):
-        rc.identify(unit, workdir=work / "one", n_jobs=1, report=True, pdf=False, log=lambda *_: None)
+        rc.identify(unit, workdir=work / "one", **_workers(rc, 1), report=True, pdf=False, log=lambda *_: None)
     wall_one = time.perf_counter() - t0
     clock.stage_seconds["other"] += wall_one - clock.frames[0][1]
     cpu0 = cpu_seconds()
     t0 = time.perf_counter()
-    ident = rc.identify(unit, workdir=work / "two", n_jobs=2, report=True, pdf=False, log=lambda *_: None)
+    ident = rc.identify(unit, workdir=work / "two", **_workers(rc, 2), report=True, pdf=False, log=lambda *_: None)
     wall_two = time.perf_counter() - t0
     cpu = cpu_seconds() - cpu0
     table = {}

@@ -50,6 +50,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+from rapid_cosim.fitting.engine import EngineSpec
+from rapid_cosim.compiler.source import ModelSource
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments" / "electrical"))
@@ -189,7 +191,7 @@ def identify(unit: Path, workdir: Path):
     import rapid_cosim as rc
 
     t0 = time.perf_counter()
-    result = rc.identify(unit, workdir=workdir, n_jobs=2, report=False, log=lambda *_: None)
+    result = rc.identify(unit, workdir=workdir, engine=EngineSpec(n_jobs=2), report=False, log=lambda *_: None)
     return result, time.perf_counter() - t0
 
 
@@ -286,8 +288,8 @@ def fleet_rows(work: Path, units: int) -> list[dict]:
     folder = work / "fleet"
     spec = folder / "fleet.toml"
     if not spec.exists():
-        make_fleet(folder, units, experiments=ROOT / "experiments", seed=1, fmu_dir=ROOT / "fmus")
-    result = rc.fleet(spec, results=folder / "results", workers=2, progress=False)
+        make_fleet(folder, units, experiments=ROOT / "experiments", seed=1, source=ModelSource(fmu_dir=ROOT / "fmus"))
+    result = rc.fleet(spec, results=folder / "results", engine=EngineSpec(n_jobs=2, backend="dask"), progress=False)
     event = andes_grid.GridEvent(load=+1, t_event=PRE_EVENT_S, duration=60.0 - 10.0 + PRE_EVENT_S)
     out = []
     for u in result.units:

@@ -21,6 +21,7 @@ import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
+from rapid_cosim.compiler.source import ModelSource
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,8 +57,8 @@ def _campaign(kind: str, work: Path):
         shutil.copytree(ROOT / "modelica" / "iGrGen", package)
         build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in EFFECTS.values())])), package=package,
                      fmu_dir=work / "fmus", log=lambda *_: None)
-    case = draw_case("rate_limit", 1, package=package, fmu_dir=work / "fmus", kind=kind)
-    configs = write_campaign(case, work / kind, package=package, fmu_dir=work / "fmus")
+    case = draw_case("rate_limit", 1, source=ModelSource(package=package, fmu_dir=work / "fmus"), kind=kind)
+    configs = write_campaign(case, work / kind, source=ModelSource(package=package, fmu_dir=work / "fmus"))
     exps = [load_experiment(c) for c in configs]
     return exps[:-1], exps[-1:], package, work / "fmus"
 
@@ -81,8 +82,7 @@ def measure(label: str, workload, options, counter: Counter, work: Path) -> None
         folder = work / f"{label}-{n_jobs}"
         shutil.rmtree(folder, ignore_errors=True)
         t0 = time.perf_counter()
-        d = diagnose(training, heldout, workdir=folder, options=replace(options, n_jobs=n_jobs), package=package,
-                     fmu_dir=fmu_dir, log=lambda *_: None)
+        d = diagnose(training, heldout, workdir=folder, options=replace(options, n_jobs=n_jobs), source=ModelSource(package=package, fmu_dir=fmu_dir), log=lambda *_: None)
         rows.append((time.perf_counter() - t0, counter.sets - before[0], counter.seconds - before[1], d))
     (wall1, sets, seconds, d), (wall2, *_rest) = rows
     tests = len(training) + len(heldout)

@@ -29,6 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(argv: list[str]) -> int:
     from rapid_cosim.compiler import build_models
+    from rapid_cosim.compiler.source import ModelSource
     from rapid_cosim.identify.study import STANDARD, Structure, case_line, miss_lines, \
         run_structure_case, summary_text
 
@@ -55,7 +56,7 @@ def main(argv: list[str]) -> int:
     t0 = time.perf_counter()
     cases = []
     for case in joblib.Parallel(n_jobs=args.n_jobs, return_as="generator")(
-            joblib.delayed(run_structure_case)(t, s, work / "cases", package=package, fmu_dir=fmu_dir,
+            joblib.delayed(run_structure_case)(t, s, work / "cases", source=ModelSource(package, fmu_dir),
                                               structures_dir=structures_dir)
             for t, s in jobs):
         cases.append(case)

@@ -40,6 +40,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from rapid_cosim.compiler.source import ModelSource
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments" / "electrical"))
@@ -189,9 +190,8 @@ def judge(folder: Path, kind: str, work: Path) -> dict:
     scratch = work / "runs" / folder.parent.name / folder.name / kind
     t0 = time.perf_counter()
     verdict = select_structure(candidate_structures(), [exp], workdir=scratch / "structures",
-                               options=RunOptions(method="ms", seed=1), fmu_dir=ROOT / "fmus", log=lambda *_: None)
-    d = rc.diagnose([exp], workdir=scratch / "diagnosis", seed=1, package=ROOT / "modelica" / "iGrGen",
-                    fmu_dir=ROOT / "fmus", log=lambda *_: None)
+                               options=RunOptions(method="ms", seed=1), source=ModelSource(fmu_dir=ROOT / "fmus"), log=lambda *_: None)
+    d = rc.diagnose([exp], workdir=scratch / "diagnosis", seed=1, source=ModelSource(package=ROOT / "modelica" / "iGrGen", fmu_dir=ROOT / "fmus"), log=lambda *_: None)
     se = {k: (hi - lo) / 2 / 1.645 for k, (lo, hi) in d.parameter_intervals.items()}
     return {"structure": verdict.structure, "candidates": verdict.candidates, "effect": d.named.verdict,
             "parameters": d.parameters_after, "se": se,

@@ -13,7 +13,9 @@ The public API, in the manner of scipy.optimize::
 writes a calibration of a standard governor as a PSS/E ``.dyr`` or PSLF ``.dyd`` record;
 ``identify`` delivers one unit's record, ``fleet`` checks and identifies many;
 ``check`` loads and checks what any of them would run on, before it runs;
-:class:`Experiment` is made from a config file or in code.
+:class:`Experiment` is made from a config file or in code. Where the models come from is
+one :class:`ModelSource` (the package, its FMU folder, the compiler) and where the work
+runs one :class:`EngineSpec` (workers, backend, scheduler), each passed down whole.
 
 The package follows the way data flows, each module knowing only those before it
 (``docs/architecture.md`` draws it; a test checks the imports)::
@@ -36,9 +38,11 @@ from . import diagnose as _diagnose, fleet as _fleet, identify as _identify  # n
 from .api import Calibration, calibrate, diagnose, export, identify, load, rerun, resume, simulate  # noqa: E402
 from .fleet import run_fleet as fleet  # noqa: E402
 from .check import check  # noqa: E402
+from .compiler.source import ModelSource  # noqa: E402
+from .fitting.engine import EngineSpec  # noqa: E402
 from .experiment import Experiment, experiment_from_arrays, experiment_from_frame, load_experiment  # noqa: E402
 from .simulator import Trajectory  # noqa: E402
 
-__all__ = ["Calibration", "Experiment", "Trajectory", "experiment_from_arrays", "experiment_from_frame",
+__all__ = ["Calibration", "EngineSpec", "Experiment", "ModelSource", "Trajectory", "experiment_from_arrays", "experiment_from_frame",
            "load_experiment", "calibrate", "check", "diagnose", "export", "fleet", "identify", "load", "rerun", "resume",
            "simulate", "__version__"]

@@ -28,12 +28,12 @@ from .archive import RunArchive
 from .calibration import RunInputs, RunOptions, inputs_from_archive, inputs_from_experiments
 from .calibration import rerun as _rerun
 from .calibration import resume_run, start_run
-from .compiler import ensure_fmu
+from .compiler.source import ModelSource
 from .errors import ArchiveError, ConfigError, ParameterError, RapidCosimError
 from .estimators.base import EstimationResult
 from .estimators.uncertainty import Uncertainty
 from .experiment import Experiment, load_experiment
-from .fitting.engine import pinned_threads
+from .fitting.engine import EngineSpec, pinned_threads
 from .simulator import DEFAULT_RUNNER, BatchResult, Trajectory, get_simulator
 
 
@@ -47,8 +47,6 @@ def pinned(func):
     return run
 
 
-PACKAGE = None  # the iGrGen shipped inside rapid_cosim ($RAPID_COSIM_PACKAGE): compiler.default_package
-FMU_DIR = None  # the user's cache ($RAPID_COSIM_FMUS): compiler.default_fmu_dir
 DELIVERABLES = ("unit.dyr", "unit.dyd", "report.html", "report.pdf")  # what identify writes into its workdir
 
 
@@ -157,50 +155,49 @@ def default_archive(folder: str | Path | None = None) -> Path:
 
 
 def calibrate(experiments: Sequence[str | Path | Experiment] | str | Path | Experiment, method: str = "pf:10+nm",
-              *, seed: int = 1, n_jobs: int = 1, archive: str | Path | None = None,
+              *, seed: int = 1, engine: EngineSpec = EngineSpec(), archive: str | Path | None = None,
               options: Mapping[str, Mapping[str, object]] | None = None, runner: str = DEFAULT_RUNNER,
-              joblib_backend: str = "loky", scheduler: str | None = None, progress: bool = False,
-              package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, compiler: str = "auto") -> Calibration:
+              progress: bool = False, source: ModelSource = ModelSource()) -> Calibration:
     """Estimate the experiments' ``[estimate]`` parameters jointly with ``method`` (a chain
     such as ``"pf:10+nm"``, ``"pso:10+nm"``, ``"smc"``). Every iteration is archived in
     ``archive`` (default: a new file in a temporary folder, named by the result), so the
     run can be resumed, re-run or loaded later. ``options`` overrides estimator options,
-    ``{"pf": {"n_particles": 100}}``."""
-    run_options = RunOptions(method=method, seed=seed, n_jobs=n_jobs, backend=joblib_backend, runner=runner,
-                             scheduler=scheduler, estimator_options={m: dict(o) for m, o in (options or {}).items()})
-    return calibrate_with(experiments, run_options.check(), archive=archive, progress=progress, package=package,
-                          fmu_dir=fmu_dir, compiler=compiler)  # calibrate_with pins the threads
+    ``{"pf": {"n_particles": 100}}``. ``engine`` says where the simulations run
+    (``EngineSpec(n_jobs=2)``: two local processes; ``EngineSpec(backend="dask",
+    scheduler=...)``: a dask cluster); ``source`` where the models come from (the
+    package, its FMU folder, the compiler)."""
+    run_options = RunOptions(method=method, seed=seed, engine=engine, runner=runner,
+                             estimator_options={m: dict(o) for m, o in (options or {}).items()})
+    return calibrate_with(experiments, run_options.check(), archive=archive, progress=progress,
+                          source=source)  # calibrate_with pins the threads
 
 
 @pinned
 def calibrate_with(experiments: Sequence[str | Path | Experiment] | str | Path | Experiment, run_options: RunOptions,
                    *, archive: str | Path | None = None, progress: bool = False,
-                   package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR,
-                   compiler: str = "auto") -> Calibration:
+                   source: ModelSource = ModelSource()) -> Calibration:
     """:func:`calibrate` with its options already built and checked (the CLI checks them
     once, before it reads a recording or announces a run)."""
-    inputs = inputs_from_experiments(as_experiments(experiments), package=package, fmu_dir=fmu_dir,
-                                     compiler=compiler)
+    inputs = inputs_from_experiments(as_experiments(experiments), source=source)
     path = Path(archive) if archive is not None else default_archive()
     result = start_run(inputs, run_options, path, progress=progress)
     return _calibration(result, inputs, path, "finished")
 
 
 @pinned
-def resume(path: str | Path, *, n_jobs: int | None = None, joblib_backend: str | None = None,
-           scheduler: str | None = None, progress: bool = False) -> Calibration:
-    """Continue an interrupted run from its archive, on the archived workers or others
-    (``joblib_backend``, ``scheduler``); the result is the uninterrupted one."""
-    result = resume_run(path, n_jobs=n_jobs, backend=joblib_backend, scheduler=scheduler, progress=progress)
+def resume(path: str | Path, *, engine: EngineSpec | None = None, progress: bool = False) -> Calibration:
+    """Continue an interrupted run from its archive, on the archived engine or on
+    ``engine``; the result is the uninterrupted one."""
+    result = resume_run(path, engine=engine, progress=progress)
     return _calibration(result, _inputs(path), Path(path), "finished")
 
 
 @pinned
-def rerun(path: str | Path, *, n_jobs: int | None = None, joblib_backend: str | None = None,
-          scheduler: str | None = None, progress: bool = False) -> Calibration:
+def rerun(path: str | Path, *, engine: EngineSpec | None = None, progress: bool = False) -> Calibration:
     """Execute an archived run again from the archive alone and compare it bit for bit
-    (``identical``; ``message`` names the first difference when there is one)."""
-    report = _rerun(path, n_jobs=n_jobs, backend=joblib_backend, scheduler=scheduler, progress=progress)
+    (``identical``; ``message`` names the first difference when there is one), on the
+    archived engine or on ``engine``."""
+    report = _rerun(path, engine=engine, progress=progress)
     calib = _calibration(report.result, _inputs(path), Path(path), "finished" if report.finished else "unfinished",
                          identical=report.identical)
     if not report.identical:
@@ -244,36 +241,35 @@ def _partial_result(view: RunArchive) -> EstimationResult:
 
 
 def diagnose(training: Sequence[str | Path | Experiment], *, heldout: Sequence[str | Path | Experiment] = (),
-             workdir: str | Path | None = None, seed: int = 1, n_jobs: int = 1, write_model: bool = False,
-             package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, log=print, **options):
+             workdir: str | Path | None = None, seed: int = 1, engine: EngineSpec = EngineSpec(),
+             write_model: bool = False, source: ModelSource = ModelSource(), log=print, **options):
     """Find what the base model misses on the ``training`` experiments (confirmed on the
     ``heldout`` ones): see :mod:`rapid_cosim.diagnose`. Returns its
     :class:`~rapid_cosim.diagnose.workflow.Diagnosis`; ``options`` are those of
     :class:`~rapid_cosim.diagnose.workflow.DiagnoseOptions`."""
     from .diagnose.workflow import DiagnoseOptions
 
-    return diagnose_with(training, DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=write_model, **options),
-                         heldout=heldout, workdir=workdir, package=package, fmu_dir=fmu_dir, log=log)  # pinned there
+    return diagnose_with(training, DiagnoseOptions(seed=seed, engine=engine, write_model=write_model, **options),
+                         heldout=heldout, workdir=workdir, source=source, log=log)  # pinned there
 
 
 @pinned
 def diagnose_with(training: Sequence[str | Path | Experiment], options, *,
                   heldout: Sequence[str | Path | Experiment] = (), workdir: str | Path | None = None,
-                  package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, log=print):
+                  source: ModelSource = ModelSource(), log=print):
     """:func:`diagnose` with its :class:`~rapid_cosim.diagnose.workflow.DiagnoseOptions`
     already built (and so checked: the CLI builds them once, before it reads anything)."""
     from .diagnose.workflow import diagnose as run_diagnosis
 
     folder = Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="rapid_cosim_diagnose_"))
     return run_diagnosis(as_experiments(training), as_experiments(heldout) if heldout else [], workdir=folder,
-                         options=options, package=package, fmu_dir=fmu_dir, log=log)
+                         options=options, source=source, log=log)
 
 
 @pinned
-def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int = 1, n_jobs: int = 1,
-             package: str | Path | None = PACKAGE, fmu_dir: str | Path | None = FMU_DIR, backend: str = "loky",
-             scheduler: str | None = None, mva: float | None = None, report: bool = True, pdf: bool = True,
-             log=print):
+def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int = 1,
+             engine: EngineSpec = EngineSpec(), source: ModelSource = ModelSource(), mva: float | None = None,
+             report: bool = True, pdf: bool = True, log=print):
     """One identification of the unit described by ``unit`` (a ``unit.toml`` or its
     folder, see :mod:`rapid_cosim.identify.unit`): the explanation, every standard
     record's calibration and fidelity, the recommended record written into ``workdir``
@@ -296,8 +292,7 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
     if report and no_pdf and pdf:
         log(f"the report will be HTML only: {no_pdf}")
     folder = Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="rapid_cosim_identify_"))
-    result = run_identification(spec, workdir=folder, seed=seed, n_jobs=n_jobs, package=package, fmu_dir=fmu_dir,
-                                backend=backend, scheduler=scheduler, log=log)
+    result = run_identification(spec, workdir=folder, seed=seed, engine=engine, source=source, log=log)
     for path in DELIVERABLES:  # an earlier run's file must not pass for this run's (kept if this one fails)
         (folder / path).unlink(missing_ok=True)
     if result.recommended is None:
@@ -315,9 +310,9 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
         result.notes["report"] = "not asked for (--no-report)"
         return result
     log(f"the validation report of {record.fit} ...")
-    page = validation_page(record.archive, folder / "report.html", n_jobs=n_jobs, heldout=result.heldout_configs,
+    page = validation_page(record.archive, folder / "report.html", engine=engine, heldout=result.heldout_configs,
                            diagnosis=result.diagnosis, bus=spec.bus, machine_id=spec.machine_id, mva=spec.mva,
-                           package=package, fmu_dir=fmu_dir, record_note=record_note(result))
+                           source=source, record_note=record_note(result))
     result.files["report"] = str(page.path)
     if no_pdf:
         result.notes["pdf"] = no_pdf
@@ -332,8 +327,7 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
 def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None, *,
              stop_time: float | None = None, output_interval: float | None = None, output_times=None,
              outputs: Sequence[str] | None = None, input_time=None, inputs: Mapping[str, np.ndarray] | None = None,
-             runner: str = DEFAULT_RUNNER, timeout: float | None = None, package: str | Path | None = PACKAGE,
-             fmu_dir: str | Path | None = FMU_DIR, compiler: str = "auto",
+             runner: str = DEFAULT_RUNNER, timeout: float | None = None, source: ModelSource = ModelSource(),
              communication_step: float | None = None) -> Trajectory | BatchResult:
     """Simulate a model of the package (a class name, built if needed) or any FMI 2.0 or
     3.0 FMU, Model Exchange or Co-Simulation (a path ending in ``.fmu``).
@@ -354,7 +348,7 @@ def simulate(model: str | Path, parameters: Mapping[str, float] | Sequence[Mappi
                 "input_time=..., inputs=...)" if isinstance(model, Experiment) else "")
         raise ParameterError(f"model must be a class name of the package or a path to an .fmu; got "
                              f"{type(model).__name__}{hint}")
-    fmu = ensure_fmu(str(model), package=package, fmu_dir=fmu_dir, compiler=compiler)
+    fmu = source.fmu(str(model))
     sim = get_simulator(fmu, timeout=timeout)
     grid = dict(stop_time=stop_time, output_interval=output_interval, output_times=output_times, outputs=outputs,
                 input_time=input_time, inputs=inputs, runner=runner, communication_step=communication_step)

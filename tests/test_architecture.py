@@ -350,3 +350,45 @@ def test_a_long_module_says_why():
             if LONG_REASON not in doc or len(doc.split(LONG_REASON, 1)[1].strip()) < 20:
                 long.append(f"{'/'.join(parts)} ({text.count(chr(10))} lines)")
     assert not long, f"modules over {LONG} lines without '{LONG_REASON} <why>' in their docstring: {long}"
+
+
+# The loose settings that ModelSource and EngineSpec stand for, and the rooms that may still
+# take them one by one: the compiler (which ModelSource calls), the engine itself, and the
+# CLI's parser (which reads them off the command line).
+LOOSE = {"package": "source", "fmu_dir": "source", "compiler": "source", "n_jobs": "engine", "backend": "engine",
+         "joblib_backend": "engine", "scheduler": "engine", "workers": "engine"}
+LOOSE_ALLOWED = {("compiler",), ("fitting", "engine"), ("cli", "parser")}
+# a parameter of the same name that means something else, each with its reason
+LOOSE_ELSEWHERE = {
+    ("diagnose/catalogue", "write_bench", "package"): "the package folder a bench is written into, not a source",
+    ("fleet/result", "<field>", "workers"): "how many workers the fleet ran on: a figure of the result, not a setting",
+}
+
+
+def _loose_parameters(tree: ast.AST, where: str) -> list[str]:
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            a = node.args
+            for arg in [*a.posonlyargs, *a.args, *a.kwonlyargs]:
+                if arg.arg in LOOSE and (where, node.name, arg.arg) not in LOOSE_ELSEWHERE:
+                    found.append(f"{where}: {node.name}({arg.arg}) -> {LOOSE[arg.arg]}")
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and node.target.id in LOOSE \
+                and (where, "<field>", node.target.id) not in LOOSE_ELSEWHERE:
+            found.append(f"{where}: field {node.target.id} -> {LOOSE[node.target.id]}")
+    return found
+
+
+def test_one_model_source_and_one_engine_are_passed_down():
+    """Above the compiler and the engine, no function takes (and no dataclass holds) the
+    package, the FMU folder, the compiler, the workers, the backend or the scheduler one by
+    one: they travel as one ``ModelSource`` and one ``EngineSpec`` (issue 43)."""
+    found = []
+    for path, parts in _modules():
+        if any(parts[:len(p)] == p for p in LOOSE_ALLOWED):
+            continue
+        found += _loose_parameters(ast.parse(path.read_text()), "/".join(parts))
+    assert not found, found
+    caught = _loose_parameters(ast.parse("def f(x, *, fmu_dir=None): ...\nclass O:\n    n_jobs: int = 1\n"
+                                         "def write_bench(package): ...\n"), "diagnose/catalogue")
+    assert caught == ["diagnose/catalogue: f(fmu_dir) -> source", "diagnose/catalogue: field n_jobs -> engine"]

@@ -20,6 +20,7 @@ import pytest
 from rapid_cosim.errors import DeliveryError
 from rapid_cosim.exchange import read_record
 from rapid_cosim.simulator import Simulator
+from rapid_cosim.compiler.source import ModelSource
 
 TOLERANCE_PU = 1e-9
 STEP = {"gov.p_ref": 0.6, "src.df": -0.2, "src.t_step": 5.0, "src.t_return": 25.0}
@@ -169,7 +170,7 @@ def test_the_fleets_check_of_its_own_record_fails_when_the_file_is_not_the_fit(r
 
     plan = draw_unit(6, 1)
     assert plan.structure == "IEEEG1" and not plan.record_right  # its record on file fails: it is identified
-    spec = make_fleet(tmp_path / "fleet", [6], experiments=repo / "experiments", seed=1, fmu_dir=repo / "fmus")
+    spec = make_fleet(tmp_path / "fleet", [6], experiments=repo / "experiments", seed=1, source=ModelSource(fmu_dir=repo / "fmus"))
 
     def unchecked(inputs, parameters, x, out, *, kind, source, bus, machine_id, mva=None, **_):
         record = standard_record(inputs, parameters, x, source=source)
@@ -181,8 +182,7 @@ def test_the_fleets_check_of_its_own_record_fails_when_the_file_is_not_the_fit(r
                         property(lambda self: tuple(p for p in self.params if p not in ("p_ref", "Pmwset", "K3_rest"))))
     monkeypatch.setattr(delivery, "deliver_record", unchecked)
     entry = load_fleet(spec).units[0]
-    result = run_unit(entry, FleetOptions(results=str(tmp_path / "results"), package=str(repo / "modelica" / "iGrGen"),
-                                          fmu_dir=str(repo / "fmus")))
+    result = run_unit(entry, FleetOptions(results=str(tmp_path / "results"), source=ModelSource(package=str(repo / "modelica" / "iGrGen"), fmu_dir=str(repo / "fmus"))))
     assert result.route is Route.FAILED
     assert re.search(r"unit\.dyr: the record written does not reproduce the fit it was written from \(.* pu off",
                      result.error), result.error

@@ -21,6 +21,7 @@ from rapid_cosim.diagnose.selection import NoiseFloor, Verdict
 from rapid_cosim.noise import NoiseFit, RecorderNoise
 from rapid_cosim.diagnose.study import CAMPAIGN, draw_case, run_case
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
+from rapid_cosim.compiler.source import ModelSource
 
 
 def _residuals(r, name="t"):
@@ -45,9 +46,8 @@ def test_materiality_measures_size_from_off_to_material():
 @pytest.mark.parametrize("foreign", ["boiler_dip", "valve_curve"])
 def test_an_effect_outside_the_catalogue_is_unexplained(study, tmp_path, foreign):
     work, package, fmu_dir = study
-    case = draw_case(foreign, 1, package=package, fmu_dir=fmu_dir)
-    d = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False), package=package,
-                 fmu_dir=fmu_dir).diagnosis
+    case = draw_case(foreign, 1, source=ModelSource(package=package, fmu_dir=fmu_dir))
+    d = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False), source=ModelSource(package=package, fmu_dir=fmu_dir)).diagnosis
     record = json.loads(json.dumps(d.to_json()))
     assert record["effect"] == "unexplained", record["reason"]
     assert record["effects"] == [] and record["adequate"] is False
@@ -88,9 +88,9 @@ def test_a_detectable_but_immaterial_deadband_leaves_the_verdict_none():
 
 def test_misfit_locations_name_the_phase_and_the_scaling(study, tmp_path):
     work, package, fmu_dir = study
-    case = draw_case("valve_curve", 2, package=package, fmu_dir=fmu_dir)
+    case = draw_case("valve_curve", 2, source=ModelSource(package=package, fmu_dir=fmu_dir))
     d = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False, max_effects=1, candidates=("delay",)),
-                 package=package, fmu_dir=fmu_dir).diagnosis
+                 source=ModelSource(package=package, fmu_dir=fmu_dir)).diagnosis
     where = d.adequacy.unexplained["where"]
     assert where["flagged"], where
     assert max(where["phases"].values()) > 1.5

@@ -24,6 +24,7 @@ from rapid_cosim.diagnose.catalogue import INPUT_BENCH, bench_name, write_bench
 from rapid_cosim.experiment import load_experiment
 from rapid_cosim.simulator import Simulator
 from rapid_cosim.experiment.synthetic import NoiseModel, synthesize_event
+from rapid_cosim.compiler.source import ModelSource
 
 TRUTH = {"gov.R": 0.055, "gov.Ts": 1.6, "gov.p_ref": 0.6, "gov.Tc": 0.4, "gov.T3": 0.2, "gov.T4": 1.5,
          "gov.T5": 6.0, "gov.pmax": 1.0, "gov.pmin": 0.0, "f_nom": 50.0}
@@ -72,8 +73,7 @@ def test_diagnose_names_what_is_hidden_in_a_recorded_event(repo, package, tmp_pa
     shutil.copy(repo / "experiments/event1/config.toml", folder / "config.toml")
     exp = load_experiment(folder)
     options = DiagnoseOptions(write_model=False, max_effects=1, candidates=("rate_limit", "delay"))
-    result = diagnose([exp], workdir=tmp_path / "work", options=options, package=root / "iGrGen",
-                      fmu_dir=root / "fmus", log=lambda *_: None)
+    result = diagnose([exp], workdir=tmp_path / "work", options=options, source=ModelSource(package=root / "iGrGen", fmu_dir=root / "fmus"), log=lambda *_: None)
     assert result.effect == expected, result.named.reason
     assert result.adequate, result.adequacy.after
     if hidden:  # the binding opening rate found

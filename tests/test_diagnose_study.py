@@ -17,6 +17,7 @@ import pytest
 from rapid_cosim.cli import main
 from rapid_cosim.diagnose.study import HIDDEN, SINGLE_SIZE, confusion_text, draw_case, run_case, write_campaign
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
+from rapid_cosim.compiler.source import ModelSource
 
 SEEDS = (1, 2)
 
@@ -24,12 +25,12 @@ SEEDS = (1, 2)
 @pytest.fixture(scope="module")
 def results(study):
     work, package, fmu_dir = study
-    cases = [draw_case(t, s, package=package, fmu_dir=fmu_dir) for t in [*HIDDEN, "none"] for s in SEEDS]
-    cases.append(draw_case("deadband", 1, SINGLE_SIZE, package=package, fmu_dir=fmu_dir))
+    cases = [draw_case(t, s, source=ModelSource(package=package, fmu_dir=fmu_dir)) for t in [*HIDDEN, "none"] for s in SEEDS]
+    cases.append(draw_case("deadband", 1, SINGLE_SIZE, source=ModelSource(package=package, fmu_dir=fmu_dir)))
     options = DiagnoseOptions(write_model=False, max_effects=1)
     out = joblib.Parallel(n_jobs=2)(
         joblib.delayed(run_case)(c, work / ("single" if c.steps == SINGLE_SIZE else "cases"), options=options,
-                                 package=package, fmu_dir=fmu_dir) for c in cases)
+                                 source=ModelSource(package, fmu_dir)) for c in cases)
     campaigns = [r for r in out if r.case.steps != SINGLE_SIZE]
     print("\n" + confusion_text(campaigns))
     return campaigns, [r for r in out if r.case.steps == SINGLE_SIZE][0]
@@ -76,8 +77,8 @@ def test_named_effect_is_written_compiled_recalibrated_through_the_cli(study, tm
     work, package, fmu_dir = study
     own = tmp_path / "iGrGen"
     shutil.copytree(package, own)
-    case = draw_case("backlash", 3, package=package, fmu_dir=fmu_dir)
-    configs = write_campaign(case, tmp_path / "data", package=package, fmu_dir=fmu_dir)
+    case = draw_case("backlash", 3, source=ModelSource(package=package, fmu_dir=fmu_dir))
+    configs = write_campaign(case, tmp_path / "data", source=ModelSource(package=package, fmu_dir=fmu_dir))
     verdict = tmp_path / "verdict.json"
     assert main(["diagnose", *map(str, configs), "--holdout", "step4", "--results", str(tmp_path / "diagnosis"),
                  "--json", str(verdict), "--max-effects", "1", "--package", str(own),
@@ -102,18 +103,16 @@ def test_a_variant_of_form_is_not_blamed_on_the_documentation(study, tmp_path):
     the load controller, its variant, or say it cannot tell the variant from a freed
     constant, but never blames the documented T5 alone."""
     work, package, fmu_dir = study
-    case = draw_case("load_controller_filtered", 2, package=package, fmu_dir=fmu_dir)
-    result = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False, max_effects=2), package=package,
-                      fmu_dir=fmu_dir)
+    case = draw_case("load_controller_filtered", 2, source=ModelSource(package=package, fmu_dir=fmu_dir))
+    result = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False, max_effects=2), source=ModelSource(package=package, fmu_dir=fmu_dir))
     d = result.diagnosis.named
     assert result.correct and not result.documentation_blamed, (d.verdict, d.candidates, d.reason)
 
 
 def test_two_hidden_effects_are_both_named_greedily(study, tmp_path):
     work, package, fmu_dir = study
-    case = draw_case("rate_limit+load_controller", 1, package=package, fmu_dir=fmu_dir)
-    result = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False, max_effects=2), package=package,
-                      fmu_dir=fmu_dir)
+    case = draw_case("rate_limit+load_controller", 1, source=ModelSource(package=package, fmu_dir=fmu_dir))
+    result = run_case(case, tmp_path, options=DiagnoseOptions(write_model=False, max_effects=2), source=ModelSource(package=package, fmu_dir=fmu_dir))
     d = result.diagnosis.named
     assert set(d.effects) == {"rate_limit", "load_controller"}, (d.effect, d.effects, d.reason)
     assert result.gap_shrink >= 0.5

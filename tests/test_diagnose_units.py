@@ -152,7 +152,7 @@ def test_laplace_never_evaluates_outside_the_bounds():
     assert np.isfinite(g.std).all()
 
 
-def test_a_named_model_goes_into_the_users_package_never_the_shipped_one(tmp_path):
+def test_a_named_model_goes_into_the_users_package_never_the_shipped_one(tmp_path, monkeypatch):
     """Without --package (or $RAPID_COSIM_PACKAGE) the package is the one inside
     rapid_cosim, which in a virtual environment is writable: the model goes into the work
     folder's copy all the same. A package of the user's is written where it can be, its
@@ -160,17 +160,22 @@ def test_a_named_model_goes_into_the_users_package_never_the_shipped_one(tmp_pat
     import os
     from types import SimpleNamespace
 
+    from rapid_cosim.compiler.source import ModelSource
     from rapid_cosim.diagnose.workflow import written_into
 
     own, copy = tmp_path / "iGrGen", tmp_path / "work" / "package" / "iGrGen"
     (own / "Diagnosed").mkdir(parents=True)
-    shipped = written_into(SimpleNamespace(package_is_users=False, user_package=own, package=copy))
+    def ctx(users: bool):  # a diagnosis's sources: the user's (named, or the shipped one) and the work copy
+        return SimpleNamespace(user_source=ModelSource(own if users else None), source=ModelSource(copy))
+
+    monkeypatch.delenv("RAPID_COSIM_PACKAGE", raising=False)
+    shipped = written_into(ctx(False))
     assert shipped[0] == copy and "copy of the shipped package" in shipped[1]
-    assert written_into(SimpleNamespace(package_is_users=True, user_package=own, package=copy)) == (own, "")
+    assert written_into(ctx(True)) == (own, "")
     (own / "Diagnosed").chmod(0o500)
     try:
         if not os.access(own / "Diagnosed", os.W_OK):  # root may write anyway
-            where, why = written_into(SimpleNamespace(package_is_users=True, user_package=own, package=copy))
+            where, why = written_into(ctx(True))
             assert where == copy and "cannot be written" in why
     finally:
         (own / "Diagnosed").chmod(0o700)

@@ -20,6 +20,7 @@ from rapid_cosim.experiment import load_experiment
 from rapid_cosim.experiment.electrical import D_RANGE, H_RANGE
 from rapid_cosim.simulator import Simulator
 from rapid_cosim.simulator.rocof import derive_rocof, noise_gain
+from rapid_cosim.compiler.source import ModelSource
 
 F_NOM = 60.0
 T = np.arange(0.0, 40.0, 0.02)
@@ -120,7 +121,7 @@ def test_the_derived_rocof_does_not_bias_droop_or_time_constants(fmus, tmp_path)
     rng = np.random.default_rng(5)
     freq = F_NOM + f + 1e-3 * rng.standard_normal(T.size)
     _write(tmp_path, freq, pe * 900.0, _CONFIG)
-    fit = rc.calibrate([tmp_path], method="ms", seed=1, fmu_dir=fmus["FrequencyInputTGOV1"].parent)
+    fit = rc.calibrate([tmp_path], method="ms", seed=1, source=ModelSource(fmu_dir=fmus["FrequencyInputTGOV1"].parent))
     got = dict(zip(fit.names, fit.x))
     assert got["gov.R"] == pytest.approx(0.05, rel=0.01)
     assert got["gov.T1"] == pytest.approx(0.5, rel=0.08) and got["gov.T3"] == pytest.approx(7.0, rel=0.03)
@@ -323,7 +324,7 @@ def test_an_estimated_inertia_is_pointed_to_the_generators_record(repo, fmus, tm
 
     folder = repo / "experiments" / "electrical" / "tgov1_on"
     fit = rc.calibrate([_variant(folder, "H estimated")], method="ms", seed=1, archive=tmp_path / "run.h5",
-                       fmu_dir=fmus["FrequencyInput"].parent)
+                       source=ModelSource(fmu_dir=fmus["FrequencyInput"].parent))
     h = fit.parameters["mach.H"]
     with pytest.warns(ExchangeWarning, match=rf"H = {h:.4g} s as CON\(J\+4\).*'GENROU'"):
         written = rc.export(tmp_path / "run.h5", tmp_path / "unit.dyr")
@@ -360,7 +361,7 @@ def test_structure_selection_reads_an_events_electrical_power_as_its_mechanical(
 
     folder = repo / "experiments" / "electrical" / "tgov1_on"
     verdicts = [select_structure(candidate_structures(), [variant(folder, kind)], workdir=tmp_path / kind[:3],
-                                 options=RunOptions(method="ms", seed=1), fmu_dir=fmus["FrequencyInput"].parent,
+                                 options=RunOptions(method="ms", seed=1), source=ModelSource(fmu_dir=fmus["FrequencyInput"].parent),
                                  log=lambda *_: None) for kind in ("P_e, H fixed", "P_m recorded")]
     assert verdicts[0].structure == verdicts[1].structure != "unexplained"
     assert set(verdicts[0].candidates) == set(verdicts[1].candidates) and "TGOV1" in verdicts[0].candidates

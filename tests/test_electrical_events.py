@@ -9,6 +9,8 @@ import sys
 
 from rapid_cosim.cli import main
 from rapid_cosim.report.html import validation_page
+from rapid_cosim.fitting.engine import EngineSpec
+from rapid_cosim.compiler.source import ModelSource
 
 
 def test_the_cli_and_the_report_say_what_was_recorded_and_which_pmu_class_the_filter_is_like(
@@ -20,8 +22,7 @@ def test_the_cli_and_the_report_say_what_was_recorded_and_which_pmu_class_the_fi
     said = capsys.readouterr().out
     assert "pe is electrical power at the terminals" in said and "H 6.5 s (fixed)" in said
     assert "C37.118.1 M-class PMU, without its delay" in said and "9 samples at 30 per second" in said
-    page = validation_page(archive, tmp_path / "page.html", fmu_dir=fmus["FrequencyInput"].parent,
-                           package=repo / "modelica" / "iGrGen")
+    page = validation_page(archive, tmp_path / "page.html", source=ModelSource(fmu_dir=fmus["FrequencyInput"].parent, package=repo / "modelica" / "iGrGen"))
     html = page.path.read_text()
     assert "<ul id=recorded" in html and "M-class PMU" in html
 
@@ -52,8 +53,8 @@ def test_one_unit_is_identified_from_two_grid_events_recorded_as_electrical_powe
     import rapid_cosim as rc
     from rapid_cosim.exchange import read_record
 
-    result = rc.identify(repo / "experiments" / "electrical" / "unit.toml", workdir=tmp_path, seed=1, n_jobs=2,
-                         package=repo / "modelica" / "iGrGen", fmu_dir=fmus["FrequencyInput"].parent, pdf=False,
+    result = rc.identify(repo / "experiments" / "electrical" / "unit.toml", workdir=tmp_path, seed=1, engine=EngineSpec(n_jobs=2),
+                         source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=fmus["FrequencyInput"].parent), pdf=False,
                          log=lambda *_: None)
     truth = {"gov.R": 0.05, "gov.Ts": 0.8, "gov.T5": 7.0}
     found = result.explanation["parameters"]

@@ -11,6 +11,7 @@ from rapid_cosim.diagnose.campaigns import draw_case, write_campaign
 from rapid_cosim.diagnose.false_alarms import TruthFit, clopper_pearson, fit_truth, summary, summary_text
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
 from rapid_cosim.experiment import load_experiment
+from rapid_cosim.compiler.source import ModelSource
 
 
 def _fit(label, p, alarm=False, covered=None):
@@ -44,12 +45,11 @@ def test_the_true_model_on_effect_free_campaigns_is_judged_and_its_intervals_rea
     work, package, fmu_dir = study
     fits = []
     for seed in (1000, 1001, 1002):
-        case = draw_case("none", seed, package=package, fmu_dir=fmu_dir)
-        experiments = [load_experiment(p) for p in write_campaign(case, tmp_path / case.label, package=package,
-                                                                  fmu_dir=fmu_dir)]
+        case = draw_case("none", seed, source=ModelSource(package=package, fmu_dir=fmu_dir))
+        experiments = [load_experiment(p) for p in write_campaign(case, tmp_path / case.label, source=ModelSource(package=package, fmu_dir=fmu_dir))]
         truth = {k: case.plant[k] for k in ("gov.R", "gov.Ts")}
         fits.append(fit_truth(case.label, experiments[:-1], experiments[-1:], truth, tmp_path / f"fit{seed}",
-                              DiagnoseOptions(write_model=False), package, fmu_dir))
+                              DiagnoseOptions(write_model=False), ModelSource(package, fmu_dir)))
     for f in fits:
         assert len(f.p) == 4 and all(0 < p <= 1 for p in f.p.values())
         assert f.alarm == (f.p_campaign < 0.01)

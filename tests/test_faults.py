@@ -14,6 +14,7 @@ import pytest
 
 from rapid_cosim.archive import RunArchive
 from rapid_cosim.archive import format as archive_format
+from rapid_cosim.fitting.engine import EngineSpec
 from rapid_cosim.calibration import RunOptions, inputs_from_configs, resume_run, start_run, summary_json
 from rapid_cosim.cli import main
 from rapid_cosim.errors import ArchiveFull
@@ -164,7 +165,7 @@ def test_a_killed_worker_costs_a_retry_not_the_run(config, expected, tmp_path):
     thread = threading.Thread(target=killer, daemon=True)
     thread.start()
     with pytest.warns(UserWarning, match="a worker process died"):
-        result = start_run(inputs_from_configs([config]), RunOptions(**{**OPTIONS, "n_jobs": 2}), archive,
+        result = start_run(inputs_from_configs([config]), RunOptions(**{**OPTIONS, "engine": EngineSpec(n_jobs=2)}), archive,
                            progress=False)
     thread.join()
     assert killed

@@ -25,6 +25,8 @@ from rapid_cosim.fleet import Route, load_fleet, run_fleet
 from rapid_cosim.fleet.synthetic import draw_unit, make_fleet
 
 from test_dask_cluster import Cluster
+from rapid_cosim.fitting.engine import EngineSpec
+from rapid_cosim.compiler.source import ModelSource
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 UNITS = [0, 5]  # a TGOV1 unit whose record is right (P_e), a TGOV1 unit whose record's T3 is twice the plant's
@@ -49,11 +51,11 @@ def _replace(path: Path, old: str, new: str) -> None:
 @pytest.fixture(scope="module")
 def fleet(fmus, repo, tmp_path_factory):
     folder = tmp_path_factory.mktemp("fleet")
-    spec = make_fleet(folder, UNITS, experiments=repo / "experiments", seed=1, fmu_dir=repo / "fmus")
+    spec = make_fleet(folder, UNITS, experiments=repo / "experiments", seed=1, source=ModelSource(fmu_dir=repo / "fmus"))
     _bad_units(folder)
     t0 = time.perf_counter()
-    result = run_fleet(spec, results=folder / "results", workers=2, progress=False, log=lambda *_: None,
-                       package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus")
+    result = run_fleet(spec, results=folder / "results", engine=EngineSpec(n_jobs=2, backend="dask"), progress=False, log=lambda *_: None,
+                       source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus"))
     return folder, spec, result, time.perf_counter() - t0
 
 
@@ -99,14 +101,14 @@ def test_a_wrong_record_inside_every_band_is_flagged_by_the_noise_tests(fmus, re
     from rapid_cosim.identify import Unit
     from rapid_cosim.validation.tolerances import Tolerances
 
-    make_fleet(tmp_path, [0, 64, 70, 98], experiments=repo / "experiments", seed=1, fmu_dir=repo / "fmus")
+    make_fleet(tmp_path, [0, 64, 70, 98], experiments=repo / "experiments", seed=1, source=ModelSource(fmu_dir=repo / "fmus"))
     assert draw_unit(98, 1).wrong == "lag" and draw_unit(98, 1).structure == "HYGOV"
     out = {}
     for name in ("unit000", "unit064", "unit070", "unit098"):
         unit = Unit.load(tmp_path / "units" / name)
         record = read_record(tmp_path / "units" / name / "record.dyr", bus=unit.bus, machine_id=unit.machine_id)
         out[name] = play_back(record, [load_experiment(c) for c in unit.configs], list(unit.structures),
-                              Tolerances(), package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus")
+                              Tolerances(), source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus"))
     wrong, right = out["unit098"], out["unit000"]
     assert all(t.passed for t in wrong.tests.values()) and not wrong.passed
     assert wrong.p < 0.01 and wrong.inconsistent
@@ -138,12 +140,12 @@ def test_the_fleets_new_record_is_what_rapid_cosim_identify_delivers(fleet, repo
 def test_a_rerun_keeps_every_finished_unit_and_redoes_a_changed_one(fleet, tmp_path):
     folder, spec, result, first = fleet
     t0 = time.perf_counter()
-    again = run_fleet(spec, results=folder / "results", workers=1, progress=False, log=lambda *_: None)
+    again = run_fleet(spec, results=folder / "results", engine=EngineSpec(n_jobs=1, backend="dask"), progress=False, log=lambda *_: None)
     assert not again.ran and sorted(again.kept) == sorted(u.unit for u in result.units)
     assert [u for u in again.units] == [u for u in result.units]
     assert time.perf_counter() - t0 < first  # no unit was run again
     _replace(folder / "units" / "bad_config" / "event" / "config.toml", 'column = "POWER"', 'column = "P"')
-    fixed = run_fleet(spec, results=folder / "results", workers=1, progress=False, log=lambda *_: None)
+    fixed = run_fleet(spec, results=folder / "results", engine=EngineSpec(n_jobs=1, backend="dask"), progress=False, log=lambda *_: None)
     assert fixed.ran == ["bad_config"] and fixed.failed == 2
 
 
@@ -257,12 +259,12 @@ def test_checking_only_identifies_nothing_and_a_short_quiet_span_is_flagged(fmus
     unit with no record on file is a failed row that says why. The units recorded with
     ANDES's own 10 s before the event carry a flag saying the noise tests are weaker
     there; the same units with 30 s carry none."""
-    spec = make_fleet(tmp_path, [5], experiments=repo / "experiments", seed=1, fmu_dir=repo / "fmus",
+    spec = make_fleet(tmp_path, [5], experiments=repo / "experiments", seed=1, source=ModelSource(fmu_dir=repo / "fmus"),
                       pre_event=10.0)
     shutil.copytree(tmp_path / "units" / "unit005", tmp_path / "units" / "no_record")
     (tmp_path / "units" / "no_record" / "record.dyr").unlink()
-    result = run_fleet(spec, results=tmp_path / "results", workers=1, progress=False, log=lambda *_: None,
-                       package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus", check_only=True)
+    result = run_fleet(spec, results=tmp_path / "results", engine=EngineSpec(n_jobs=1, backend="dask"), progress=False, log=lambda *_: None,
+                       source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus"), check_only=True)
     rows = {u.unit: u for u in result.units}
     wrong = rows["unit005"]
     assert wrong.route is Route.FAILS and wrong.recommended is None and not wrong.files
@@ -273,9 +275,8 @@ def test_checking_only_identifies_nothing_and_a_short_quiet_span_is_flagged(fmus
     assert "1 records on file pass" not in page and "0 records on file pass, 1 fail (checked only" in page
     assert "<tr class=fails><td>unit005</td>" in page and "<tr class=failed><td>no_record</td>" in page
     ok = run_fleet(make_fleet(tmp_path / "long", [5], experiments=repo / "experiments", seed=1,
-                              fmu_dir=repo / "fmus"), results=tmp_path / "r30",
-                   workers=1, progress=False, log=lambda *_: None, package=repo / "modelica" / "iGrGen",
-                   fmu_dir=repo / "fmus", check_only=True)
+                              source=ModelSource(fmu_dir=repo / "fmus")), results=tmp_path / "r30",
+                   engine=EngineSpec(n_jobs=1, backend="dask"), progress=False, log=lambda *_: None, source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus"), check_only=True)
     assert ok.units[0].route is Route.FAILS and ok.units[0].flags == []
 
 

@@ -26,6 +26,7 @@ from rapid_cosim.exchange import read_record
 from rapid_cosim.identify import Identification, Unit
 from rapid_cosim.report.pdf import unavailable
 from rapid_cosim.identify.result import cannot_carry
+from rapid_cosim.compiler.source import ModelSource
 
 REPO = Path(__file__).resolve().parents[1]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -48,8 +49,8 @@ def _unit(folder: Path, configs: list[Path], *, extra: str = "", mva: str = "mva
 def identified(study, tmp_path_factory):
     work, package, fmu_dir = study
     folder = tmp_path_factory.mktemp("unit")
-    case = draw_case("rate_limit", 1, package=package, fmu_dir=fmu_dir)
-    configs = write_campaign(case, folder / "data", package=package, fmu_dir=fmu_dir)
+    case = draw_case("rate_limit", 1, source=ModelSource(package=package, fmu_dir=fmu_dir))
+    configs = write_campaign(case, folder / "data", source=ModelSource(package=package, fmu_dir=fmu_dir))
     unit = _unit(folder, configs)
     results = folder / "results"
     out = io.StringIO()

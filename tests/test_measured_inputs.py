@@ -16,6 +16,7 @@ from rapid_cosim.errors import ConfigError, RapidCosimError
 from rapid_cosim.experiment import load_experiment
 
 from c_fmus import build_c_fmu
+from rapid_cosim.compiler.source import ModelSource
 
 FAST = {"pso": {"n_particles": 12}, "nm": {"max_fev": 60}}
 
@@ -37,7 +38,7 @@ def test_event1_recording_is_what_its_generator_makes(repo, fmus, tmp_path):
 
 def test_event1_recovers_the_synthetic_plant(repo, fmus, tmp_path):
     fit = rc.calibrate(repo / "experiments/event1", "pso:10+nm", archive=tmp_path / "ev.h5",
-                       fmu_dir=repo / "fmus", package=repo / "modelica/iGrGen")
+                       source=ModelSource(fmu_dir=repo / "fmus", package=repo / "modelica/iGrGen"))
     R, Ts = fit.parameters["gov.R"], fit.parameters["gov.Ts"]
     assert abs(R / 0.055 - 1) < 0.02, R
     assert abs(Ts / 1.6 - 1) < 0.15, Ts
@@ -55,8 +56,7 @@ def test_event1_input_is_the_recorded_frequency_converted(repo):
 
 def test_joint_fit_of_a_staged_test_and_the_event_reruns_bit_identical(repo, fmus, tmp_path):
     fit = rc.calibrate([repo / "experiments/test1", repo / "experiments/event1"], "pso:3+nm",
-                       archive=tmp_path / "joint.h5", options=FAST, fmu_dir=repo / "fmus",
-                       package=repo / "modelica/iGrGen")
+                       archive=tmp_path / "joint.h5", options=FAST, source=ModelSource(fmu_dir=repo / "fmus", package=repo / "modelica/iGrGen"))
     assert fit.success and fit.labels == ("R", "Ts")
     again = rc.rerun(tmp_path / "joint.h5")
     assert again.identical, again.message

@@ -8,6 +8,7 @@ import pytest
 
 from rapid_cosim.estimators import Evaluations, MSOptions, SearchSpace, multistart, reached_best, run_chain
 from rapid_cosim.estimators.profile import grid, profile
+from rapid_cosim.compiler.source import ModelSource
 
 
 class Residuals:
@@ -123,7 +124,7 @@ def test_an_ms_run_is_archived_reruns_identically_and_resumes(fmus, tmp_path):
     raw["noise"] = {"pm": RecorderNoise(0.0008, (), float(np.median(np.diff(exp.data.time)))).to_config()}
     (tmp_path / "w").mkdir()
     (tmp_path / "w" / "config.toml").write_text(render_config(raw))
-    inputs = inputs_from_configs([tmp_path / "w"], fmu_dir=tmp_path.parent / "fmus_ms")
+    inputs = inputs_from_configs([tmp_path / "w"], source=ModelSource(fmu_dir=tmp_path.parent / "fmus_ms"))
     options = RunOptions(method="ms", seed=2, estimator_options={"ms": {"n_starts": 4, "rounds": 1}})
     result = start_run(inputs, options, tmp_path / "ms.h5", progress=False)
     assert result.x[0] == pytest.approx(0.06, rel=0.05) and result.x[1] == pytest.approx(4.0, rel=0.15)

@@ -9,6 +9,7 @@ from scipy.signal import savgol_coeffs
 from rapid_cosim.noise import RecorderNoise
 from rapid_cosim.noise.filtered import FilteredNoise, LevinsonWhitener
 from rapid_cosim.noise.model import Whitener
+from rapid_cosim.compiler.source import ModelSource
 
 DT = 1 / 30
 
@@ -111,7 +112,7 @@ def test_the_true_governor_on_an_andes_events_electrical_power_is_judged_white(r
     governor = json.loads((folder / "truth.json").read_text())["governor"]
     (true,) = [c for c in candidate_structures() if c.name == governor]
     verdict = select_structure([true], [variant(folder, "P_e, H fixed")], workdir=tmp_path,
-                               options=RunOptions(method="ms", seed=1), fmu_dir=fmus["FrequencyInput"].parent,
+                               options=RunOptions(method="ms", seed=1), source=ModelSource(fmu_dir=fmus["FrequencyInput"].parent),
                                log=lambda *_: None)
     fit = verdict.ranking[0]
     assert fit.adequate and fit.tests[event]["p_holm"] > 0.1, fit.tests[event]

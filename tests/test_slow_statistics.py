@@ -29,6 +29,7 @@ from rapid_cosim.fitting.engine import make_engine
 from rapid_cosim.estimators import SMCOptions, run_chain
 from rapid_cosim.fitting.objective import ProblemObjective
 from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.compiler.source import ModelSource
 
 pytestmark = pytest.mark.slow
 
@@ -39,11 +40,11 @@ def test_the_workflow_names_the_hidden_effect_over_five_seeds(repo, tmp_path):
     fmu_dir = tmp_path / "fmus"
     build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in EFFECTS.values())])), package=package, fmu_dir=fmu_dir,
                  log=lambda *_: None)
-    cases = [draw_case(t, s, package=package, fmu_dir=fmu_dir) for t in [*HIDDEN, "none"] for s in range(1, 6)]
-    cases += [draw_case(t, 1, package=package, fmu_dir=fmu_dir, kind="event") for t in [*HIDDEN, "none"]]
+    cases = [draw_case(t, s, source=ModelSource(package=package, fmu_dir=fmu_dir)) for t in [*HIDDEN, "none"] for s in range(1, 6)]
+    cases += [draw_case(t, 1, source=ModelSource(package=package, fmu_dir=fmu_dir), kind="event") for t in [*HIDDEN, "none"]]
     options = DiagnoseOptions(write_model=False, max_effects=1)
     results = joblib.Parallel(n_jobs=2)(joblib.delayed(run_case)(c, tmp_path / "cases", options=options,
-                                                                 package=package, fmu_dir=fmu_dir) for c in cases)
+                                                                 source=ModelSource(package, fmu_dir)) for c in cases)
     print("\n" + confusion_text(results))
     effects = [r for r in results if r.case.truth != "none"]
     null = [r for r in results if r.case.truth == "none"]

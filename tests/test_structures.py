@@ -16,6 +16,7 @@ import pytest
 from rapid_cosim.calibration import RunOptions, inputs_from_experiments
 from rapid_cosim.cli import main
 from rapid_cosim.compiler import ensure_fmu
+from rapid_cosim.fitting.engine import EngineSpec
 from rapid_cosim.cli.campaign import structures as campaign_structures
 from rapid_cosim.diagnose.catalogue import bench_name, bench_source, composable, write_bench
 from rapid_cosim.structures.identifiability import best_separating_step, identifiability
@@ -27,6 +28,7 @@ from rapid_cosim.errors import ConfigError
 from rapid_cosim.report.structures import markdown as structures_markdown
 from rapid_cosim.experiment import load_experiment
 from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
+from rapid_cosim.compiler.source import ModelSource
 
 STEPS = (-0.2, 0.1, 0.2)
 PLANT = {"gov.R": 0.05, "gov.T1": 0.5, "gov.T2": 2.5, "gov.T3": 7.5, "gov.p_ref": 0.6}
@@ -95,7 +97,7 @@ def test_the_tgov1_plant_chooses_tgov1_and_its_parameters(repo, campaign):
     heldout = [load_experiment(configs[2])]
     verdict = select_structure(structures, training, heldout, workdir=work / "run",
                                options=RunOptions(method="pf:10+nm", seed=3),
-                               package=repo / "modelica" / "iGrGen", fmu_dir=work / "fmus", log=lambda *_: None)
+                               source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=work / "fmus"), log=lambda *_: None)
     record = json.loads(json.dumps(verdict.to_json(), default=float))
     assert record["structure"] == "TGOV1", record["reason"]
     best = record["ranking"][0]
@@ -153,7 +155,8 @@ def test_the_catalogue_runs_on_the_winning_structure(repo, tmp_path):
     configs = _campaign(package, tmp_path, bench=bench, extra={"db.db": 0.03}, seed=5)
     files = [repo / "experiments" / "structures" / f"{n}.toml" for n in ("TGTypeI", "TGOV1")]
     text, written = campaign_structures(configs, files, holdout=["step3"], results=tmp_path / "out", seed=2,
-                                        n_jobs=1, package=package, fmu_dir=tmp_path / "fmus", log=lambda *_: None)
+                                        engine=EngineSpec(), source=ModelSource(package, tmp_path / "fmus"),
+                                        log=lambda *_: None)
     record = json.loads((tmp_path / "out" / "structures.json").read_text())
     assert record["ranking"][0]["name"] == "TGOV1", record["reason"]
     effects = record["effects"]
@@ -183,7 +186,7 @@ def test_two_ggov1_time_constants_the_tests_cannot_separate(repo, tmp_path):
             fixed={**fixed, "gov.Ropen": 0.05, "gov.Rclose": -0.05},
             estimate={"gov.Tact": {"min": 0.05, "max": 5.0}, "gov.Tb": {"min": 0.05, "max": 5.0}},
             fitness={"offset": True, "noise": "pre-step", "pre_step_end": 20.0})))
-    inputs = inputs_from_experiments(exps, package=package, fmu_dir=tmp_path / "fmus")
+    inputs = inputs_from_experiments(exps, source=ModelSource(package=package, fmu_dir=tmp_path / "fmus"))
     noise = noise_floors(exps)
     x = np.array([0.5, 0.5])
     ident = identifiability(inputs, x, noise)
@@ -225,8 +228,7 @@ def test_an_ambiguous_verdict_proposes_the_test_that_would_separate(repo, campai
     twin = _structure(tmp_path, "TGOV1twin", text.replace('name = "TGOV1"', 'name = "TGOV1twin"'))
     structures = [Structure.load(repo / "experiments" / "structures" / "TGOV1.toml"), Structure.load(twin)]
     verdict = select_structure(structures, [load_experiment(c) for c in configs[:2]], workdir=tmp_path / "run",
-                               options=RunOptions(method="pf:10+nm", seed=3), package=repo / "modelica" / "iGrGen",
-                               fmu_dir=work / "fmus", searches=(), log=lambda *_: None)
+                               options=RunOptions(method="pf:10+nm", seed=3), source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=work / "fmus"), searches=(), log=lambda *_: None)
     assert verdict.structure == "ambiguous" and set(verdict.candidates) == {"TGOV1", "TGOV1twin"}
     sep = json.loads(json.dumps(verdict.to_json(), default=float))["separating_test"]
     assert set(sep["between"]) == {"TGOV1", "TGOV1twin"} and len(sep["menu"]) == 8
@@ -264,7 +266,7 @@ def test_the_study_names_ieeeg1_with_binding_rates_and_its_record_reproduces_the
     exports, read back, must reproduce every test within 1.1 noise units."""
     from rapid_cosim.identify.study import STEPS, run_structure_case
 
-    case = run_structure_case("IEEEG1", 2, tmp_path, package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus",
+    case = run_structure_case("IEEEG1", 2, tmp_path, source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=repo / "fmus"),
                               steps=(STEPS[1], STEPS[9], STEPS[3]), held_out=(2,), standard=("TGOV1", "IEEEG1"),
                               structures_dir=repo / "experiments" / "structures")
     assert case.binding and case.plant["gov.Uo"] < 0.02
@@ -308,8 +310,8 @@ def test_tg_type_i_with_its_reheater_free_fits_servo_and_reheater_either_way_rou
     exp = parse_experiment(text.replace('"gov.T5" = { min = 1.0', '"gov.T5" = { min = 0.5'), folder / "config.toml")
     import rapid_cosim as rc
 
-    fit = rc.calibrate([exp], method="ms", seed=1, fmu_dir=fmus["FrequencyInput"].parent)
-    inputs = inputs_from_experiments([exp], package=repo / "modelica" / "iGrGen", fmu_dir=fmus["FrequencyInput"].parent)
+    fit = rc.calibrate([exp], method="ms", seed=1, source=ModelSource(fmu_dir=fmus["FrequencyInput"].parent))
+    inputs = inputs_from_experiments([exp], source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=fmus["FrequencyInput"].parent))
     ident = identifiability(inputs, np.asarray(fit.x), noise_floors([exp]))
     assert [(a, b) for a, b, _ in ident.exchanges] == [("gov.Ts", "gov.T5")]
     assert "gov.Ts and gov.T5 exchange" in ident.summary()

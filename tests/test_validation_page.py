@@ -22,6 +22,7 @@ from rapid_cosim.errors import ConfigError
 from rapid_cosim.validation.tolerances import DEFAULT_BANDS, METRIC_TERMS, load_tolerances
 from rapid_cosim.report.html import validation_page
 from rapid_cosim.report.pdf import QUIET
+from rapid_cosim.compiler.source import ModelSource
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 NEEDS_CHROMIUM = pytest.mark.skipif(CHROMIUM is None, reason="needs Chromium (Debian package 'chromium'; "
@@ -50,7 +51,7 @@ CHECKED = re.compile(r'<div id="rc-check">images (\d+)/(\d+) tables (\d+) pass (
 def joint_run(repo, fmus, tmp_path_factory):
     folder = tmp_path_factory.mktemp("page")
     rc.calibrate([repo / "experiments/event1", repo / "experiments/test2"], "pso:4+nm", archive=folder / "run.h5",
-                 options=FAST, fmu_dir=repo / "fmus", package=repo / "modelica/iGrGen")
+                 options=FAST, source=ModelSource(fmu_dir=repo / "fmus", package=repo / "modelica/iGrGen"))
     return folder / "run.h5"
 
 
@@ -76,14 +77,13 @@ def tgov1_unit(repo, fmus, tmp_path_factory):
 
     step, step_up, other = test("step", -0.2, 0.06, 1), test("step_up", 0.15, 0.06, 2), test("other", -0.2, 0.04, 3)
     fit = rc.calibrate(step, "nm", archive=work / "run.h5", options={"nm": {"max_fev": 80}},
-                       fmu_dir=repo / "fmus", package=repo / "modelica/iGrGen")
+                       source=ModelSource(fmu_dir=repo / "fmus", package=repo / "modelica/iGrGen"))
     return work, fit, step_up, other
 
 
 def _page(tgov1_unit, repo, out, **options):
     work, fit, step_up, other = tgov1_unit
-    return validation_page(fit.archive, out, heldout=[step_up, other], fmu_dir=repo / "fmus",
-                           package=repo / "modelica/iGrGen", **options)
+    return validation_page(fit.archive, out, heldout=[step_up, other], source=ModelSource(fmu_dir=repo / "fmus", package=repo / "modelica/iGrGen"), **options)
 
 
 def test_metrics_agree_with_the_fit_and_the_event(joint_run):
@@ -246,7 +246,7 @@ def test_the_unit_section_holds_the_record_noise_diagnosis_and_provenance(tgov1_
 def test_a_held_out_test_must_be_predictable(tgov1_unit, repo, tmp_path):
     work, fit, *_ = tgov1_unit
     with pytest.raises(ConfigError, match="training test"):
-        validation_page(fit.archive, tmp_path / "p.html", heldout=[work / "step"], fmu_dir=repo / "fmus")
+        validation_page(fit.archive, tmp_path / "p.html", heldout=[work / "step"], source=ModelSource(fmu_dir=repo / "fmus"))
 
 
 def test_the_cli_writes_the_page_where_asked(joint_run, tmp_path, capsys):

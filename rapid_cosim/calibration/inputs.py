@@ -10,7 +10,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from ..archive import RunArchive
-from ..compiler import ensure_fmu
+from ..compiler.source import ModelSource
 from ..data import MeasuredData
 from ..data.timebase import Repairs
 from ..errors import BuildError, ConfigError, FmuError
@@ -33,19 +33,16 @@ class RunInputs:
         return self.problem.experiments
 
 
-def inputs_from_configs(paths: Sequence[str | Path], *, package: str | Path | None = None,
-                        fmu_dir: str | Path | None = None, compiler: str = "auto") -> RunInputs:
+def inputs_from_configs(paths: Sequence[str | Path], *, source: ModelSource = ModelSource()) -> RunInputs:
     """Experiments from config files; see :func:`inputs_from_experiments`."""
     if not paths:
         raise ConfigError("give at least one experiment config")
-    return inputs_from_experiments([load_experiment(p) for p in paths], package=package, fmu_dir=fmu_dir,
-                                   compiler=compiler)
+    return inputs_from_experiments([load_experiment(p) for p in paths], source=source)
 
 
-def inputs_from_experiments(experiments: Sequence[Experiment], *, package: str | Path | None = None,
-                            fmu_dir: str | Path | None = None, compiler: str = "auto",
+def inputs_from_experiments(experiments: Sequence[Experiment], *, source: ModelSource = ModelSource(),
                             fmus: Mapping[str, FmuRef] | None = None) -> RunInputs:
-    """A run's inputs from experiments in memory: their FMUs built if needed (or taken
+    """A run's inputs from experiments in memory: their FMUs built from ``source`` if needed (or taken
     from ``fmus``, by model name) and checked against the experiments (unknown
     parameters, values outside the declared ranges)."""
     if not experiments:
@@ -54,7 +51,7 @@ def inputs_from_experiments(experiments: Sequence[Experiment], *, package: str |
     for exp in experiments:
         if exp.model not in refs:
             try:
-                fmu = ensure_fmu(exp.model, package=package, fmu_dir=fmu_dir, compiler=compiler)
+                fmu = source.fmu(exp.model)
             except BuildError as e:  # a misspelt bench is the config's mistake: named by its key
                 if not str(e).startswith("unknown model"):
                     raise

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Mapping, Sequence
 
-from ..fitting.engine import Engine, make_engine
+from ..fitting.engine import Engine, EngineSpec
 from ..errors import RapidCosimError
 from ..estimators.chain import REGISTRY, parse_method
 from ..fitting.objective import PENALTY
@@ -15,41 +15,45 @@ from ..simulator import DEFAULT_RUNNER, check_runner
 
 @dataclass(frozen=True)
 class RunOptions:
-    """How a run is made, beyond its configs: kept in the archive."""
+    """How a run is made, beyond its configs: kept in the archive (the engine's three
+    settings flat, as archives have always held them)."""
 
     method: str = "pf:10+nm"
     seed: int = 1
-    n_jobs: int = 1
-    backend: str = "loky"
+    engine: EngineSpec = EngineSpec()
     penalty: float = PENALTY
     estimator_options: dict[str, dict[str, Any]] = field(default_factory=dict)  # {"pf": {"n_particles": 50}}
     runner: str = DEFAULT_RUNNER  # which simulator runner produced the run (see rapid_cosim.simulator)
-    scheduler: str | None = None  # a dask scheduler's address, with backend "dask"
 
     def to_json(self) -> dict:
-        return asdict(self)
+        # the keys in the order archives have always held them
+        return {"method": self.method, "seed": self.seed, "n_jobs": self.engine.n_jobs,
+                "backend": self.engine.backend, "penalty": self.penalty,
+                "estimator_options": asdict(self)["estimator_options"], "runner": self.runner,
+                "scheduler": self.engine.scheduler}
 
-    def engine(self) -> Engine:
-        return make_engine(self.n_jobs, self.backend, self.scheduler)
+    def make_engine(self) -> Engine:
+        return self.engine.make()
 
     def check(self) -> "RunOptions":
-        """Every option valid (method, estimator options, runner, engine), so that a bad
-        one is refused before an archive is created or a plan announced."""
+        """Every option valid (method, estimator options, runner; the engine checks itself
+        when made), so that a bad one is refused before an archive is created or a plan
+        announced."""
         try:
             parse_method(self.method)
             stage_options(self)
         except (ValueError, TypeError) as e:
             raise RapidCosimError(str(e)) from None
         check_runner(self.runner)
-        make_engine(self.n_jobs, self.backend, self.scheduler)
         return self
 
     @classmethod
     def from_json(cls, data: Mapping) -> "RunOptions":
         known = {f.name for f in fields(cls)}
-        values = {k: v for k, v in data.items() if k in known}
+        values = {k: v for k, v in data.items() if k in known and k != "engine"}
         values.setdefault("runner", "python")  # archives from before the compiled runner
-        return cls(**values)
+        engine = {f.name: data[f.name] for f in fields(EngineSpec) if f.name in data}
+        return cls(**values, engine=EngineSpec(**engine))
 
 
 def parse_option_overrides(items: Sequence[str]) -> dict[str, dict[str, Any]]:

@@ -27,6 +27,7 @@ from ..estimators import parse_method, run_chain
 from ..estimators.chain import REGISTRY
 from ..estimators.base import EstimationResult, Iteration
 from ..experiment import Experiment
+from ..fitting.engine import EngineSpec
 from ..fitting.objective import ProblemObjective
 from ..simulator import get_simulator
 from .inputs import RunInputs, inputs_from_archive, log_likelihood_for
@@ -109,7 +110,7 @@ def _all_data(experiments) -> dict[str, dict[str, np.ndarray]]:
 
 
 def _objective(inputs: RunInputs, options: RunOptions, known=None) -> RecordingObjective:
-    return RecordingObjective(ProblemObjective(inputs.problem, inputs.fmus, engine=options.engine(),
+    return RecordingObjective(ProblemObjective(inputs.problem, inputs.fmus, engine=options.make_engine(),
                                                penalty=options.penalty, runner=options.runner), known)
 
 
@@ -179,14 +180,14 @@ def _interruptible(writer: ArchiveWriter):
                          "machine") from None
 
 
-def resume_run(archive: str | Path, *, n_jobs: int | None = None, backend: str | None = None,
-               scheduler: str | None = None, progress: bool = True) -> EstimationResult:
-    """Continue an interrupted run; the result equals that of an uninterrupted run."""
+def resume_run(archive: str | Path, *, engine: EngineSpec | None = None, progress: bool = True) -> EstimationResult:
+    """Continue an interrupted run, on the archived engine or ``engine``; the result
+    equals that of an uninterrupted run."""
     with RunArchive(archive) as view:
         if view.status == "finished":
             raise ArchiveError(f"{archive}: the run is finished; use 'rapid-cosim rerun' to reproduce it")
         inputs = inputs_from_archive(view)
-        options = _resumed_options(view, n_jobs, backend, scheduler)
+        options = _resumed_options(view, engine)
         stored, damage = view.intact_iterations()
         ev = view.evaluations(sum(len(it.x) for it in stored))
     if damage is not None:
@@ -215,17 +216,13 @@ def resume_run(archive: str | Path, *, n_jobs: int | None = None, backend: str |
     return result
 
 
-def _resumed_options(view: RunArchive, n_jobs: int | None, backend: str | None,
-                     scheduler: str | None = None) -> RunOptions:
-    """The archived options, with the workers overridden where asked: where a run goes on
-    does not change its result (another backend than dask drops the scheduler)."""
+def _resumed_options(view: RunArchive, engine: EngineSpec | None) -> RunOptions:
+    """The archived options, on another engine where one is given: where a run goes on
+    does not change its result."""
     options = RunOptions.from_json(view.options)
     if options.method != view.method or options.seed != view.seed:
         raise ArchiveError(f"{view.path}: the stored options disagree with the run's method/seed")
-    backend = options.backend if backend is None else backend
-    scheduler = scheduler if scheduler is not None else (options.scheduler if backend == "dask" else None)
-    return replace(options, n_jobs=options.n_jobs if n_jobs is None else n_jobs, backend=backend,
-                   scheduler=scheduler).check()
+    return (options if engine is None else replace(options, engine=engine)).check()
 
 
 @dataclass(frozen=True)
@@ -238,12 +235,11 @@ class RerunReport:
     finished: bool = True  # False: the archive held an unfinished run, compared as far as it went
 
 
-def rerun(archive: str | Path, *, n_jobs: int | None = None, backend: str | None = None,
-          scheduler: str | None = None, progress: bool = True) -> RerunReport:
+def rerun(archive: str | Path, *, engine: EngineSpec | None = None, progress: bool = True) -> RerunReport:
     """Execute the archived run again, every simulation included, and compare."""
     with RunArchive(archive) as view:
         inputs = inputs_from_archive(view)
-        options = _resumed_options(view, n_jobs, backend, scheduler)
+        options = _resumed_options(view, engine)
         stored = view.iterations()
         archived = view.result()
         recorded = view.options.get("simulation_paths")
@@ -329,7 +325,7 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
                       "checks that the archived result still holds", stacklevel=2)
     if finished:
         return result, "archived"
-    return resume_run(archive, n_jobs=options.n_jobs, backend=options.backend, progress=progress), "resumed"
+    return resume_run(archive, engine=options.engine, progress=progress), "resumed"
 
 
 # Searches run besides a run's own method when results are compared (structures,

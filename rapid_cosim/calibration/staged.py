@@ -31,7 +31,8 @@ from ..errors import RapidCosimError
 from ..estimators.base import EstimationResult
 from ..estimators.laplace import laplace
 from ..estimators.uncertainty import Uncertainty
-from ..fitting.engine import make_engine
+from ..compiler.source import ModelSource
+from ..fitting.engine import EngineSpec
 from ..fitting.objective import ProblemObjective
 
 
@@ -44,8 +45,8 @@ class Method:
     chain: str  # estimator chain (rapid_cosim.estimators.chain)
     options: dict[str, dict[str, Any]] = field(default_factory=dict)
 
-    def run_options(self, seed: int, n_jobs: int) -> RunOptions:
-        return RunOptions(method=self.chain, seed=seed, n_jobs=n_jobs, estimator_options=self.options)
+    def run_options(self, seed: int, engine: EngineSpec) -> RunOptions:
+        return RunOptions(method=self.chain, seed=seed, engine=engine, estimator_options=self.options)
 
 
 # Particle counts: the paper gives none. 30 particles for the swarm (PSO's usual 20-40
@@ -126,18 +127,17 @@ class StagedRun:
     action: str  # 'new', 'resumed' or 'archived' (see ensure_run)
 
 
-def run_staged_test(config: str | Path, *, results: str | Path = "results", seed: int = 1, n_jobs: int = 2,
-                    methods: Sequence[Method] = METHODS, progress: bool = True,
-                    fmu_dir: str | Path | None = None, package: str | Path | None = None,
-                    compiler: str = "auto") -> list[StagedRun]:
+def run_staged_test(config: str | Path, *, results: str | Path = "results", seed: int = 1,
+                    engine: EngineSpec = EngineSpec(n_jobs=2), methods: Sequence[Method] = METHODS,
+                    progress: bool = True, source: ModelSource = ModelSource()) -> list[StagedRun]:
     """Both chains on one staged test, make-like (a finished archive of the same run is
     reused, an interrupted one resumed)."""
-    inputs = inputs_from_configs([config], package=package, fmu_dir=fmu_dir, compiler=compiler)
+    inputs = inputs_from_configs([config], source=source)
     test = inputs.experiments[0].name
     runs = []
     for m in methods:
         path = archive_path(results, test, m.key)
-        result, action = ensure_run(inputs, m.run_options(seed, n_jobs), path, progress=progress)
+        result, action = ensure_run(inputs, m.run_options(seed, engine), path, progress=progress)
         if result.nfev and result.n_failed == result.nfev:
             raise RapidCosimError(f"{path}: every one of the {result.nfev} simulations of {m.label} on {test} "
                                   f"failed, so the run found nothing; 'rapid-cosim show {path}' summarises it. "
@@ -149,20 +149,19 @@ def run_staged_test(config: str | Path, *, results: str | Path = "results", seed
 # --------------------------------------------------------------------------- the joint fit
 
 
-def run_joint(configs: Sequence[str | Path], *, results: str | Path = "results", seed: int = 1, n_jobs: int = 2,
-              options: dict[str, dict[str, Any]] | None = None, progress: bool = True,
-              fmu_dir: str | Path | None = None, package: str | Path | None = None,
-              compiler: str = "auto") -> tuple[Path, EstimationResult, str]:
+def run_joint(configs: Sequence[str | Path], *, results: str | Path = "results", seed: int = 1,
+              engine: EngineSpec = EngineSpec(n_jobs=2), options: dict[str, dict[str, Any]] | None = None,
+              progress: bool = True, source: ModelSource = ModelSource()) -> tuple[Path, EstimationResult, str]:
     """One SMC fit of shared R, Ts over the given tests (offsets profiled per test),
     archived (make-like) in ``<results>/joint/smc.h5``; ``options`` override
     :data:`JOINT_OPTIONS` key by key."""
-    inputs = inputs_from_configs(configs, package=package, fmu_dir=fmu_dir, compiler=compiler)
+    inputs = inputs_from_configs(configs, source=source)
     merged = {m: dict(kw) for m, kw in JOINT_OPTIONS.items()}
     for m, kw in (options or {}).items():
         if m != JOINT_METHOD:
             raise RapidCosimError(f"the joint fit runs {JOINT_METHOD}; options for {m!r} do not apply")
         merged.setdefault(m, {}).update(kw)
-    opts = RunOptions(method=JOINT_METHOD, seed=seed, n_jobs=n_jobs, estimator_options=merged)
+    opts = RunOptions(method=JOINT_METHOD, seed=seed, engine=engine, estimator_options=merged)
     path = joint_archive_path(results)
     result, action = ensure_run(inputs, opts, path, progress=progress)
     return path, result, action
@@ -207,7 +206,7 @@ class Laplace:
                    float(d["phi"]), float(d["inflation"]), Uncertainty.from_json(d["uncertainty"]))
 
 
-def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float = 0.5) -> Laplace:
+def laplace_at_optimum(archive: str | Path, *, engine: EngineSpec = EngineSpec(), rel_step: float = 0.5) -> Laplace:
     """Laplace approximation at an archived single-test run's best point (two passes of
     :func:`rapid_cosim.estimators.laplace.laplace`, 18 simulations for R and Ts). A best
     point within a step of a bound is reported in ``at_bound`` (its stencil moved inside)."""
@@ -220,7 +219,7 @@ def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float 
     if len(problem.experiments) != 1:
         raise RapidCosimError(f"{archive}: the Laplace check is per test; this run fits {len(problem.experiments)}")
     exp = problem.experiments[0]
-    approx = hessian_uncertainty(inputs, result.x, archive, n_jobs=n_jobs, rel_step=rel_step)
+    approx = hessian_uncertainty(inputs, result.x, archive, engine=engine, rel_step=rel_step)
     out = list(exp.outputs)[0]
     col = exp.outputs[out]
     noise = noise_level(exp.data, col, exp.pre_step_end)
@@ -229,7 +228,7 @@ def laplace_at_optimum(archive: str | Path, *, n_jobs: int = 1, rel_step: float 
                    inflation=ar1_inflation(noise.phi), uncertainty=approx)
 
 
-def hessian_uncertainty(inputs: RunInputs, x, where: str | Path, *, n_jobs: int = 1,
+def hessian_uncertainty(inputs: RunInputs, x, where: str | Path, *, engine: EngineSpec = EngineSpec(),
                         rel_step: float = 0.5) -> Uncertainty:
     """The Gaussian (Laplace) approximation of the run's likelihood at ``x``: every
     experiment's white noise at its configured level, the Hessian by central differences."""
@@ -239,7 +238,7 @@ def hessian_uncertainty(inputs: RunInputs, x, where: str | Path, *, n_jobs: int 
         missing = [e.name for e in problem.experiments if e.noise_sigma is None]
         raise RapidCosimError(f"{where}: {', '.join(missing) or 'an experiment'} has no noise level "
                               "([fitness] noise), so the likelihood is not known")
-    objective = ProblemObjective(problem, inputs.fmus, engine=make_engine(n_jobs))
+    objective = ProblemObjective(problem, inputs.fmus, engine=engine.make())
 
     def neg_log_likelihood(X):
         ev = objective(X)
@@ -254,7 +253,7 @@ def laplace_cache(results: str | Path) -> Path:
     return Path(results) / "joint" / "laplace.json"
 
 
-def ensure_laplace(archives: Sequence[str | Path], cache: str | Path, *, n_jobs: int = 1,
+def ensure_laplace(archives: Sequence[str | Path], cache: str | Path, *, engine: EngineSpec = EngineSpec(),
                    log: Callable[[str], None] = print) -> list[Laplace]:
     """Laplace approximations of the given archives, computed once and kept in ``cache``
     (keyed by archive path and best point: a new run recomputes it)."""
@@ -275,7 +274,7 @@ def ensure_laplace(archives: Sequence[str | Path], cache: str | Path, *, n_jobs:
         if lap is not None and np.array_equal(lap.uncertainty.mean, result.x):
             out.append(lap)
             continue
-        lap = laplace_at_optimum(a, n_jobs=n_jobs)
+        lap = laplace_at_optimum(a, engine=engine)
         log(f"  Laplace at the optimum of {a}: {lap.uncertainty.evaluations} simulations")
         out.append(lap)
     cache.parent.mkdir(parents=True, exist_ok=True)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+from ..compiler.source import ModelSource
 from .report import CheckReport, check_configs, check_fleet, check_unit_report
 
 __all__ = ["CheckReport", "check", "kind_of"]
@@ -40,12 +41,12 @@ def kind_of(path: str | Path) -> tuple[str, Path]:
     return "config", path
 
 
-def check(path: str | Path, *, method: str = "pf:10+nm", package=None, fmu_dir=None) -> CheckReport:
+def check(path: str | Path, *, method: str = "pf:10+nm", source: ModelSource = ModelSource()) -> CheckReport:
     """Check what a run of ``path`` would load (module docstring); ``method``: the
     estimator chain a calibration of a config would run."""
     kind, file = kind_of(path)
     if kind == "fleet":
-        return check_fleet(file, package=package, fmu_dir=fmu_dir)
+        return check_fleet(file, source=source)
     if kind == "unit":
-        return check_unit_report(file, package=package, fmu_dir=fmu_dir)
-    return check_configs([file], method=method, package=package, fmu_dir=fmu_dir)
+        return check_unit_report(file, source=source)
+    return check_configs([file], method=method, source=source)

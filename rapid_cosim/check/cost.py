@@ -14,6 +14,7 @@ import time
 from dataclasses import fields
 from typing import Sequence
 
+from ..compiler.source import ModelSource
 from ..estimators.chain import REGISTRY, parse_method
 
 # What the bundled examples took (make identify, make identify-steam, make identify-electrical:
@@ -53,18 +54,17 @@ def identify_simulations(candidates: int, structures: int) -> int:
     return PER_CANDIDATE * (candidates + 1) + PER_PAIR * max(candidates - 1, 0) + PER_STRUCTURE * structures
 
 
-def seconds_per_simulation(experiments: Sequence, *, package=None, fmu_dir=None, batch: int = 8) -> float:
+def seconds_per_simulation(experiments: Sequence, *, source: ModelSource = ModelSource(), batch: int = 8) -> float:
     """Wall time of one simulation of every experiment (their sum: one parameter set of a
     joint fit), each on its bench and recording in a batch of ``batch`` sets as the
     estimators run them, measured after a first call."""
     import numpy as np
 
-    from ..compiler import ensure_fmu
     from ..fitting.objective import ExperimentBatch
 
     total = 0.0
     for exp in experiments:
-        fmu = ensure_fmu(exp.model, package=package, fmu_dir=fmu_dir)
+        fmu = source.fmu(exp.model)
         specs = list(exp.estimate)
         x = [s.start if s.start is not None else 0.5 * (s.min + s.max) for s in specs]
         run = ExperimentBatch(exp, fmu, [(s.name, j) for j, s in enumerate(specs)])

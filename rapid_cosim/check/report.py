@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
+from ..compiler.source import ModelSource
 from ..errors import Finding, RapidCosimError, finding
 from ..experiment.schema import explain
 from .cost import PLAYBACK_EXTRA, duration, identify_simulations, method_simulations, seconds_per_simulation
@@ -47,9 +48,9 @@ def _estimates(exp) -> str:
                      for s in exp.estimate) or "nothing"
 
 
-def _cost(report: CheckReport, experiments: Sequence, simulations: int, package, fmu_dir) -> None:
+def _cost(report: CheckReport, experiments: Sequence, simulations: int, source: ModelSource) -> None:
     try:
-        per = seconds_per_simulation(experiments, package=package, fmu_dir=fmu_dir)
+        per = seconds_per_simulation(experiments, source=source)
     except RapidCosimError as e:
         report.problems.append(finding(e))
         return
@@ -57,7 +58,7 @@ def _cost(report: CheckReport, experiments: Sequence, simulations: int, package,
     report.lines.append(f"one simulation of every test: {1e3 * per:.2g} ms on this machine (batched)")
 
 
-def check_configs(paths: Sequence[Path], *, method: str, package=None, fmu_dir=None) -> CheckReport:
+def check_configs(paths: Sequence[Path], *, method: str, source: ModelSource = ModelSource()) -> CheckReport:
     """Configs as ``rapid-cosim estimate`` loads them, jointly fitted by ``method``."""
     from ..calibration import inputs_from_experiments
     from ..estimators.chain import parse_method
@@ -80,7 +81,7 @@ def check_configs(paths: Sequence[Path], *, method: str, package=None, fmu_dir=N
     if not experiments:
         return report
     try:
-        inputs = inputs_from_experiments(experiments, package=package, fmu_dir=fmu_dir)
+        inputs = inputs_from_experiments(experiments, source=source)
     except RapidCosimError as e:
         report.problems.append(finding(e))
         return report
@@ -91,7 +92,7 @@ def check_configs(paths: Sequence[Path], *, method: str, package=None, fmu_dir=N
         return report
     report.lines.append("stages: " + " then ".join(f"{s.name}" + (f" ({s.max_iter} iterations)" if s.max_iter else "")
                                                  for s in stages) + f" on {inputs.problem.space.dim} parameters")
-    _cost(report, experiments, method_simulations(method, inputs.problem.space.dim), package, fmu_dir)
+    _cost(report, experiments, method_simulations(method, inputs.problem.space.dim), source)
     return report
 
 
@@ -112,12 +113,12 @@ def _unit_lines(checked, report: CheckReport) -> None:
                             f"{optional}")
 
 
-def check_unit_report(path: Path, *, package=None, fmu_dir=None) -> CheckReport:
+def check_unit_report(path: Path, *, source: ModelSource = ModelSource()) -> CheckReport:
     """A unit as ``rapid-cosim identify`` loads it."""
     from ..diagnose.catalogue import CATALOGUE
     from ..identify.check import check_unit
 
-    checked = check_unit(path, package=package, fmu_dir=fmu_dir)
+    checked = check_unit(path, source=source)
     report = CheckReport(str(path), "unit", list(checked.findings))
     if checked.unit is None:
         return report
@@ -125,11 +126,11 @@ def check_unit_report(path: Path, *, package=None, fmu_dir=None) -> CheckReport:
     if checked.ok:
         fits = sum(1 + len(s.optional_variants()) for s in checked.structures)
         training = [e for e in checked.experiments if e.name not in checked.unit.holdout]
-        _cost(report, training, identify_simulations(len(CATALOGUE), fits), package, fmu_dir)
+        _cost(report, training, identify_simulations(len(CATALOGUE), fits), source)
     return report
 
 
-def check_fleet(path: Path, *, package=None, fmu_dir=None) -> CheckReport:
+def check_fleet(path: Path, *, source: ModelSource = ModelSource()) -> CheckReport:
     """A fleet as ``rapid-cosim fleet`` loads it: its file, every unit and its record on file."""
     from ..diagnose.catalogue import CATALOGUE
     from ..fleet.check import check_entry
@@ -143,7 +144,7 @@ def check_fleet(path: Path, *, package=None, fmu_dir=None) -> CheckReport:
         return report
     per_unit, playback = [], 0
     for entry in spec.units:
-        checked = check_entry(entry, package=package, fmu_dir=fmu_dir)
+        checked = check_entry(entry, source=source)
         report.problems += checked.problems
         if not checked.ok:
             report.lines.append(f"{entry.name}: {len(checked.problems)} problem(s)")
@@ -162,7 +163,7 @@ def check_fleet(path: Path, *, package=None, fmu_dir=None) -> CheckReport:
     if per_unit:
         tests, each = per_unit[0]
         try:
-            per = seconds_per_simulation(tests, package=package, fmu_dir=fmu_dir)
+            per = seconds_per_simulation(tests, source=source)
         except RapidCosimError as e:
             report.problems.append(finding(e))
             return report

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-from ..compiler import build_models
+from ..compiler.source import ModelSource
+from ..fitting.engine import EngineSpec
 from ..errors import RapidCosimError
 from ..report import table1
 from ..report.archives import caption
@@ -40,16 +41,14 @@ class StagedTestOutcome:
     seconds: float
 
 
-def staged_tests(configs: Sequence[str | Path], *, results: str | Path, seed: int, n_jobs: int,
-                 progress: bool, fmu_dir: str | Path, package: str | Path,
-                 compiler: str) -> list[StagedTestOutcome]:
+def staged_tests(configs: Sequence[str | Path], *, results: str | Path, seed: int, engine: EngineSpec,
+                 progress: bool, source: ModelSource) -> list[StagedTestOutcome]:
     """Both chains on each staged test (archives reused or resumed, make-like), each
     test's fit figure written."""
     out = []
     for config in configs:
         t0 = time.perf_counter()
-        runs = run_staged_test(config, results=results, seed=seed, n_jobs=n_jobs, progress=progress,
-                               fmu_dir=fmu_dir, package=package, compiler=compiler)
+        runs = run_staged_test(config, results=results, seed=seed, engine=engine, progress=progress, source=source)
         test = runs[0].test
         rows = [table1.read_row(r.test, r.method.label, r.archive) for r in runs]
         fig = plot_test_fit({r.method.label: r.archive for r in runs}, Path(results) / test / f"{test}.png")
@@ -93,11 +92,10 @@ def figures(results: str | Path, tests: Sequence[str] | None = None) -> list[Pat
     return written
 
 
-def step_responses(*, results: str | Path, package: str | Path, fmu_dir: str | Path,
-                   compiler: str) -> Path:
+def step_responses(*, results: str | Path, source: ModelSource) -> Path:
     """Every test bench built and simulated on the same staged test, side by side."""
     responses: dict[str, Trajectory] = {}
-    for o in build_models(package=package, fmu_dir=fmu_dir, compiler=compiler):
+    for o in source.build(None, log=print):
         sim = Simulator(o.fmu)
         if not sim.inputs:
             responses[o.model.rsplit(".", 1)[-1]] = sim.simulate(STEP_RESPONSE, stop_time=STEP_RESPONSE_STOP,
@@ -107,16 +105,15 @@ def step_responses(*, results: str | Path, package: str | Path, fmu_dir: str | P
                                title="Step responses of the iGrGen test benches (R = 0.05, Ts = 3 s)")
 
 
-def demo(config: str | Path, *, results: str | Path, seed: int, n_jobs: int, progress: bool,
-         fmu_dir: str | Path, package: str | Path, compiler: str, log=print) -> None:
+def demo(config: str | Path, *, results: str | Path, seed: int, engine: EngineSpec, progress: bool,
+         source: ModelSource, log=print) -> None:
     """Build the benches, calibrate one staged test with both chains, write its figure
     and its rows of Table 1."""
     t0 = time.perf_counter()
     log("1/3 building the iGrGen test benches (only what changed)")
-    build_models(package=package, fmu_dir=fmu_dir, compiler=compiler)
-    log(f"2/3 calibrating {config} with PSO10+NM and PF10+NM (seed {seed}, {n_jobs} workers)")
-    (outcome,) = staged_tests([config], results=results, seed=seed, n_jobs=n_jobs, progress=progress,
-                              fmu_dir=fmu_dir, package=package, compiler=compiler)
+    source.build(None, log=print)
+    log(f"2/3 calibrating {config} with PSO10+NM and PF10+NM (seed {seed}, {engine.n_jobs} workers)")
+    (outcome,) = staged_tests([config], results=results, seed=seed, engine=engine, progress=progress, source=source)
     log(describe(outcome))
     log("3/3 Table 1 for this test, from its archives")
     test = outcome.test
@@ -133,8 +130,7 @@ def describe(o: StagedTestOutcome) -> str:
 
 
 def joint(tests: Sequence[str], *, experiments: str | Path, results: str | Path, per_test_method: str, seed: int,
-          n_jobs: int, options: dict | None, progress: bool, fmu_dir: str | Path, package: str | Path,
-          compiler: str, log=print):
+          engine: EngineSpec, options: dict | None, progress: bool, source: ModelSource, log=print):
     """The joint SMC fit over ``tests`` and its consistency with each test's own
     optimum (Laplace approximations there); returns the summary and the files written."""
     from ..report.joint import write_joint_report
@@ -146,13 +142,12 @@ def joint(tests: Sequence[str], *, experiments: str | Path, results: str | Path,
     if missing:
         raise RapidCosimError(f"the consistency check needs the per-test runs first (make table1): "
                               f"{', '.join(missing)}")
-    log(f"joint SMC fit of R and Ts over {', '.join(tests)} (seed {seed}, {n_jobs} workers)")
+    log(f"joint SMC fit of R and Ts over {', '.join(tests)} (seed {seed}, {engine.n_jobs} workers)")
     path, result, action = run_joint([Path(experiments) / t for t in tests], results=results, seed=seed,
-                                     n_jobs=n_jobs, options=options, progress=progress, fmu_dir=fmu_dir,
-                                     package=package, compiler=compiler)
+                                     engine=engine, options=options, progress=progress, source=source)
     log(f"{path}: {action}, {result.nfev} evaluations, {result.wall_time:.0f} s")
     log("Laplace approximations at each test's optimum")
-    laplace = ensure_laplace(per_test, laplace_cache(results), n_jobs=n_jobs, log=log)
+    laplace = ensure_laplace(per_test, laplace_cache(results), engine=engine, log=log)
     return write_joint_report(path, laplace, Path(results) / "joint")
 
 
@@ -180,8 +175,8 @@ def diagnosis_report(diagnosis, folder: str | Path, json_path: str | Path | None
 
 
 def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Path], *, holdout: Sequence[str],
-               results: str | Path, seed: int, n_jobs: int, package: str | Path, fmu_dir: str | Path,
-               backend: str = "loky", scheduler: str | None = None, log=print) -> tuple[str, list[Path]]:
+               results: str | Path, seed: int, engine: EngineSpec, source: ModelSource,
+               log=print) -> tuple[str, list[Path]]:
     """The deliverable part of an identification alone (:func:`rapid_cosim.identify.workflow.deliver`:
     each structure calibrated on the training tests, optional parts freed where they win,
     ranked, each standard record kept and the simplest within the noise recommended), with
@@ -203,19 +198,17 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
     training, heldout = split_holdout([load_experiment(c) for c in configs], holdout)
     results = Path(results)
     results.mkdir(parents=True, exist_ok=True)
-    options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs, backend=backend, scheduler=scheduler).check()
+    options = RunOptions(method=METHOD, seed=seed, engine=engine).check()
     log(f"structures {', '.join(s.name for s in found)} on {', '.join(e.name for e in training)}"
         + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
-    delivery = deliver(found, training, heldout, workdir=results, options=options, package=package,
-                       fmu_dir=fmu_dir, log=log)
+    delivery = deliver(found, training, heldout, workdir=results, options=options, source=source, log=log)
     verdict = delivery.verdict
     if verdict.winner is not None:
         winner = next(s for s in delivery.candidates if s.name == verdict.winner)
         log(f"the effect catalogue on {winner.name}:")
         verdict.effects = effects_on(winner, training, heldout, workdir=results / f"effects-{winner.name}",
-                                     options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False,
-                                                             backend=backend, scheduler=scheduler),
-                                     package=package, fmu_dir=fmu_dir, log=log)
+                                     options=DiagnoseOptions(seed=seed, engine=engine, write_model=False),
+                                     source=source, log=log)
     record = {**verdict.to_json(), "records": [asdict(r) for r in delivery.records],
               "recommended": delivery.recommended, "recommendation": delivery.reason}
     js = results / "structures.json"

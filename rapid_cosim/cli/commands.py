@@ -9,7 +9,9 @@ import json
 import sys
 from pathlib import Path
 
+from ..compiler.source import ModelSource
 from ..errors import RapidCosimError
+from ..fitting.engine import EngineSpec
 
 
 def _assignments(items: list[str]) -> dict[str, float]:
@@ -25,16 +27,34 @@ def _assignments(items: list[str]) -> dict[str, float]:
     return values
 
 
-def _models(args) -> dict:
-    return {"package": args.package, "fmu_dir": args.fmus, "compiler": args.compiler}
+def _source(args) -> ModelSource:
+    """The models of ``--package``, ``--fmus`` and ``--compiler`` (a command without the
+    last compiles with ``auto``)."""
+    return ModelSource(args.package, args.fmus, getattr(args, "compiler", "auto"))
+
+
+def _engine(args) -> EngineSpec:
+    """The engine of ``--n-jobs``, ``--joblib-backend`` and ``--scheduler`` (the parser's
+    ``engine_options``), checked here, before anything is read."""
+    return EngineSpec(args.n_jobs, args.joblib_backend, args.scheduler)
+
+
+def _archived_engine(args) -> EngineSpec | None:
+    """The archive's engine with what the command line overrides (None: nothing)."""
+    if args.n_jobs is None and args.joblib_backend is None and args.scheduler is None:
+        return None
+    from ..archive import RunArchive
+    from ..calibration import RunOptions
+
+    with RunArchive(args.archive) as view:
+        archived = RunOptions.from_json(view.options).engine
+    return archived.overridden(args.n_jobs, args.joblib_backend, args.scheduler)
 
 
 def cmd_build(args) -> int:
-    from ..compiler import build_models, resolve_models
-
-    print(f"building into {resolve_models(args.package, args.fmus)[1]} (compiler {args.compiler})")
-    build_models(args.models or None, package=args.package, fmu_dir=args.fmus, compiler=args.compiler,
-                 force=args.force)
+    source = _source(args)
+    print(f"building into {source.fmu_path} (compiler {args.compiler})")
+    source.build(args.models or None, log=print, force=args.force)
     return 0
 
 
@@ -44,7 +64,7 @@ def cmd_simulate(args) -> int:
     traj = simulate(args.model, _assignments(args.set), stop_time=args.stop_time,
                     output_interval=args.output_interval, outputs=args.outputs.split(",") if args.outputs else None,
                     timeout=args.timeout, runner=args.runner, communication_step=args.communication_step,
-                    **_models(args))
+                    source=_source(args))
     names = list(traj.outputs)
     out = open(args.out, "w", newline="") if args.out else sys.stdout
     try:
@@ -64,8 +84,7 @@ def cmd_estimate(args) -> int:
     from ..calibration import RunOptions, parse_option_overrides
     from ..experiment.electrical import describe_recording
 
-    run_options = RunOptions(method=args.method, seed=args.seed, n_jobs=args.n_jobs, backend=args.joblib_backend,
-                             runner=args.runner, scheduler=args.scheduler,
+    run_options = RunOptions(method=args.method, seed=args.seed, engine=_engine(args), runner=args.runner,
                              estimator_options=parse_option_overrides(args.option)).check()
     experiments = as_experiments(args.configs)  # every option and config checked before anything is announced
     archive = Path(args.archive) if args.archive else default_archive(args.results)
@@ -76,7 +95,7 @@ def cmd_estimate(args) -> int:
     for exp in experiments:
         for line in exp.recording.lines():
             print(f"  {exp.name}: {line}")
-    fit = calibrate_with(experiments, run_options, archive=archive, progress=not args.quiet, **_models(args))
+    fit = calibrate_with(experiments, run_options, archive=archive, progress=not args.quiet, source=_source(args))
     print(fit)
     print(f"\narchive: {archive}")
     return 0
@@ -85,16 +104,14 @@ def cmd_estimate(args) -> int:
 def cmd_resume(args) -> int:
     from ..api import resume
 
-    print(resume(args.archive, n_jobs=args.n_jobs, joblib_backend=args.joblib_backend, scheduler=args.scheduler,
-                 progress=not args.quiet))
+    print(resume(args.archive, engine=_archived_engine(args), progress=not args.quiet))
     return 0
 
 
 def cmd_rerun(args) -> int:
     from ..api import rerun
 
-    fit = rerun(args.archive, n_jobs=args.n_jobs, joblib_backend=args.joblib_backend, scheduler=args.scheduler,
-                progress=not args.quiet)
+    fit = rerun(args.archive, engine=_archived_engine(args), progress=not args.quiet)
     print(fit)
     if fit.identical and not fit.finished:
         print("\nidentical as far as the archive goes: its iterations match the re-run bit for bit; "
@@ -136,8 +153,8 @@ def cmd_verify(args) -> int:
 
 
 def _campaign(args) -> dict:
-    return {"results": args.results, "seed": args.seed, "n_jobs": args.n_jobs, "progress": not args.quiet,
-            **_models(args)}
+    return {"results": args.results, "seed": args.seed, "engine": EngineSpec(args.n_jobs), "progress": not args.quiet,
+            "source": _source(args)}
 
 
 def cmd_staged_test(args) -> int:
@@ -152,9 +169,9 @@ def cmd_report(args) -> int:
     from ..report.html import validation_page
     from ..validation.tolerances import LABELS, verdict
 
-    page = validation_page(args.archive, args.out, n_jobs=args.n_jobs, tolerances=args.tolerances,
+    page = validation_page(args.archive, args.out, engine=EngineSpec(args.n_jobs), tolerances=args.tolerances,
                            heldout=args.holdout or (), diagnosis=args.diagnosis, pdf=args.pdf or None, bus=args.bus,
-                           machine_id=args.id, mva=args.mva, package=args.package, fmu_dir=args.fmus)
+                           machine_id=args.id, mva=args.mva, source=_source(args))
     print(f"{page.path}: {page.n_figures} figure(s); per test the error metrics against the tolerance bands")
     for m, checks in zip(page.metrics, page.checks):
         failed = [LABELS[c.metric] for c in checks if c.passed is False]
@@ -191,7 +208,7 @@ def cmd_benches(args) -> int:
 
     print("building the iGrGen test benches and simulating a staged test (MCR 60 %, df = -200 mHz at 10 s, "
           "back at 60 s) on each")
-    print(f"figure: {step_responses(results=args.results, **_models(args))}")
+    print(f"figure: {step_responses(results=args.results, source=_source(args))}")
     return 0
 
 
@@ -215,19 +232,17 @@ def cmd_diagnose(args) -> int:
     from .campaign import diagnosis_report
     from ..diagnose.workflow import DiagnoseOptions, split_holdout
 
-    options = {"threshold": args.threshold, "max_effects": args.max_effects, "model_name": args.model_name,
-               "backend": args.joblib_backend, "scheduler": args.scheduler}
+    options = {"threshold": args.threshold, "max_effects": args.max_effects, "model_name": args.model_name}
     if args.candidates:
         options["candidates"] = tuple(args.candidates.split(","))
-    checked = DiagnoseOptions(seed=args.seed, n_jobs=args.n_jobs, write_model=not args.no_write_model,
+    checked = DiagnoseOptions(seed=args.seed, engine=_engine(args), write_model=not args.no_write_model,
                               **options)  # refused before anything is read or written
     training, heldout = split_holdout(as_experiments(args.configs), args.holdout or [])
     from ..identify.result import recording_story
 
     for line in recording_story({e.name: e.recording.summary() for e in (*training, *heldout)}):
         print(line)
-    diagnosis = diagnose_with(training, checked, heldout=heldout, workdir=args.results, package=args.package,
-                              fmu_dir=args.fmus)
+    diagnosis = diagnose_with(training, checked, heldout=heldout, workdir=args.results, source=_source(args))
     text, files = diagnosis_report(diagnosis, args.results, args.json)
     print()
     print(text)
@@ -239,8 +254,7 @@ def cmd_structures(args) -> int:
     from .campaign import structures
 
     text, files = structures(args.configs, args.structures.split(","), holdout=args.holdout or [],
-                             results=args.results, seed=args.seed, n_jobs=args.n_jobs, package=args.package,
-                             fmu_dir=args.fmus, backend=args.joblib_backend, scheduler=args.scheduler)
+                             results=args.results, seed=args.seed, engine=_engine(args), source=_source(args))
     print()
     print(text)
     print(f"written: {', '.join(map(str, files))}")
@@ -251,9 +265,8 @@ def cmd_identify(args) -> int:
     from ..api import identify
     from .campaign import identification_report
 
-    result = identify(args.unit, workdir=args.results, seed=args.seed, n_jobs=args.n_jobs, package=args.package,
-                      fmu_dir=args.fmus, backend=args.joblib_backend, scheduler=args.scheduler, mva=args.mva,
-                      report=not args.no_report, pdf=not args.no_pdf)
+    result = identify(args.unit, workdir=args.results, seed=args.seed, engine=_engine(args), source=_source(args),
+                      mva=args.mva, report=not args.no_report, pdf=not args.no_pdf)
     _, files = identification_report(result, args.results)
     print()
     print(result.story(also=files))
@@ -263,9 +276,9 @@ def cmd_identify(args) -> int:
 def cmd_fleet(args) -> int:
     from ..fleet import Route, run_fleet
 
-    result = run_fleet(args.fleet, results=args.results, workers=args.workers, scheduler=args.scheduler,
-                       seed=args.seed, package=args.package, fmu_dir=args.fmus, pdf=args.pdf,
-                       check_only=args.check_only, progress=not args.quiet)
+    result = run_fleet(args.fleet, results=args.results, engine=EngineSpec(args.n_jobs, "dask", args.scheduler),
+                       seed=args.seed, source=_source(args), pdf=args.pdf, check_only=args.check_only,
+                       progress=not args.quiet)
     print(f"\n{result.summary()} ({result.seconds:.0f} s, {len(result.kept)} kept from an earlier run)")
     for u in result.units:
         if u.route is Route.FAILED:
@@ -277,7 +290,7 @@ def cmd_fleet(args) -> int:
 def cmd_check(args) -> int:
     from ..check import check
 
-    reports = [check(path, method=args.method, package=args.package, fmu_dir=args.fmus) for path in args.paths]
+    reports = [check(path, method=args.method, source=_source(args)) for path in args.paths]
     print("\n".join(r.text() for r in reports))
     return 0 if all(r.ok for r in reports) else 2
 

@@ -205,7 +205,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("fleet", help="the fleet file (fleet.toml), or its folder")
     p.add_argument("--results", default="results/fleet", help="results folder (default %(default)s); a rerun there "
                    "keeps every unit whose inputs have not changed")
-    p.add_argument("--workers", type=int, default=2, help="local worker processes (default %(default)s)")
+    p.add_argument("--n-jobs", "--workers", dest="n_jobs", type=int, default=2,
+                   help="local worker processes, one unit at a time each (default %(default)s; -1: all cores)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="a running dask scheduler instead of local workers")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--pdf", action="store_true", help="each identified unit's report as PDF too (headless Chromium)")

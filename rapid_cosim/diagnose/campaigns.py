@@ -51,7 +51,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..compiler import ensure_fmu
+from ..compiler.source import ModelSource
 from ..simulator import get_simulator
 from ..experiment.synthetic import NoiseModel, synthesize, synthesize_event, under_frequency_event, write_event_experiment, \
     write_experiment
@@ -162,7 +162,7 @@ class Case:
 VISIBILITY = 1.5  # an effect is hidden only if its RMS contribution is this many noise levels
 
 
-def draw_case(truth: str, seed: int, steps=CAMPAIGN, *, package, fmu_dir, kind: str = "staged",
+def draw_case(truth: str, seed: int, steps=CAMPAIGN, *, source: ModelSource, kind: str = "staged",
               visibility: float = VISIBILITY) -> Case:
     """A plant, an effect, a recorder; redrawn until the effect is visible in the data.
 
@@ -186,19 +186,19 @@ def draw_case(truth: str, seed: int, steps=CAMPAIGN, *, package, fmu_dir, kind: 
                                                       for loss in EVENTS)
         case = Case(truth, seed, plant, values, tuple(shape), noise, kind, jitter)
         hidden = (truth,) if truth in FOREIGN else effects
-        if not hidden or all(effect_rms(case, package=package, fmu_dir=fmu_dir, only=e) >= visibility * noise.sigma
+        if not hidden or all(effect_rms(case, source=source, only=e) >= visibility * noise.sigma
                              for e in hidden):
             return case
     raise RuntimeError(f"no visible {truth} drawn in 50 tries; widen the effect's sizes")
 
 
-def _bench_fmu(effects: tuple[str, ...], package, fmu_dir, kind: str = "staged"):
+def _bench_fmu(effects: tuple[str, ...], source: ModelSource, kind: str = "staged"):
     """The bench of ``effects``; one not in the package is generated into the (study's) copy."""
     base = INPUT_BENCH if kind == "event" else "iGrGen.TestBenches.StagedTest"
     name = bench_name(effects, base)
     if name.startswith("iGrGen.Diagnosed."):
-        write_bench(package, effects, name, base=base, description="synthetic study: effects hidden", register=False)
-    return ensure_fmu(name, package=package, fmu_dir=fmu_dir)
+        write_bench(source.package_path, effects, name, base=base, description="synthetic study: effects hidden", register=False)
+    return source.fmu(name)
 
 
 def _event_frequency(t: np.ndarray, event: tuple) -> np.ndarray:
@@ -226,10 +226,10 @@ def _responses(case: Case, sim, values: dict, times: np.ndarray, transform=None)
     return out
 
 
-def effect_rms(case: Case, *, package, fmu_dir, only: str) -> float:
+def effect_rms(case: Case, *, source: ModelSource, only: str) -> float:
     """RMS difference the effect ``only`` (one of the case's) makes to the campaign's
     responses, offset removed."""
-    without = get_simulator(_bench_fmu((), package, fmu_dir, case.kind))
+    without = get_simulator(_bench_fmu((), source, case.kind))
     foreign = only in FOREIGN
     rate = EVENT_RATE_HZ if case.kind == "event" else RATE_HZ
     times = np.arange(0.0, (EVENT_DURATION_S if case.kind == "event" else DURATION_S) + 1e-9, 1 / rate)
@@ -237,7 +237,7 @@ def effect_rms(case: Case, *, package, fmu_dir, only: str) -> float:
         a = _responses(case, without, {}, times, lambda t, y: FOREIGN[only][1](t, y, case.effect_values))
     else:
         own = {p.name for p in EFFECTS[only].parameters}
-        a = _responses(case, get_simulator(_bench_fmu((only,), package, fmu_dir, case.kind)),
+        a = _responses(case, get_simulator(_bench_fmu((only,), source, case.kind)),
                        {k: v for k, v in case.effect_values.items() if k in own}, times)
     b = _responses(case, without, {}, times)
     return float(np.sqrt(np.mean([np.mean((d - d.mean()) ** 2) for d in (x - y for x, y in zip(a, b))])))
@@ -246,9 +246,9 @@ def effect_rms(case: Case, *, package, fmu_dir, only: str) -> float:
 ESTIMATE = {"gov.R": {"min": 0.02, "max": 0.12, "label": "R"}, "gov.Ts": {"min": 0.1, "max": 20.0, "label": "Ts"}}
 
 
-def write_campaign(case: Case, folder: Path, *, package, fmu_dir) -> list[Path]:
+def write_campaign(case: Case, folder: Path, *, source: ModelSource) -> list[Path]:
     """Configs of the case's tests (or events), their data simulated with what is hidden."""
-    fmu = _bench_fmu(case.effects, package, fmu_dir, case.kind)
+    fmu = _bench_fmu(case.effects, source, case.kind)
     rng = np.random.default_rng([case.seed, 7919])
     transform = None
     if case.foreign:

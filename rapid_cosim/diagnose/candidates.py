@@ -19,6 +19,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..calibration import RunOptions, best_run, inputs_from_experiments
+from ..compiler.source import ModelSource
 from ..fitting.objective import ProblemObjective, evaluate_in_detail
 from ..experiment import Experiment, parse_experiment, render_config
 from ..noise import RecorderNoise
@@ -188,13 +189,13 @@ def record_configs(folder: Path, experiments: Sequence[Experiment]) -> list[Path
 
 def candidate_inputs(folder: Path, experiments: Sequence[Experiment], spec: CandidateSpec,
                      polish_from: Mapping[str, float] | None = None, *,
-                     model: str | Mapping[str, str] | None = None, package, fmu_dir,
+                     model: str | Mapping[str, str] | None = None, source: ModelSource,
                      fmus: dict[str, FmuRef] | None = None, noise: Mapping[str, RecorderNoise] | None = None):
     """The candidate's run inputs, its configs recorded in ``folder``; ``fmus`` caches the
     FMUs by model across candidates (each is built or loaded once)."""
     exps = candidate_experiments(experiments, spec, polish_from, model=model, noise=noise)
     record_configs(folder, exps)
-    inputs = inputs_from_experiments(exps, package=package, fmu_dir=fmu_dir, fmus=fmus)
+    inputs = inputs_from_experiments(exps, source=source, fmus=fmus)
     if fmus is not None:
         fmus.update(inputs.fmus)
     return inputs
@@ -209,8 +210,8 @@ def _with_start(text: str, start: Mapping[str, float]) -> str:
 
 
 def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdir: Path, *,
-                  options: RunOptions, start: Mapping[str, float] | None = None, package: str | Path,
-                  fmu_dir: str | Path, progress: bool = False, fmus: dict[str, FmuRef] | None = None,
+                  options: RunOptions, start: Mapping[str, float] | None = None, source: ModelSource,
+                  progress: bool = False, fmus: dict[str, FmuRef] | None = None,
                   searches: Sequence[str] = (), noise: Mapping[str, RecorderNoise] | None = None) -> CandidateFit:
     """Calibrate the candidate by ``options.method``, from ``start`` (the nested model's
     optimum with the effects switched off) where the method takes a start.
@@ -224,7 +225,7 @@ def fit_candidate(spec: CandidateSpec, experiments: Sequence[Experiment], workdi
     nested = start if spec.effects and start and all(p.name in start for p in effect_parameters(spec.effects)) \
         else None
     inputs = candidate_inputs(workdir / "candidates" / spec.slug, experiments, spec, polish_from=nested,
-                              package=package, fmu_dir=fmu_dir, fmus=fmus, noise=noise)
+                              source=source, fmus=fmus, noise=noise)
     if "ms" in options.method:
         # the starts that reach the best are counted within the criterion's 2 (the fitness is
         # the deviance per sample); a pair starts from its first effect's fit, the new

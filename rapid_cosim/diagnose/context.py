@@ -9,7 +9,6 @@ criterion and adequacy judge it by.
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
 from dataclasses import dataclass, field, replace
@@ -19,8 +18,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..calibration import RunOptions
-from ..compiler import build_models, resolve_models
-from ..fitting.engine import JOBLIB_BACKENDS, LOCAL_PROCESSES, JoblibEngine
+from ..compiler.source import ModelSource
+from ..fitting.engine import EngineSpec
 from ..errors import ConfigError, RapidCosimError
 from ..data import close_matches
 from ..experiment import Experiment
@@ -46,15 +45,13 @@ class DiagnoseOptions:
     method: str = METHOD
     estimator_options: dict = field(default_factory=dict)
     seed: int = 1
-    n_jobs: int = 1
+    engine: EngineSpec = EngineSpec()  # where the work goes (dask: the objective's batches on the cluster)
     searches: tuple[str, ...] = ()  # run besides ``method`` on every candidate, the best kept
     threshold: float = THRESHOLD
     max_effects: int = 2
     candidates: tuple[str, ...] = tuple(CATALOGUE)
     write_model: bool = True  # write the named model into the package and re-calibrate with it
     model_name: str | None = None  # class name of the model written; default from the effects
-    backend: str = "loky"  # where the work goes with n_jobs > 1 (dask: the objective's batches on the cluster)
-    scheduler: str | None = None
     replicates: int = REPLICATES  # of the adequacy null's bootstrap
     judge: tuple[str, ...] = ()  # candidate labels whose adequacy is reported too (e.g. a study's truth)
     runner: str = DEFAULT_RUNNER  # the simulator runner of every fit (see rapid_cosim.simulator)
@@ -65,10 +62,6 @@ class DiagnoseOptions:
             raise RapidCosimError(f"candidates {', '.join(wrong)}: not in the catalogue ({', '.join(CATALOGUE)})")
         if self.max_effects < 1:
             raise RapidCosimError(f"max_effects must be at least 1, got {self.max_effects}")
-        if self.backend not in JOBLIB_BACKENDS:
-            raise RapidCosimError(f"unknown backend {self.backend!r}; choose one of {', '.join(JOBLIB_BACKENDS)}")
-        if self.scheduler is not None and self.backend != "dask":
-            raise RapidCosimError("a scheduler address needs the dask backend (--joblib-backend dask)")
         if self.model_name is not None and not re.fullmatch(r"iGrGen\.Diagnosed\.[A-Za-z_][A-Za-z0-9_]*",
                                                              self.model_name):
             raise ConfigError(f"model name {self.model_name!r}: iGrGen.Diagnosed.<Identifier> (a Modelica class "
@@ -93,8 +86,8 @@ def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> 
 def _fit_jobs(payload, chunk) -> list[CandidateFit]:
     """Worker: fit the candidates ``chunk`` indexes (what :meth:`Context.fit_many` maps)."""
     jobs, ctx, options = payload
-    return [fit_candidate(spec, ctx.training, ctx.workdir, options=options, start=start, package=ctx.package,
-                          fmu_dir=ctx.fmu_dir, fmus=ctx.fmus, searches=ctx.options.searches, noise=ctx.models)
+    return [fit_candidate(spec, ctx.training, ctx.workdir, options=options, start=start, source=ctx.source,
+                          fmus=ctx.fmus, searches=ctx.options.searches, noise=ctx.models)
             for spec, start in (jobs[k] for k in chunk)]
 
 
@@ -103,17 +96,17 @@ class Context:
     noise: each recorder's model (``noise_fits``), the tests' floors (``noise``) and the
     adequacy null's shared replicates (``null``, made with the base fit)."""
 
-    def __init__(self, training, heldout, workdir, options: DiagnoseOptions, package, fmu_dir,
+    def __init__(self, training, heldout, workdir, options: DiagnoseOptions, source: ModelSource,
                  log: Callable[[str], None], noise_fits: dict | None = None):
         self.training, self.heldout = list(training), list(heldout)
         self.workdir, self.options = Path(workdir), options
-        (self.user_package, self.user_fmu_dir), self.log = resolve_models(package, fmu_dir), log
-        # the user's own package (given, or $RAPID_COSIM_PACKAGE): a named model may be written into it;
-        # the one shipped inside rapid_cosim never is (an installed wheel's files are not the user's)
-        self.package_is_users = package is not None or bool(os.environ.get("RAPID_COSIM_PACKAGE"))
-        self.package = self.workdir / "package" / self.user_package.name
-        self.fmu_dir = self.workdir / "fmus"
-        shutil.copytree(self.user_package, self.package, dirs_exist_ok=True)  # refreshed on every run
+        # the user's models: a named model may be written into the user's own package (source.users_package),
+        # never into the one shipped inside rapid_cosim (an installed wheel's files are not the user's)
+        self.user_source, self.log = source, log
+        # candidates are generated into, and built from, a copy in the work folder
+        self.source = replace(source, package=self.workdir / "package" / source.package_path.name,
+                              fmu_dir=self.workdir / "fmus")
+        shutil.copytree(source.package_path, self.source.package, dirs_exist_ok=True)  # refreshed on every run
         self.noise_fits = noise_fits or campaign_noise(self.training + self.heldout)
         self.noise = noise_floors(self.training + self.heldout, self.noise_fits)
         self.models = {name: fit.model for name, fit in self.noise_fits.items()}
@@ -122,13 +115,12 @@ class Context:
         self._predictions: dict[tuple, tuple] = {}
         self._adequacy: dict[tuple, Adequacy] = {}
         self.null: NoiseReplicates | None = None
-        self.run_options = RunOptions(method=options.method, seed=options.seed, n_jobs=options.n_jobs,
-                                      estimator_options=options.estimator_options, backend=options.backend,
-                                      scheduler=options.scheduler, runner=options.runner).check()
+        self.run_options = RunOptions(method=options.method, seed=options.seed, engine=options.engine,
+                                      estimator_options=options.estimator_options, runner=options.runner).check()
         # Candidates are independent fits: with local workers each is fitted in a worker
         # process (its batches then run in that process); on a dask cluster they are
         # fitted here, one after the other, and their batches go to the cluster.
-        self.parallel = options.n_jobs != 1 and options.backend in LOCAL_PROCESSES
+        self.parallel = options.engine.processes
 
     @property
     def bases(self) -> list[str]:
@@ -144,7 +136,7 @@ class Context:
         for spec, start in items:
             for base in self.bases:  # benches not in the package are generated into the work copy
                 if is_generated(bench_name(spec.effects, base)):
-                    write_bench(self.package, spec.effects, bench_name(spec.effects, base), base=base,
+                    write_bench(self.source.package, spec.effects, bench_name(spec.effects, base), base=base,
                                 description=f"{BASES[base]} with {', '.join(spec.effects)} (candidate)")
             if spec.label not in self.fits and spec.label not in todo:
                 todo[spec.label] = (spec, start if start is not None else default_start(spec, self.base_parameters()))
@@ -152,10 +144,11 @@ class Context:
         for spec, _ in jobs:
             self.log(f"  fitting {spec.label} ...")
         if self.parallel and len(jobs) > 1:
-            build_models(sorted({bench_name(spec.effects, b) for spec, _ in jobs for b in self.bases}),
-                         package=self.package, fmu_dir=self.fmu_dir, log=lambda *_: None)  # once, not per worker
-            payload = (jobs, self, replace(self.run_options, n_jobs=1))
-            engine = JoblibEngine(self.options.n_jobs, self.options.backend)
+            options_engine = self.options.engine
+            # built once, not per worker
+            self.source.build(sorted({bench_name(spec.effects, b) for spec, _ in jobs for b in self.bases}))
+            payload = (jobs, self, replace(self.run_options, engine=options_engine.single()))
+            engine = options_engine.make()
             # one chunk per worker, dealt round-robin: the payload (tests, FMUs) travels once per worker
             chunks = [np.arange(w, len(jobs), engine.workers) for w in range(min(engine.workers, len(jobs)))]
             order = np.concatenate(chunks)
@@ -176,7 +169,7 @@ class Context:
         return [self.fits[spec.label] for spec, _ in items]
 
     def __getstate__(self):  # what a worker needs to fit candidates (not the fits, the null, the log)
-        keep = ("training", "workdir", "package", "fmu_dir", "fmus", "models", "options")
+        keep = ("training", "workdir", "source", "fmus", "models", "options")
         return {k: self.__dict__[k] for k in keep}
 
     def _make_null(self, fit: CandidateFit) -> None:
@@ -209,7 +202,7 @@ class Context:
 
     def _heldout_inputs(self, fit: CandidateFit):
         return candidate_inputs(self.workdir / "heldout" / fit.spec.slug, self.heldout, fit.spec,
-                                package=self.package, fmu_dir=self.fmu_dir, fmus=self.fmus, noise=self.models)
+                                source=self.source, fmus=self.fmus, noise=self.models)
 
     def _prediction(self, fit: CandidateFit) -> tuple:
         key = self._key(fit)

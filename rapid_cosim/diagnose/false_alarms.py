@@ -26,6 +26,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy import stats
 
+from ..compiler.source import ModelSource
 from .adequacy import ALPHA
 from .candidates import CandidateSpec
 from .context import Context, DiagnoseOptions
@@ -51,12 +52,12 @@ class TruthFit:
 
 
 def fit_truth(label: str, training, heldout, truth: Mapping[str, float], workdir: str | Path,
-              options: DiagnoseOptions, package, fmu_dir) -> TruthFit:
+              options: DiagnoseOptions, source: ModelSource) -> TruthFit:
     """The base model of ``training`` (its config's own bench: the truth, where nothing is
     hidden), judged as a diagnosis judges it; ``truth`` the plant's values of the
     estimated parameters."""
     t0 = time.perf_counter()
-    ctx = Context(training, heldout, workdir, options, package, fmu_dir, lambda *_: None)
+    ctx = Context(training, heldout, workdir, options, source, lambda *_: None)
     base = ctx.fit(CandidateSpec())
     a = ctx.adequacy(base)
     bands = intervals(base, LEVEL)

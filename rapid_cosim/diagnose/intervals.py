@@ -27,7 +27,7 @@ import numpy as np
 from scipy import stats
 
 from ..calibration import log_likelihood_for
-from ..fitting.engine import make_engine
+from ..fitting.engine import EngineSpec
 from ..errors import RapidCosimError
 from ..estimators.laplace import laplace
 from ..fitting.objective import ProblemObjective
@@ -38,14 +38,14 @@ LEVEL = 0.9
 STEP = 1e-3  # forward difference in unit coordinates
 
 
-def intervals(fit: CandidateFit, level: float = LEVEL, n_jobs: int = 1, log=lambda *_: None) -> dict[str, list[float]]:
+def intervals(fit: CandidateFit, level: float = LEVEL, engine: EngineSpec = EngineSpec(), log=lambda *_: None) -> dict[str, list[float]]:
     """Symmetric ``level`` intervals of ``fit``'s estimates (module docstring); {} where
     the problem has no likelihood."""
     problem = fit.inputs.problem
     log_likelihood = log_likelihood_for(problem)
     if log_likelihood is None:
         return {}
-    objective = ProblemObjective(problem, fit.inputs.fmus, engine=make_engine(n_jobs))
+    objective = ProblemObjective(problem, fit.inputs.fmus, engine=engine.make())
     x = np.array([fit.parameters[n] for n in problem.names])
     try:
         approx = laplace(lambda X: -log_likelihood(objective(X)), problem.space, x, level=level)

@@ -21,6 +21,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..compiler.source import ModelSource
 from ..experiment import load_experiment
 from .campaigns import CAMPAIGN, FOREIGN, SINGLE_SIZE, Case, draw_case, write_campaign  # noqa: F401  (re-exported)
 from .catalogue import AMBIGUOUS, CATALOGUE, EFFECTS, NONE, UNEXPLAINED, VARIANTS
@@ -99,18 +100,18 @@ def _shrink(d: Diagnosis, sigma: float) -> float | None:
     return None if before == 0 else 1.0 - gap(d.gap_after) / before
 
 
-def run_case(case: Case, workdir: Path, *, options: DiagnoseOptions, package, fmu_dir, held_out: int = 1,
+def run_case(case: Case, workdir: Path, *, options: DiagnoseOptions, source: ModelSource, held_out: int = 1,
              log: Callable[[str], None] = lambda *_: None) -> CaseResult:
     """Write the case's campaign and diagnose it, the last ``held_out`` tests held out."""
     folder = workdir / case.label
     if folder.exists():
         shutil.rmtree(folder)
-    paths = write_campaign(case, folder / "data", package=package, fmu_dir=fmu_dir)
+    paths = write_campaign(case, folder / "data", source=source)
     experiments = [load_experiment(p) for p in paths]
     split = len(experiments) - held_out
     t0 = time.perf_counter()
     diagnosis = diagnose(experiments[:split], experiments[split:], workdir=folder / "diagnosis", options=options,
-                         package=package, fmu_dir=fmu_dir, log=log)
+                         source=source, log=log)
     return CaseResult(case, diagnosis, time.perf_counter() - t0)
 
 

@@ -19,10 +19,9 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..calibration import ensure_run
-from ..compiler import build_models
+from ..compiler.source import ModelSource
 from ..errors import ConfigError
 from ..estimators.profile import grid, profile
-from ..fitting.engine import make_engine
 from ..fitting.objective import ProblemObjective
 from ..experiment import Experiment
 from .adequacy import jitter_share
@@ -43,8 +42,8 @@ REACHED_MARGIN_BIC = 2.0
 
 
 def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (), *, workdir: str | Path,
-             options: DiagnoseOptions = DiagnoseOptions(), package: str | Path | None = None,
-             fmu_dir: str | Path | None = None, log: Callable[[str], None] = print,
+             options: DiagnoseOptions = DiagnoseOptions(), source: ModelSource = ModelSource(),
+             log: Callable[[str], None] = print,
              noise_fits: dict | None = None) -> Diagnosis:
     """Name what the base model misses on ``training`` (confirmed on ``heldout``), or say
     that nothing in the catalogue does; see the package docstring for the steps.
@@ -66,7 +65,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
                     and not all(p.name in e.fixed for e in [*training, *heldout] for p in CATALOGUE[c].parameters)]
     if undocumented:  # a constant no config documents cannot be "documented wrong"
         options = replace(options, candidates=tuple(c for c in options.candidates if c not in undocumented))
-    ctx = Context(training, heldout, workdir, options, package, fmu_dir, log, noise_fits)
+    ctx = Context(training, heldout, workdir, options, source, log, noise_fits)
     for fit in {id(f): f for f in ctx.noise_fits.values()}.values():
         log(f"noise of the recorder of {', '.join(fit.tests)} ({fit.n_stretches} quiet stretches, {fit.n_samples} "
             f"samples): {fit.model.describe()}")
@@ -135,7 +134,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
         verdict.note(search["warning"])
     gap_before = _gaps(ctx, before_tests)
     gap_after = _gaps(ctx, after_tests)
-    bands = intervals(final_fit, n_jobs=ctx.options.n_jobs, log=ctx.log)
+    bands = intervals(final_fit, engine=ctx.options.engine, log=ctx.log)
     residuals = {name: {"time": t.time, "before": t.residual, "after": after_tests[name].residual,
                         "whitened_before": t.whitened, "whitened_after": after_tests[name].whitened}
                  for name, t in before_tests.items()}
@@ -259,13 +258,14 @@ def written_into(ctx) -> tuple[Path, str]:
     the user's own package (``--package``, ``$RAPID_COSIM_PACKAGE``) where it can be
     written; else the work folder's copy, never the package shipped inside rapid_cosim
     (an installed wheel's files are not the user's to change)."""
-    if not ctx.package_is_users:
-        return ctx.package, (f"the model goes into the work folder's copy of the shipped package, {ctx.package} "
-                             "(--package names a package of yours to write it into)")
-    if not os.access(ctx.user_package / "Diagnosed", os.W_OK):
-        return ctx.package, (f"{ctx.user_package} cannot be written: the model goes into the work folder's copy, "
-                             f"{ctx.package} (--package names a package of yours)")
-    return ctx.user_package, ""
+    copy, users = ctx.source.package, ctx.user_source.package_path
+    if not ctx.user_source.users_package:
+        return copy, (f"the model goes into the work folder's copy of the shipped package, {copy} "
+                      "(--package names a package of yours to write it into)")
+    if not os.access(users / "Diagnosed", os.W_OK):
+        return copy, (f"{users} cannot be written: the model goes into the work folder's copy, "
+                      f"{copy} (--package names a package of yours)")
+    return users, ""
 
 
 def _write_and_recalibrate(ctx: Context, chosen: CandidateFit, options: DiagnoseOptions):
@@ -284,12 +284,13 @@ def _write_and_recalibrate(ctx: Context, chosen: CandidateFit, options: Diagnose
         description = (f"{BASES[base]} with {', '.join(effects)}, calibrated on "
                        f"{', '.join(e.name for e in ctx.training)} by rapid-cosim diagnose")
         targets.append(write_bench(package_dir, effects, cls, values=values, description=description, base=base))
-    build_models(list(names.values()), package=package_dir, fmu_dir=ctx.user_fmu_dir, log=lambda *_: None)
+    written = replace(ctx.user_source, package=package_dir)
+    written.build(list(names.values()))
     target = targets[0]
     ctx.log(f"  wrote {', '.join(map(str, targets))} and compiled; re-calibrating with it ...")
     spec = CandidateSpec(effects)
     inputs = candidate_inputs(ctx.workdir / "recalibrated", ctx.training, spec, polish_from=values, model=names,
-                              package=package_dir, fmu_dir=ctx.user_fmu_dir, noise=ctx.models)
+                              source=written, noise=ctx.models)
     archive = ctx.workdir / "recalibrated.h5"
     result, _ = ensure_run(inputs, replace(ctx.run_options, method="nm"), archive, progress=False,
                            replace_stale=True)
@@ -315,7 +316,7 @@ def _profiles(ctx: Context, fit: CandidateFit) -> dict:
     if not names or fit.inputs is None:
         return {}
     problem = fit.inputs.problem
-    objective = ProblemObjective(problem, fit.inputs.fmus, engine=make_engine(ctx.options.n_jobs))
+    objective = ProblemObjective(problem, fit.inputs.fmus, engine=ctx.options.engine.make())
     x = np.array([fit.parameters[n] for n in problem.names])
     n_samples = fit.n_samples
     out = {}

@@ -195,14 +195,62 @@ def dask_client(scheduler: str | None = None, workers: int = 2):
 def make_engine(n_jobs: int = 1, backend: str = "loky", scheduler: str | None = None) -> Engine:
     """The engine for ``n_jobs`` workers of a joblib-style ``backend`` name (what the
     CLI's ``--n-jobs``, ``--joblib-backend`` and ``--scheduler`` say)."""
-    if backend not in JOBLIB_BACKENDS:
-        raise RapidCosimError(f"unknown joblib backend {backend!r}; choose one of {', '.join(JOBLIB_BACKENDS)}")
-    if n_jobs == 0 or n_jobs < -1:
-        raise RapidCosimError(f"n_jobs must be a positive number of workers or -1 (all cores), got {n_jobs}")
-    if scheduler is not None and backend != "dask":
-        raise RapidCosimError("a scheduler address needs the dask backend (--joblib-backend dask)")
-    if backend == "dask":
-        return DaskEngine(scheduler, n_jobs)
-    if backend == "sequential" or n_jobs == 1:
-        return SequentialEngine()
-    return JoblibEngine(n_jobs, backend)
+    return EngineSpec(n_jobs, backend, scheduler).make()
+
+
+@dataclass(frozen=True)
+class EngineSpec:
+    """Where a run's work goes, as one value the API passes down to every stage: ``n_jobs``
+    workers (-1: every core; for the fleet, its units' workers), a joblib-style ``backend``
+    (``loky``, ``multiprocessing``, ``sequential``, ``dask``) and, with ``dask``, the
+    ``scheduler``'s address (None: a local cluster). A value, not an engine: it travels
+    to workers, and each stage makes the engine it needs from it."""
+
+    n_jobs: int = 1
+    backend: str = "loky"
+    scheduler: str | None = None
+
+    def __post_init__(self):
+        if self.backend not in JOBLIB_BACKENDS:
+            raise RapidCosimError(f"unknown joblib backend {self.backend!r}; choose one of "
+                                  f"{', '.join(JOBLIB_BACKENDS)}")
+        if not isinstance(self.n_jobs, int) or self.n_jobs == 0 or self.n_jobs < -1:
+            raise RapidCosimError(f"n_jobs must be a positive number of workers or -1 (all cores), got {self.n_jobs}")
+        if self.scheduler is not None and self.backend != "dask":
+            raise RapidCosimError("a scheduler address needs the dask backend (--joblib-backend dask)")
+
+    @property
+    def processes(self) -> bool:
+        """Whether work is spread over this machine's worker processes (a stage may then
+        map whole fits, not only batches, onto them)."""
+        return self.n_jobs != 1 and self.backend in LOCAL_PROCESSES
+
+    def workers(self) -> int:
+        """Workers asked for (-1: this machine's cores)."""
+        import joblib
+
+        return joblib.cpu_count() if self.n_jobs == -1 else self.n_jobs
+
+    def overridden(self, n_jobs: int | None = None, backend: str | None = None,
+                   scheduler: str | None = None) -> "EngineSpec":
+        """This engine with the settings given in place of its own (an archived run resumed
+        elsewhere); another backend than dask drops the scheduler."""
+        backend = self.backend if backend is None else backend
+        scheduler = scheduler if scheduler is not None else (self.scheduler if backend == "dask" else None)
+        return EngineSpec(self.n_jobs if n_jobs is None else n_jobs, backend, scheduler)
+
+    def single(self) -> "EngineSpec":
+        """One worker, in this process: what each of the stage's own workers runs with."""
+        return EngineSpec()
+
+    def make(self) -> Engine:
+        if self.backend == "dask":
+            return DaskEngine(self.scheduler, self.n_jobs)
+        if self.backend == "sequential" or self.n_jobs == 1:
+            return SequentialEngine()
+        return JoblibEngine(self.n_jobs, self.backend)
+
+    def client(self):
+        """A dask client of the scheduler, or of a local cluster of ``n_jobs`` single-
+        threaded workers (:func:`dask_client`), for work mapped unit by unit."""
+        return dask_client(self.scheduler, self.workers())

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..compiler.source import ModelSource
 from ..errors import Finding, RapidCosimError, finding
 from ..exchange import Record, read_record
 from ..identify.check import UnitCheck, check_unit
@@ -35,8 +36,8 @@ class EntryCheck:
         return not self.problems
 
 
-def check_entry(entry: UnitEntry, *, package=None, fmu_dir=None) -> EntryCheck:
-    out = EntryCheck(entry, check_unit(entry.folder, package=package, fmu_dir=fmu_dir))
+def check_entry(entry: UnitEntry, *, source: ModelSource = ModelSource()) -> EntryCheck:
+    out = EntryCheck(entry, check_unit(entry.folder, source=source))
     unit = out.unit.unit
     if entry.record is None or unit is None:
         return out

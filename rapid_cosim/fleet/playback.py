@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration import inputs_from_experiments
+from ..compiler.source import ModelSource
 from ..diagnose.adequacy import ALPHA, adequacy, score_test
 from ..diagnose.candidates import residuals_at, experiment_blocks
 from ..diagnose.null import ScoredTest, replicates_for, with_extra
@@ -121,13 +122,12 @@ def structure_for(model: str, structures: list[Path]) -> Structure:
 
 
 def play_back(record: Record, experiments: list, structures: list[Path], tolerances: Tolerances, *,
-              package, fmu_dir, noise_fits: dict | None = None, seed: int = 0) -> Playback:
+              source: ModelSource, noise_fits: dict | None = None, seed: int = 0) -> Playback:
     """``record`` (iGrGen values of its model) on ``experiments`` (module docstring)."""
     structure = structure_for(record.model, structures)
     as_read, values = structure.playing(record.values)
     noise_fits = noise_fits or campaign_noise(experiments)
-    inputs = inputs_from_experiments(on_structure(as_read, experiments, noise_fits), package=package,
-                                     fmu_dir=fmu_dir)
+    inputs = inputs_from_experiments(on_structure(as_read, experiments, noise_fits), source=source)
     scored = inputs.problem.experiments
     floors = noise_floors(scored, noise_fits)
     names = inputs.problem.names

@@ -24,9 +24,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Callable
 
-from ..compiler import package_digest, resolve_models
-from ..errors import ConfigError
-from ..fitting.engine import dask_client
+from ..compiler.source import ModelSource
+from ..fitting.engine import EngineSpec
 from ..version import __version__
 from .playback import RULES
 from .spec import FleetSpec, UnitEntry, load_fleet
@@ -53,32 +52,31 @@ def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
             h.update(str(path.name).encode())
             h.update(path.read_bytes())
     # the models by their sources, not by where they lie: a fleet run again from another folder keeps its units
-    h.update(json.dumps({k: v for k, v in asdict(options).items() if k not in ("results", "package", "fmu_dir")},
+    h.update(json.dumps({k: v for k, v in asdict(options).items() if k not in ("results", "source")},
                         sort_keys=True).encode())
-    h.update(package_digest(options.package).encode())
+    h.update(options.source.digest().encode())
     h.update(f"{__version__}; {RULES}".encode())  # another version or rule may judge or identify differently
     return h.hexdigest()
 
 
-def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, scheduler: str | None = None,
-              seed: int = 1, package: str | Path | None = None, fmu_dir: str | Path | None = None, pdf: bool = False,
-              check_only: bool = False, progress: bool = True, log: Callable[[str], None] = print) -> FleetResult:
+def run_fleet(fleet: str | Path, *, results: str | Path, engine: EngineSpec = EngineSpec(n_jobs=2, backend="dask"),
+              seed: int = 1, source: ModelSource = ModelSource(), pdf: bool = False, check_only: bool = False,
+              progress: bool = True, log: Callable[[str], None] = print) -> FleetResult:
     """Run (or resume) the fleet of ``fleet`` into ``results``: each unit's result in
     ``results/units/<unit>.json`` as it finishes, then the fleet's report
-    (:mod:`.report`). ``scheduler``: a dask scheduler's address; else a LocalCluster of
-    ``workers`` processes on this machine. ``check_only``: the records on file are
+    (:mod:`.report`). The units are mapped over ``engine``'s dask cluster: its scheduler's,
+    else a LocalCluster of ``engine.n_jobs`` processes on this machine; each unit runs in
+    one worker, alone (:func:`~.unit_job.run_unit`). ``check_only``: the records on file are
     played back and judged, and nothing is identified (a failing record's row says so)."""
     from .report import write_report
 
     spec = load_fleet(fleet)
-    if workers < 1:
-        raise ConfigError(f"workers must be at least 1, got {workers}")
+    workers = engine.workers()
     results = Path(results)
     folder = results / "units"
     folder.mkdir(parents=True, exist_ok=True)
-    package, fmu_dir = resolve_models(package, fmu_dir)  # the workers' paths, whatever their folder
-    options = FleetOptions(str(results.resolve()), seed, str(package.resolve()), str(fmu_dir.resolve()),
-                           pdf, str(spec.tolerances) if spec.tolerances else None, check_only)
+    source = source.resolved()  # the workers' paths, whatever their folder
+    options = FleetOptions(str(results.resolve()), seed, source, pdf, str(spec.tolerances) if spec.tolerances else None, check_only)
     t0 = time.perf_counter()
     done, todo = {}, []
     for entry in spec.units:
@@ -89,10 +87,10 @@ def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, sched
         else:
             todo.append((entry, digest))
     log(f"fleet {spec.name}: {len(spec.units)} units, {len(done)} already done, {len(todo)} to run on "
-        + (f"the cluster at {scheduler}" if scheduler else f"{workers} local worker(s)"))
+        + (f"the cluster at {engine.scheduler}" if engine.scheduler else f"{workers} local worker(s)"))
     if todo:
-        _build_benches(spec, package, fmu_dir, log)
-        done.update(_distribute(todo, options, folder, workers, scheduler, progress))
+        _build_benches(spec, source)
+        done.update(_distribute(todo, options, folder, engine, progress))
     units = [done[e.name] for e in spec.units]
     result = FleetResult(spec.name, units, [e.name for e, _ in todo], [n for n in done if n not in
                                                                         {e.name for e, _ in todo}],
@@ -101,13 +99,13 @@ def run_fleet(fleet: str | Path, *, results: str | Path, workers: int = 2, sched
     return result
 
 
-def _distribute(todo, options: FleetOptions, folder: Path, workers: int, scheduler: str | None,
+def _distribute(todo, options: FleetOptions, folder: Path, engine: EngineSpec,
                 progress: bool) -> dict[str, UnitResult]:
     from distributed import as_completed
     from tqdm import tqdm
 
     out = {}
-    with dask_client(scheduler, workers) as client:
+    with engine.client() as client:
         futures = {client.submit(run_unit, entry, options, key=f"unit-{entry.name}-{digest[:12]}", retries=3):
                    (entry, digest) for entry, digest in todo}
         bar = tqdm(total=len(todo), unit="unit", disable=not progress, desc="units")
@@ -122,9 +120,8 @@ def _distribute(todo, options: FleetOptions, folder: Path, workers: int, schedul
     return out
 
 
-def _build_benches(spec: FleetSpec, package, fmu_dir, log) -> None:
+def _build_benches(spec: FleetSpec, source: ModelSource) -> None:
     """Every bench the units name, built once here rather than raced by the workers."""
-    from ..compiler import build_models
     from ..experiment import load_experiment
     from ..identify import Unit
 
@@ -136,7 +133,7 @@ def _build_benches(spec: FleetSpec, package, fmu_dir, log) -> None:
         except Exception:  # a bad unit is reported by its own task
             continue
     structures = [f"iGrGen.TestBenches.FrequencyInput{s}" for s in ("", "TGOV1", "IEEEG1", "GGOV1", "HYGOV")]
-    build_models(sorted(models | set(structures)), package=package, fmu_dir=fmu_dir, log=lambda *_: None)
+    source.build(sorted(models | set(structures)))
 
 
 def _read(path: Path) -> UnitResult | None:

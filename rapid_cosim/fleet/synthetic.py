@@ -44,6 +44,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..compiler.source import ModelSource
+
 EVENT = Path("electrical") / "tgov1_on"  # under the experiments folder the caller names
 STRUCTURES = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV", "TGTypeI")
 F_NOM = 60.0
@@ -129,7 +131,7 @@ def structure_files(plan: UnitPlan, folder: Path, experiments: Path) -> list[Pat
     return out
 
 
-def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: np.ndarray, fmu_dir,
+def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: np.ndarray, source: ModelSource,
                   governor: dict[str, float] | None = None) -> np.ndarray:
     """The plant's P (pu) on the event: its record model's bench, driven by the true
     frequency (the recorded one is that plus the PMU's noise); with ``governor`` (the
@@ -141,7 +143,6 @@ def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: 
     and would put a precursor into the recorded pre-event window, where the recorder's
     noise is estimated (it did: the P_e units' noise level came out about nine times the
     recorder's, and the bands' noise terms with it)."""
-    from ..compiler import ensure_fmu
     from ..structures.structure import Structure
     from ..simulator import get_simulator
 
@@ -149,14 +150,14 @@ def simulate_unit(plan: UnitPlan, structures: list[Path], t: np.ndarray, f_dev: 
     gov = plan.plant if governor is None else governor
     values = {**structure.fixed, **{f"gov.{k}": v for k, v in gov.items()}, "gov.p_ref": plan.p_ref,
               "f_nom": F_NOM, "mach.H": plan.h}
-    sim = get_simulator(ensure_fmu(structure.input_bench, fmu_dir=fmu_dir))
+    sim = get_simulator(source.fmu(structure.input_bench))
     out = "pe" if plan.electrical else "pm"
     rocof = np.concatenate([[0.0], np.diff(f_dev) / np.diff(t)])
     return sim.simulate({k: v for k, v in values.items() if k in sim.parameters}, output_times=t, input_time=t,
                         inputs={"f_dev": f_dev, "rocof": rocof}, outputs=[out])[out]
 
 
-def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, experiments: Path,
+def write_unit(plan: UnitPlan, folder: Path, seed: int, source: ModelSource, experiments: Path,
                pre_event: float = PRE_EVENT_S) -> Path:
     from ..exchange import FORMATS
     from ..experiment import render_config
@@ -169,7 +170,7 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, experiments: Pa
     recorded = t >= t_event - pre_event - 1e-6
     start = float(t[recorded][0])  # the recording's clock starts at 0 (the benches' simulations do)
     structures = structure_files(plan, folder, experiments)
-    p = simulate_unit(plan, structures, t, f - F_NOM, fmu_dir)
+    p = simulate_unit(plan, structures, t, f - F_NOM, source)
     g = np.random.default_rng([seed, 10_000 + int(plan.name[4:])])
     white = g.uniform(0.0005, 0.001)
     noise = NoiseModel(white_sigma=white, ar1_sigma=white * g.uniform(0.3, 1.0), tau=g.uniform(0.3, 1.0),
@@ -210,7 +211,7 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, fmu_dir, experiments: Pa
     # recorder's noise levels (RMS over the longest span, whatever is recorded of it): how
     # wrong the record is for this event.
     off = 0.0 if plan.record_right else float(np.sqrt(np.mean(
-        (simulate_unit(plan, structures, t, f - F_NOM, fmu_dir, plan.record) - p) ** 2)) / noise.sigma)
+        (simulate_unit(plan, structures, t, f - F_NOM, source, plan.record) - p) ** 2)) / noise.sigma)
     truth = {"structure": plan.structure, "plant": plan.plant, "record_right": plan.record_right, "wrong": plan.wrong,
              "record_off_in_noise": off, "hidden_rate": plan.hidden_rate, "electrical": plan.electrical, "H": plan.h,
              "rating": plan.rating}
@@ -243,7 +244,7 @@ def _record_values(plan: UnitPlan, structures: list[Path]) -> dict[str, float]:
 
 
 def make_fleet(folder: str | Path, units: int | list[int], *, experiments: str | Path, seed: int = 1,
-               fmu_dir: str | Path | None = None, name: str | None = None, pre_event: float = PRE_EVENT_S) -> Path:
+               source: ModelSource = ModelSource(), name: str | None = None, pre_event: float = PRE_EVENT_S) -> Path:
     """Units ``0 .. units - 1`` (or those of a list) under ``folder/units`` and
     ``folder/fleet.toml``; ``experiments`` is the repository's experiments folder (the
     event and the standard structure files come from it: the installed package carries
@@ -251,7 +252,7 @@ def make_fleet(folder: str | Path, units: int | list[int], *, experiments: str |
     folder = Path(folder)
     indices = list(range(units)) if isinstance(units, int) else list(units)
     for k in indices:
-        write_unit(draw_unit(k, seed), folder / "units" / f"unit{k:03d}", seed, fmu_dir, Path(experiments),
+        write_unit(draw_unit(k, seed), folder / "units" / f"unit{k:03d}", seed, source, Path(experiments),
                    pre_event)
     title = name or f"synthetic fleet of {len(indices)} units"
     (folder / "fleet.toml").write_text(f'[fleet]\nname = "{title}"\nunits = ["units/*"]\n')

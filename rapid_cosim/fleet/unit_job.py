@@ -26,7 +26,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..calibration.delivery import archived_reproduction
-from ..fitting.engine import pinned_threads
+from ..compiler.source import ModelSource
+from ..fitting.engine import EngineSpec, pinned_threads
 from ..errors import CheckFailed, DeliveryError, RapidCosimError
 from ..exchange import read_record
 from ..noise import campaign_noise, quiet_windows
@@ -47,8 +48,7 @@ class FleetOptions:
 
     results: str
     seed: int = 1
-    package: str | None = None
-    fmu_dir: str | None = None
+    source: ModelSource = ModelSource()  # resolved: the same paths on every worker
     pdf: bool = False
     tolerances: str | None = None
     check_only: bool = False  # play the records on file back and judge them; identify nothing
@@ -87,14 +87,14 @@ def run_unit(entry: UnitEntry, options: FleetOptions) -> UnitResult:
 def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path) -> None:
     from ..api import identify  # the same function as rapid-cosim identify
 
-    checked = check_entry(entry, package=options.package, fmu_dir=options.fmu_dir)
+    checked = check_entry(entry, source=options.source)
     if not checked.ok:  # every problem of the unit's files, and nothing of it run
         raise CheckFailed(entry.name, checked.problems)
     unit = checked.unit.unit
     tolerances = _tolerances(options)
     experiments = checked.unit.experiments
     noise = campaign_noise(experiments)
-    common = dict(package=options.package, fmu_dir=options.fmu_dir, noise_fits=noise, seed=options.seed)
+    common = dict(source=options.source, noise_fits=noise, seed=options.seed)
     on_file = None
     short = short_quiet(experiments)
     if short:
@@ -108,8 +108,8 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
             return
     elif options.check_only:
         raise RapidCosimError(f"{entry.name}: no record on file to check (the fleet checks only)")
-    ident = identify(entry.folder, workdir=work, seed=options.seed, n_jobs=1, package=options.package,
-                     fmu_dir=options.fmu_dir, report=True, pdf=options.pdf, log=lambda *_: None)
+    ident = identify(entry.folder, workdir=work, seed=options.seed, engine=EngineSpec(), source=options.source,
+                     report=True, pdf=options.pdf, log=lambda *_: None)
     result.route = Route.IDENTIFIED
     result.explanation = str(ident.explanation["verdict"])
     result.unexplained = ident.unexplained

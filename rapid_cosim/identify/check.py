@@ -14,6 +14,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..compiler.source import ModelSource
 from ..data import close_matches
 from ..errors import Finding, RapidCosimError, finding
 from ..experiment import Experiment, load_experiment
@@ -57,7 +58,7 @@ def say(notes: list[warnings.WarningMessage]) -> None:
         warnings.warn(w.message if isinstance(w.message, Warning) else str(w.message), w.category, stacklevel=2)
 
 
-def check_unit(path: str | Path, *, package=None, fmu_dir=None) -> UnitCheck:
+def check_unit(path: str | Path, *, source: ModelSource = ModelSource()) -> UnitCheck:
     """Load and check everything of the unit at ``path`` (a unit.toml or its folder)."""
     try:
         unit = Unit.load(path)
@@ -86,7 +87,7 @@ def check_unit(path: str | Path, *, package=None, fmu_dir=None) -> UnitCheck:
             out.findings.append(finding(e))
             continue
         out.structures.append(structure)
-        found = structure.check(package=package, fmu_dir=fmu_dir)
+        found = structure.check(source=source)
         out.findings += found
         if found:
             continue

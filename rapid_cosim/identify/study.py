@@ -48,8 +48,9 @@ from typing import Callable
 
 import numpy as np
 
+from ..compiler.source import ModelSource
 from ..calibration import RunOptions, inputs_from_experiments
-from ..compiler import ensure_fmu
+
 from ..experiment import Experiment, load_experiment
 from ..experiment.synthetic import synthesize, write_experiment
 from ..diagnose.campaigns import recorder
@@ -141,7 +142,7 @@ class StructureCase:
                 "seconds": self.seconds}
 
 
-def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir, steps=STEPS,
+def run_structure_case(truth: str, seed: int, work: Path, *, source: ModelSource, steps=STEPS,
                        held_out=HELD_OUT, standard=STANDARD, structures_dir: Path,
                        method: str = METHOD) -> StructureCase:
     """One campaign of a ``truth`` plant through identify's path (the standard structure
@@ -153,12 +154,12 @@ def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir, s
     own = structures.get(truth) or Structure.load(Path(structures_dir) / f"{truth}.toml")
     case = StructureCase(truth, seed, PLANTS[truth](rng, seed), binding_rates(truth, seed))
     folder = Path(work) / f"{truth}-{seed}"
-    tests = write_campaign(own, case.plant, steps, folder, rng, package=package, fmu_dir=fmu_dir)
+    tests = write_campaign(own, case.plant, steps, folder, rng, source=source)
     training = [t for k, t in enumerate(tests) if k not in held_out]
     heldout = [tests[k] for k in held_out if k < len(tests)]
     start = time.perf_counter()
     delivery = deliver(list(structures.values()), training, heldout, workdir=folder / "records",
-                       options=RunOptions(method=method, seed=seed).check(), package=package, fmu_dir=fmu_dir,
+                       options=RunOptions(method=method, seed=seed).check(), source=source,
                        log=lambda *_: None)
     case.verdict, case.recommended = delivery.verdict, delivery.recommended
     records = {r.model: r for r in delivery.records}
@@ -166,16 +167,16 @@ def run_structure_case(truth: str, seed: int, work: Path, *, package, fmu_dir, s
     record = records[winner]
     case.exported, case.freed = record.fit, record.optional_freed
     case.rmse = exported_fidelity(structures[winner], record.archive, folder / f"{winner}.dyr", [*training, *heldout],
-                                  delivery.fitted_noise, package=package, fmu_dir=fmu_dir)
+                                  delivery.fitted_noise, source=source)
     case.seconds = time.perf_counter() - start
     return case
 
 
 def write_campaign(structure: Structure, plant: dict[str, float], steps, folder: Path, rng: np.random.Generator, *,
-                   package, fmu_dir) -> list[Experiment]:
+                   source: ModelSource) -> list[Experiment]:
     """The plant's staged tests (configs on TG Type I, as the field's), each recorder drawn
     once per sample rate."""
-    fmu = ensure_fmu(structure.bench, package=package, fmu_dir=fmu_dir)
+    fmu = source.fmu(structure.bench)
     recorders = {rate: recorder(rng) for rate in sorted({s[4] for s in steps})}
     tests = []
     for k, (p_ref, df, t_return, duration, rate) in enumerate(steps):
@@ -193,7 +194,7 @@ def write_campaign(structure: Structure, plant: dict[str, float], steps, folder:
 
 
 def exported_fidelity(structure: Structure, archive: str, out: Path, tests: list[Experiment], fitted_noise: dict,
-                      *, package, fmu_dir) -> dict[str, float]:
+                      *, source: ModelSource) -> dict[str, float]:
     """Per test, RMSE over the recorder's noise level of the ``.dyr`` record ``rc.export`` writes (the same function,
     its check against the fit included) from ``archive``, read back by the project's reader and played as a grid
     simulator plays it (:func:`record_fidelity`)."""
@@ -201,17 +202,17 @@ def exported_fidelity(structure: Structure, archive: str, out: Path, tests: list
     from ..exchange import read_record
 
     deliver_archived(archive, out, kind="dyr", bus=1, machine_id="1")
-    return record_fidelity(structure, read_record(out).values, tests, fitted_noise, package=package, fmu_dir=fmu_dir)
+    return record_fidelity(structure, read_record(out).values, tests, fitted_noise, source=source)
 
 
 def record_fidelity(structure: Structure, record: dict[str, float], tests: list[Experiment], fitted_noise: dict,
-                    *, package, fmu_dir) -> dict[str, float]:
+                    *, source: ModelSource) -> dict[str, float]:
     """Per test, RMSE over the recorder's noise level of ``structure`` playing a record's
     values (iGrGen names without ``gov.``; :meth:`Structure.playing`), offset profiled as in the fitness;
     ``fitted_noise``: the selection's noise fits of these tests."""
     as_read, values = structure.playing(record)
     floors = noise_floors(tests, fitted_noise)
-    inputs = inputs_from_experiments(on_structure(as_read, tests, fitted_noise), package=package, fmu_dir=fmu_dir)
+    inputs = inputs_from_experiments(on_structure(as_read, tests, fitted_noise), source=source)
     residuals = residuals_at(inputs, np.array([values[n] for n in inputs.problem.names]))
     return {name: float(np.sqrt(np.nanmean(r.residual ** 2)) / floors[name].sigma) for name, r in residuals.items()}
 

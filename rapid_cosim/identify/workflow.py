@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from ..calibration import RunOptions
+from ..compiler.source import ModelSource
 from ..diagnose.context import METHOD
 from ..diagnose.selection import THRESHOLD
 from ..structures.structure import Structure, on_structure
@@ -43,6 +44,7 @@ from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
 from ..exchange import MODELS
 from ..errors import CheckFailed
 from ..experiment import Experiment
+from ..fitting.engine import EngineSpec
 from ..noise import NoiseFit, campaign_noise
 from .check import check_unit, say
 from .deliver import write_configs
@@ -50,13 +52,12 @@ from .result import CARRIES, Identification, StandardRecord, TestFidelity, canno
 from .unit import Unit
 
 
-def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_jobs: int = 1,
-             package: str | Path | None = None, fmu_dir: str | Path | None = None, backend: str = "loky",
-             scheduler: str | None = None, log: Callable[[str], None] = print) -> Identification:
+def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, engine: EngineSpec = EngineSpec(),
+             source: ModelSource = ModelSource(), log: Callable[[str], None] = print) -> Identification:
     """The unit's explanation, each standard record's calibration and fidelity, and the
     recommended record (see the module docstring)."""
     t0 = time.perf_counter()
-    check = check_unit(unit.path if isinstance(unit, Unit) else unit, package=package, fmu_dir=fmu_dir)
+    check = check_unit(unit.path if isinstance(unit, Unit) else unit, source=source)
     if not check.ok:  # every problem of the unit's files at once, before the first fit
         raise CheckFailed(f"{check.unit.path if check.unit else unit}", check.findings)
     unit = unit if isinstance(unit, Unit) else check.unit
@@ -68,14 +69,13 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, n_j
     fitted_noise = campaign_noise([*training, *heldout])  # one noise model for both parts
     log("the explanation (TG Type I and the effect catalogue):")
     explanation = diagnose(training, heldout, workdir=workdir / "explanation",
-                           options=DiagnoseOptions(seed=seed, n_jobs=n_jobs, write_model=False, backend=backend,
-                                                   scheduler=scheduler),
-                           package=package, fmu_dir=fmu_dir, log=log, noise_fits=fitted_noise)
+                           options=DiagnoseOptions(seed=seed, engine=engine, write_model=False),
+                           source=source, log=log, noise_fits=fitted_noise)
     log(f"  {explanation.named.verdict}")
     log("the standard records:")
-    options = RunOptions(method=METHOD, seed=seed, n_jobs=n_jobs, backend=backend, scheduler=scheduler).check()
+    options = RunOptions(method=METHOD, seed=seed, engine=engine).check()
     d = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
-                package=package, fmu_dir=fmu_dir, log=log, fitted_noise=fitted_noise)
+                source=source, log=log, fitted_noise=fitted_noise)
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=d.records, recommended=d.recommended,
@@ -108,8 +108,8 @@ class Delivery:
 
 
 def deliver(structures: Sequence[Structure], training: Sequence[Experiment], heldout: Sequence[Experiment],
-            explanation=None, *, workdir: str | Path, options: RunOptions, package: str | Path | None = None,
-            fmu_dir: str | Path | None = None, log: Callable[[str], None] = print,
+            explanation=None, *, workdir: str | Path, options: RunOptions, source: ModelSource = ModelSource(),
+            log: Callable[[str], None] = print,
             fitted_noise: dict | None = None) -> Delivery:
     """Every standard record by identify's rules (optional parts kept only where they win
     by the threshold; the record the criterion prefers recommended, a simpler one only in
@@ -120,7 +120,7 @@ def deliver(structures: Sequence[Structure], training: Sequence[Experiment], hel
     candidates = [*structures, *(v for s in structures for v in s.optional_variants())]
     fitted_noise = fitted_noise or campaign_noise([*training, *heldout])  # kept to predict the held-out tests
     verdict = select_structure(candidates, training, heldout, workdir=workdir, options=options,
-                               package=package, fmu_dir=fmu_dir, fitted_noise=fitted_noise, log=log)
+                               source=source, fitted_noise=fitted_noise, log=log)
     fits = {f.name: f for f in verdict.ranking}
     records = [_record(s, fits, explanation) for s in structures if s.name in MODELS]  # what a record can hold
     recommended, reason, tied_with, ties = _recommend(records)

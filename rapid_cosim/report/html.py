@@ -21,10 +21,12 @@ import numpy as np
 
 from ..version import __version__
 from ..calibration import inputs_from_experiments
+from ..compiler.source import ModelSource
 from ..errors import ConfigError, RapidCosimError
 from ..estimators.uncertainty import Uncertainty
 from ..experiment import Experiment
 from ..experiment.electrical import describe_recording
+from ..fitting.engine import EngineSpec
 from .archives import ArchivedRun, FitCurves, caption, curves_at
 from .fits import plot_experiment
 from .htmlkit import STYLE, e, mark, png
@@ -51,8 +53,7 @@ class PageOptions:
     bus: int = 1
     machine_id: str = "1"
     mva: float | None = None
-    package: str | Path | None = None
-    fmu_dir: str | Path | None = None
+    source: ModelSource = ModelSource()  # where a held-out test's model is built
     record_note: str = ""  # above the record: whose it is and why (rapid-cosim identify's recommendation)
 
 
@@ -128,11 +129,11 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
     return ValidationPage(out, tuple(m for m, _ in rows), tuple(c for _, c in rows), len(figures), record)
 
 
-def validation_page(archive: str | Path, out: str | Path | None = None, *, n_jobs: int = 1,
+def validation_page(archive: str | Path, out: str | Path | None = None, *, engine: EngineSpec = EngineSpec(),
                     tolerances: str | Path | None = None, heldout: Sequence[str | Path | Experiment] = (),
                     diagnosis: str | Path | None = None, pdf: str | Path | bool | None = None, bus: int = 1,
-                    machine_id: str = "1", mva: float | None = None, package: str | Path | None = None,
-                    fmu_dir: str | Path | None = None, record_note: str = ""):
+                    machine_id: str = "1", mva: float | None = None, source: ModelSource = ModelSource(),
+                    record_note: str = ""):
     """The unit's validation report (this module's page) for a finished run, at
     ``out`` (default: the archive's name with .html): ``tolerances`` a TOML file with a
     ``[validation]`` table (default bands otherwise), ``heldout`` experiment configs
@@ -153,14 +154,14 @@ def validation_page(archive: str | Path, out: str | Path | None = None, *, n_job
     options = PageOptions(tolerances=load_tolerances(tolerances) if tolerances else Tolerances(),
                           heldout=tuple(p if isinstance(p, Experiment) else load_experiment(p) for p in heldout),
                           diagnosis=read_diagnosis(diagnosis) if diagnosis else None, bus=bus,
-                          machine_id=machine_id, mva=mva, package=package, fmu_dir=fmu_dir, record_note=record_note)
+                          machine_id=machine_id, mva=mva, source=source, record_note=record_note)
     if pdf:
         chromium()
     run = load_run(archive)
     unc, note = None, ""
     if run.result.uncertainty is None:
         try:
-            unc = hessian_uncertainty(run.inputs, run.result.x, archive, n_jobs=n_jobs)
+            unc = hessian_uncertainty(run.inputs, run.result.x, archive, engine=engine)
             inflation = max(_ar1_inflation(e) for e in run.inputs.experiments)
             unc = unc.scaled(inflation)
             note = (f"Laplace approximation at the best point, its covariance inflated {inflation:.2g}-fold for "
@@ -202,8 +203,7 @@ def heldout_curves(run: ArchivedRun, x, opts: PageOptions) -> list[FitCurves]:
         if exp.name in trained:
             raise ConfigError(f"{exp.name} is a training test of {run.path}; a held-out test is one the run "
                               "did not see", str(exp.config_path))
-    inputs = inputs_from_experiments(list(opts.heldout), package=opts.package, fmu_dir=opts.fmu_dir,
-                                     fmus=run.inputs.fmus)
+    inputs = inputs_from_experiments(list(opts.heldout), source=opts.source, fmus=run.inputs.fmus)
     names = inputs.problem.names
     missing = [n for n in names if n not in best]
     if missing:

@@ -37,7 +37,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..calibration import RunOptions, best_run, inputs_from_experiments
-from ..fitting.engine import LOCAL_PROCESSES
+from ..compiler.source import ModelSource
 from ..experiment import EstimateSpec, Experiment
 from ..simulator import get_simulator
 from ..noise import campaign_noise
@@ -95,13 +95,13 @@ class StructureVerdict:
 
 
 def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Sequence[Experiment], *,
-               workdir: str | Path, options, package, fmu_dir, log: Callable[[str], None] = print) -> dict:
+               workdir: str | Path, options, source: ModelSource, log: Callable[[str], None] = print) -> dict:
     """The effect catalogue on ``structure`` (frequency-path and output effects on a
     standard structure; all of them on TG Type I): the diagnosis's verdict, in short."""
     from ..diagnose.workflow import diagnose
 
     d = diagnose([structure.experiment(e) for e in training], [structure.experiment(e) for e in heldout],
-                 workdir=workdir, options=options, package=package, fmu_dir=fmu_dir, log=log)
+                 workdir=workdir, options=options, source=source, log=log)
     n = d.named
     return {"structure": structure.name, "effect": n.effect, "effects": n.effects, "verdict": n.verdict,
             "adequate": d.adequate, "candidates": n.candidates, "reason": n.reason,
@@ -114,8 +114,7 @@ def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Se
 
 def select_structure(structures: Sequence[Structure], training: Sequence[Experiment],
                      heldout: Sequence[Experiment] = (), *, workdir: str | Path, options: RunOptions,
-                     package: str | Path | None = None, fmu_dir: str | Path | None = None,
-                     threshold: float = THRESHOLD, searches: Sequence[str] = (), fitted_noise: dict | None = None,
+                     source: ModelSource = ModelSource(), threshold: float = THRESHOLD, searches: Sequence[str] = (), fitted_noise: dict | None = None,
                      log: Callable[[str], None] = print) -> StructureVerdict:
     """Calibrate every structure on ``training`` by ``options.method`` and each of
     ``searches`` (the best kept), rank them and give the verdict. ``fitted_noise``: the
@@ -125,18 +124,17 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
     noise = noise_floors([*training, *heldout], fitted_noise)
     fits, null = [], None
     log(f"  calibrating {', '.join(s.name for s in structures)} ...")
-    runs = _calibrate_all(structures, training, fitted_noise, options, workdir, searches, package, fmu_dir)
+    runs = _calibrate_all(structures, training, fitted_noise, options, workdir, searches, source)
     for s, (result, archive) in zip(structures, runs):
         exps = on_structure(s, training, fitted_noise)
-        inputs = inputs_from_experiments(exps, package=package, fmu_dir=fmu_dir)
+        inputs = inputs_from_experiments(exps, source=source)
         tests = residuals_at(inputs, result.x)
         data_term, n = score(tests, noise)
         k = len(result.names) + len(tests)
         held_score, jac = None, jacobian_at(inputs, result.x)
         held_inputs = None
         if heldout:
-            held_inputs = inputs_from_experiments(on_structure(s, heldout, fitted_noise),
-                                                 package=package, fmu_dir=fmu_dir)
+            held_inputs = inputs_from_experiments(on_structure(s, heldout, fitted_noise), source=source)
             best = result.best()
             x = np.array([best[name] for name in held_inputs.problem.names])
             held_tests = residuals_at(held_inputs, x)
@@ -163,49 +161,46 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
     staged = [e for e in training if not e.inputs]  # a step test to design the next one from
     if verdict.structure == AMBIGUOUS and staged:
         a, b = (next(s for s in structures if s.name == n) for n in verdict.candidates[:2])
-        verdict.separating_test = _separating(a, b, fits, staged[0], noise, package, fmu_dir)
+        verdict.separating_test = _separating(a, b, fits, staged[0], noise, source)
         log(f"  {verdict.separating_test['advice']}")
     return verdict
 
 
-def _calibrate_all(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches, package,
-                   fmu_dir) -> list[tuple]:
+def _calibrate_all(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches,
+                   source: ModelSource) -> list[tuple]:
     """Every structure's (result, archive), each fitted whole in one worker process where
     the options give several local workers, else here with the options' engine. Why
     whole fits in workers: a structure's batches are a few dozen simulations each, and
     sending each batch to a pool cost more than it saved (an identification of the
     electrical unit took 28 s on 2 workers, 15 s in one process)."""
-    payload = (list(structures), list(training), fitted_noise, options, workdir, tuple(searches), package, fmu_dir)
-    if options.n_jobs == 1 or options.backend not in LOCAL_PROCESSES or len(structures) < 2:
+    payload = (list(structures), list(training), fitted_noise, options, workdir, tuple(searches), source)
+    if not options.engine.processes or len(structures) < 2:
         return _calibrated(payload, np.arange(len(structures)))
-    from ..compiler import build_models
-    from ..fitting.engine import JoblibEngine
-
     benches = sorted({b for s in structures for b in (s.bench, s.input_bench) if b})
-    build_models(benches, package=package, fmu_dir=fmu_dir, log=lambda *_: None)  # once here, not per worker
-    payload = (*payload[:3], replace(options, n_jobs=1), *payload[4:])
-    parts = JoblibEngine(options.n_jobs, options.backend).map(_calibrated, payload,
+    source.build(benches)  # once here, not per worker
+    payload = (*payload[:3], replace(options, engine=options.engine.single()), *payload[4:])
+    parts = options.engine.make().map(_calibrated, payload,
                                                                 [np.array([k]) for k in range(len(structures))])
     return [run for part in parts for run in part]
 
 
 def _calibrated(payload, chunk) -> list[tuple]:
     """Worker: the (result, archive) of the structures ``chunk`` indexes."""
-    structures, training, fitted_noise, options, workdir, searches, package, fmu_dir = payload
+    structures, training, fitted_noise, options, workdir, searches, source = payload
     out = []
     for k in chunk:
         s = structures[int(k)]
-        inputs = inputs_from_experiments(on_structure(s, training, fitted_noise), package=package, fmu_dir=fmu_dir)
+        inputs = inputs_from_experiments(on_structure(s, training, fitted_noise), source=source)
         out.append(best_run(inputs, options, workdir / f"{s.name}.h5", searches, replace_stale=True))
     return out
 
 
-def _separating(a: Structure, b: Structure, fits: list[StructureFit], template: Experiment, noise, package,
-                fmu_dir) -> dict:
+def _separating(a: Structure, b: Structure, fits: list[StructureFit], template: Experiment, noise,
+                source: ModelSource) -> dict:
     """The staged test that would tell structures ``a`` and ``b`` apart, from their fits."""
     def model(s: Structure) -> tuple[str, object, dict]:
         exp = s.experiment(template)
-        fmu = inputs_from_experiments([exp], package=package, fmu_dir=fmu_dir).fmus[exp.model]
+        fmu = inputs_from_experiments([exp], source=source).fmus[exp.model]
         fit = next(f for f in fits if f.name == s.name)
         return s.name, get_simulator(fmu), {**exp.fixed, **fit.parameters}
 

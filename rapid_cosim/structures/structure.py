@@ -29,6 +29,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..compiler.source import ModelSource
 from ..errors import ConfigError, Finding
 from ..exchange import model_named
 from ..experiment import EstimateSpec, Experiment, documented, parse_experiment, render_config
@@ -141,11 +142,10 @@ class Structure:
             raise ConfigError(f"{', '.join(clash)}: optional and also fixed or estimated", path, "optional")
         return cls(name, bench, input_bench, values, specs, path, free, carries)
 
-    def check(self, *, package=None, fmu_dir=None) -> list[Finding]:
+    def check(self, *, source: ModelSource = ModelSource()) -> list[Finding]:
         """Every problem of this structure file that a run would meet, each naming this file
         and its key: a bench that cannot be built, a parameter its bench lacks or cannot
         take, a value outside the range the model declares."""
-        from ..compiler import ensure_fmu
         from ..errors import BuildError
 
         out = []
@@ -153,7 +153,7 @@ class Structure:
             if bench is None:
                 continue
             try:
-                params = get_simulator(ensure_fmu(bench, package=package, fmu_dir=fmu_dir)).parameters
+                params = get_simulator(source.fmu(bench)).parameters
             except (BuildError, ConfigError) as e:
                 out.append(Finding(self.path, key, str(e)))
                 continue

@@ -1,0 +1,93 @@
+"""The two values passed down from the API (issue 43): where the models come from
+(``ModelSource``) and where the work runs (``EngineSpec``)."""
+
+import pickle
+from pathlib import Path
+
+import pytest
+
+import rapid_cosim as rc
+from rapid_cosim.calibration import RunOptions
+from rapid_cosim.cli.parser import build_parser
+from rapid_cosim.compiler import default_fmu_dir, default_package
+from rapid_cosim.errors import BuildError, RapidCosimError
+from rapid_cosim.fitting.engine import DaskEngine, JoblibEngine, SequentialEngine
+
+
+def test_a_model_source_is_a_value_of_paths_with_the_defaults_filled_in_when_resolved(tmp_path, monkeypatch):
+    monkeypatch.delenv("RAPID_COSIM_PACKAGE", raising=False)
+    monkeypatch.delenv("RAPID_COSIM_FMUS", raising=False)
+    given = rc.ModelSource(str(tmp_path / "pkg"), str(tmp_path / "fmus"))
+    assert given.package == tmp_path / "pkg" and isinstance(given.fmu_dir, Path) and given.compiler == "auto"
+    assert given.users_package and not rc.ModelSource().users_package
+    shipped = rc.ModelSource().resolved()
+    assert shipped.package == default_package().resolve() and shipped.fmu_dir == default_fmu_dir().resolve()
+    monkeypatch.setenv("RAPID_COSIM_PACKAGE", str(tmp_path / "pkg"))
+    assert rc.ModelSource().users_package and rc.ModelSource().package_path == tmp_path / "pkg"
+    assert pickle.loads(pickle.dumps(given)) == given  # it travels to workers as it is
+    with pytest.raises(BuildError, match="unknown compiler 'gcc'; choose one of auto, openmodelica, embedded"):
+        rc.ModelSource(compiler="gcc")
+
+
+def test_a_model_source_builds_and_finds_the_fmus_of_its_folder(fmus):
+    folder = fmus["StagedTest"].parent
+    source = rc.ModelSource(fmu_dir=folder)
+    assert source.fmu("iGrGen.TestBenches.StagedTest") == folder / "iGrGen.TestBenches.StagedTest.fmu"
+    assert rc.simulate("iGrGen.TestBenches.StagedTest", stop_time=1.0, output_interval=0.5, source=source).time[-1] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("spec, message", [
+    (dict(n_jobs=0), "n_jobs must be a positive number of workers or -1"),
+    (dict(n_jobs=-3), "n_jobs must be a positive number of workers or -1"),
+    (dict(backend="threads"), "unknown joblib backend 'threads'; choose one of loky, multiprocessing"),
+    (dict(scheduler="tcp://x:8786"), "a scheduler address needs the dask backend"),
+])
+def test_a_bad_engine_is_refused_when_it_is_made(spec, message):
+    with pytest.raises(RapidCosimError, match=message):
+        rc.EngineSpec(**spec)
+
+
+def test_an_engine_spec_makes_the_engine_each_stage_needs():
+    assert isinstance(rc.EngineSpec().make(), SequentialEngine)
+    assert isinstance(rc.EngineSpec(2, "sequential").make(), SequentialEngine)
+    two = rc.EngineSpec(2)
+    assert isinstance(two.make(), JoblibEngine) and two.make().n_jobs == 2 and two.processes
+    assert two.single() == rc.EngineSpec() and not two.single().processes
+    dask = rc.EngineSpec(4, "dask", "tcp://h:8786")
+    assert isinstance(dask.make(), DaskEngine) and not dask.processes
+    assert rc.EngineSpec(-1).workers() >= 1
+
+
+def test_an_archived_engine_is_overridden_setting_by_setting():
+    archived = rc.EngineSpec(4, "dask", "tcp://h:8786")
+    assert archived.overridden() == archived
+    assert archived.overridden(n_jobs=2) == rc.EngineSpec(2, "dask", "tcp://h:8786")
+    assert archived.overridden(backend="loky") == rc.EngineSpec(4, "loky")  # another backend drops the scheduler
+    assert rc.EngineSpec(2).overridden(backend="dask", scheduler="tcp://o:1") == rc.EngineSpec(2, "dask", "tcp://o:1")
+
+
+def test_an_archive_holds_the_engine_flat_as_it_always_did():
+    """Archives written before the engine was one value are read as they are, and new
+    ones hold the same keys in the same order."""
+    options = RunOptions(method="nm", seed=3, engine=rc.EngineSpec(2, "multiprocessing"))
+    flat = options.to_json()
+    assert list(flat) == ["method", "seed", "n_jobs", "backend", "penalty", "estimator_options", "runner", "scheduler"]
+    assert flat["n_jobs"] == 2 and flat["backend"] == "multiprocessing" and flat["scheduler"] is None
+    assert RunOptions.from_json(flat) == options
+    old = {"method": "pf:10+nm", "seed": 1, "n_jobs": 1, "backend": "loky", "penalty": 1e6,
+           "estimator_options": {}}  # an archive from before the compiled runner and the scheduler
+    read = RunOptions.from_json(old)
+    assert read.engine == rc.EngineSpec() and read.runner == "python"
+
+
+def test_the_cli_builds_one_engine_and_one_source_from_its_options(tmp_path):
+    from rapid_cosim.cli.commands import _engine, _source
+
+    parser = build_parser()
+    args = parser.parse_args(["identify", "unit.toml", "--n-jobs", "2", "--package", str(tmp_path), "--fmus",
+                              str(tmp_path / "f"), "--compiler", "embedded"])
+    assert _engine(args) == rc.EngineSpec(2) and _source(args) == rc.ModelSource(tmp_path, tmp_path / "f", "embedded")
+    fleet = parser.parse_args(["fleet", "fleet.toml", "--workers", "3"])  # the fleet's older spelling
+    assert fleet.n_jobs == 3 and parser.parse_args(["fleet", "fleet.toml"]).n_jobs == 2
+    with pytest.raises(RapidCosimError, match="a scheduler address needs the dask backend"):
+        _engine(parser.parse_args(["estimate", "cfg.toml", "--scheduler", "tcp://h:1"]))
