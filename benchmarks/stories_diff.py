@@ -61,6 +61,8 @@ def normalised(text: str, tree: Path, results: Path) -> list[str]:
     text = text.replace(str(results), "<results>").replace(str(tree), "<tree>")
     text = re.sub(r"\d+(\.\d+)? s wall time", "<t> s wall time", text)
     text = re.sub(r"\((\d+(\.\d+)?) s, ", "(<t> s, ", text)  # the fleet's summary line
+    text = re.sub(r"\((\d+(\.\d+)?) s\)$", "(<t> s)", text, flags=re.M)  # demo's time per test
+    text = re.sub(r"date \+%s\) - \d+", "date +%s) - <t0>", text)  # a Makefile recipe's start time
     text = re.sub(r"\bin \d+(\.\d+)? s\b", "in <t> s", text)  # a stage's time (data in seconds stay compared)
     text = re.sub(r"\d{4}-\d\d-\d\d[T ]\d\d:\d\d(:\d\d(\.\d+)?)?(Z|[+-]\d\d:?\d\d)?", "<date>", text)
     text = re.sub(r"\b(?=[0-9a-f]*[a-f])[0-9a-f]{12,64}\b", "<digest>", text)  # not a number's digits

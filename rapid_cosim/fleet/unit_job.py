@@ -6,8 +6,9 @@ left out of ``fleet.dyr``) and played back too.
 
 Why one worker, from scratch: a unit's result must not depend on where it ran or on a
 worker lost half-way. The work folder is cleared first (a killed run's half-written
-archives are never resumed by another), the identification runs in one process
-(``n_jobs = 1``, seeded), so a unit redone elsewhere gives the same numbers bit for bit.
+archives are never resumed by another), the identification runs in one process (one
+``EngineSpec()``, seeded, the BLAS pools at one thread), so a unit redone elsewhere gives
+the same numbers bit for bit.
 A unit that fails gets a result with its error in its own words; nothing is raised.
 
 A recorded event with less than :data:`QUIET_ADVISED_S` before it is flagged: that span
