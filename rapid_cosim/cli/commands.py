@@ -28,9 +28,8 @@ def _assignments(items: list[str]) -> dict[str, float]:
 
 
 def _source(args) -> ModelSource:
-    """The models of ``--package``, ``--fmus`` and ``--compiler`` (a command without the
-    last compiles with ``auto``)."""
-    return ModelSource(args.package, args.fmus, getattr(args, "compiler", "auto"))
+    """The models of ``--package``, ``--fmus`` and ``--compiler`` (the parser's ``model_options``)."""
+    return ModelSource(args.package, args.fmus, args.compiler)
 
 
 def _engine(args) -> EngineSpec:

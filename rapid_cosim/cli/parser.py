@@ -25,10 +25,13 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(func=func)
         return p
 
-    def model_options(p):
-        p.add_argument("--package", help=PACKAGE_HELP)
+    def model_options(p, why: str = ""):
+        """--package, --fmus and --compiler: one ModelSource (cli/commands.py, _source)."""
+        from ..compiler import COMPILERS
+
+        p.add_argument("--package", help=PACKAGE_HELP + why)
         p.add_argument("--fmus", help=FMUS_HELP)
-        p.add_argument("--compiler", default="auto", choices=["auto", "openmodelica", "embedded"],
+        p.add_argument("--compiler", default="auto", choices=list(COMPILERS),
                        help="Modelica-to-FMU compiler; auto = OpenModelica where omc exists (default %(default)s)")
 
     def runner_option(p):
@@ -134,8 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--bus", type=int, default=1, help="bus number in the records (default %(default)s)")
     p.add_argument("--id", default="1", help="machine id in the records (default %(default)s)")
     p.add_argument("--mva", type=float, help="the machine's MVA base, for the PSLF .dyd record")
-    p.add_argument("--package", help=PACKAGE_HELP + "; for the held-out tests' benches")
-    p.add_argument("--fmus", help=FMUS_HELP)
+    model_options(p, "; for the held-out tests' benches")
 
     p = command("benches", cmd_benches, "build the FMUs and plot every test bench's step response")
     p.add_argument("--results", default="results", help="output directory (default %(default)s)")
