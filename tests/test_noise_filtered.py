@@ -115,4 +115,4 @@ def test_the_true_governor_on_an_andes_events_electrical_power_is_judged_white(r
                                options=RunOptions(method="ms", seed=1), source=ModelSource(fmu_dir=fmus["FrequencyInput"].parent),
                                log=lambda *_: None)
     fit = verdict.ranking[0]
-    assert fit.adequate and fit.tests[event]["p_holm"] > 0.1, fit.tests[event]
+    assert fit.adequate and fit.tests[event].p_holm > 0.1, fit.tests[event]

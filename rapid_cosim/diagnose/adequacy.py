@@ -58,6 +58,10 @@ class TestAdequacy:
     n: int
     adequate: bool
 
+    def to_json(self) -> dict:
+        """As a report holds it, under its test's name (the name is the key, not a field)."""
+        return {k: v for k, v in asdict(self).items() if k != "test"}
+
 
 @dataclass(frozen=True)
 class Adequacy:
@@ -75,7 +79,7 @@ class Adequacy:
     def to_json(self) -> dict:
         return {"adequate": self.adequate, "pooled_variance_ratio": self.pooled_variance_ratio, "p": self.p,
                 "alpha": self.alpha, "replicates": self.replicates,
-                "tests": {t.test: {k: v for k, v in asdict(t).items() if k != "test"} for t in self.tests}}
+                "tests": {t.test: t.to_json() for t in self.tests}}
 
 
 def adequacy(tests: Mapping[str, ExperimentResiduals], noise: Mapping[str, NoiseFloor], null: NoiseReplicates,

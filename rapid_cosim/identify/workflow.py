@@ -138,7 +138,7 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
     effects = list(explanation.named.effects) if explanation is not None else []
     missing = cannot_carry(structure.name, effects, freed=use is freed)
     explained = {t.test: t for t in explanation.adequacy.after.tests} if explanation is not None else {}
-    per_test = {name: TestFidelity(t["rmse_over_noise"], t["variance_ratio"], t["p_holm"], t["adequate"],
+    per_test = {name: TestFidelity(t.rmse_over_noise, t.variance_ratio, t.p_holm, t.adequate,
                                    explained[name].rmse_over_noise if name in explained else None)
                 for name, t in use.tests.items()}
     failing = [n for n, t in per_test.items() if not t.adequate]

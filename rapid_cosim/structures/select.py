@@ -41,7 +41,7 @@ from ..compiler.source import ModelSource
 from ..experiment import EstimateSpec, Experiment
 from ..simulator import get_simulator
 from ..noise import campaign_noise
-from ..diagnose.adequacy import adequacy
+from ..diagnose.adequacy import TestAdequacy, adequacy
 from ..diagnose.catalogue import AMBIGUOUS, UNEXPLAINED
 from ..diagnose.candidates import jacobian_at, residuals_at
 from .identifiability import best_separating_step, identifiability
@@ -65,7 +65,11 @@ class StructureFit:
     separating_step: dict | None
     archive: str
     at_bounds: list[str] = field(default_factory=list)  # estimates that ended on a bound of their range
-    tests: dict = field(default_factory=dict)  # per test: variance ratio, p-values, adequate (Adequacy.to_json)
+    tests: dict[str, TestAdequacy] = field(default_factory=dict)  # per test, its adequacy
+
+    def to_json(self) -> dict:
+        """As structures.json holds it (each test's adequacy under its name)."""
+        return {**asdict(self), "tests": {name: t.to_json() for name, t in self.tests.items()}}
 
 
 @dataclass
@@ -90,7 +94,7 @@ class StructureVerdict:
 
     def to_json(self) -> dict:
         return {"structure": self.structure, "candidates": self.candidates, "reason": self.reason,
-                "ranking": [asdict(r) for r in self.ranking], "effects": self.effects,
+                "ranking": [r.to_json() for r in self.ranking], "effects": self.effects,
                 "separating_test": self.separating_test}
 
 
@@ -151,7 +155,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         fits.append(StructureFit(s.name, data_term + k * np.log(n), 0.0, float(result.fun), result.best(),
                                  len(result.names), fit_ok.adequate, fit_ok.pooled_variance_ratio, held_score,
                                  ident.to_json(), step, str(archive),
-                                 _at_bounds(s.estimate, result.best()), fit_ok.to_json()["tests"]))
+                                 _at_bounds(s.estimate, result.best()), {t.test: t for t in fit_ok.tests}))
         log(f"  {s.name} ({', '.join(s.estimate)}): BIC {fits[-1].bic:.1f}, variance ratio "
             f"{fit_ok.pooled_variance_ratio:.2f}, {ident.summary()}")
     fits.sort(key=lambda f: f.bic)
