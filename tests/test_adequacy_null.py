@@ -139,3 +139,26 @@ def test_holm_and_the_two_statistics_combined():
     # far beyond every replicate: the gamma tail gives the chi-square's own tail, not 1/1001
     assert pv == pytest.approx(stats.chi2.sf(1200, 1000), rel=0.5) and pv < 1e-4
     assert 0.3 < pq < 0.6 and pm == pytest.approx(1 - (1 - pv) ** 2)
+
+
+def test_kept_replicates_are_taken_only_for_the_same_tests(campaign):
+    """An identification's two parts share their replicates (KeptReplicates) only where
+    the second's tests would draw the same numbers: the same tests, whitenings, noise
+    fits, count and seed. Anything else is drawn anew, and what is taken equals what
+    would have been drawn."""
+    from dataclasses import replace
+
+    from rapid_cosim.diagnose.null import KeptReplicates
+
+    tests, made, _ = campaign
+    kept = KeptReplicates()
+    first = kept.get(tests[:2], 200, 3)
+    assert kept.get(list(tests[:2]), 200, 3) is first and kept.reused == 1
+    fresh = NoiseReplicates(tests[:2], 200, seed=3)
+    assert all(np.array_equal(fresh.e[t.name], first.e[t.name]) for t in tests[:2])  # taken = drawn
+    other_fit = [replace(tests[0], noise=NoiseFit.known(MODEL)), tests[1]]
+    for changed in ((tests[:2], 200, 4), (tests[:2], 100, 3), (tests[1:3], 200, 3), (other_fit, 200, 3),
+                    ([replace(tests[0], offset=False), tests[1]], 200, 3),
+                    ([replace(tests[0], whitening=Whitening(MODEL, tests[0].times)), tests[1]], 200, 3)):
+        assert kept.get(*changed) is not first
+    assert kept.reused == 1 and len(kept.made) == 7

@@ -29,7 +29,7 @@ from .adequacy import Adequacy, adequacy
 from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, jacobian_at, \
     residuals_at
 from .catalogue import BASES, CATALOGUE, NONE, bench_name, is_generated, write_bench
-from .null import REPLICATES, NoiseReplicates, replicates_for
+from .null import REPLICATES, KeptReplicates, NoiseReplicates, replicates_for
 from .selection import THRESHOLD, bic, noise_floors
 
 # Multistart least squares from a Sobol design (rapid_cosim.estimators.multistart): the
@@ -97,7 +97,7 @@ class Context:
     adequacy null's shared replicates (``null``, made with the base fit)."""
 
     def __init__(self, training, heldout, workdir, options: DiagnoseOptions, source: ModelSource,
-                 log: Callable[[str], None], noise_fits: dict | None = None):
+                 log: Callable[[str], None], noise_fits: dict | None = None, kept: KeptReplicates | None = None):
         self.training, self.heldout = list(training), list(heldout)
         self.workdir, self.options = Path(workdir), options
         # the user's models: a named model may be written into the user's own package (source.users_package),
@@ -115,6 +115,7 @@ class Context:
         self._predictions: dict[tuple, tuple] = {}
         self._adequacy: dict[tuple, Adequacy] = {}
         self.null: NoiseReplicates | None = None
+        self.kept = kept  # replicates made before (an identification's other part), taken where the same
         self.run_options = RunOptions(method=options.method, seed=options.seed, engine=options.engine,
                                       estimator_options=options.estimator_options, runner=options.runner).check()
         # Candidates are independent fits: with local workers each is fitted in a worker
@@ -177,7 +178,8 @@ class Context:
         exps = list(fit.inputs.experiments)
         if self.heldout:
             exps += list(self._heldout_inputs(fit).experiments)
-        self.null = replicates_for(exps, self.noise_fits, self.options.replicates, seed=self.options.seed)
+        self.null = replicates_for(exps, self.noise_fits, self.options.replicates, seed=self.options.seed,
+                                   kept=self.kept)
 
     def base_parameters(self) -> dict[str, float] | None:
         base = self.fits.get(NONE)

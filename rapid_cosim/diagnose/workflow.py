@@ -29,6 +29,7 @@ from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_s
 from .catalogue import AMBIGUOUS, BASES, CATALOGUE, NONE, UNEXPLAINED, camel, check_base, composable, effect_parameters, governor, is_staged, \
     write_bench
 from .context import Context, DiagnoseOptions, split_holdout
+from .null import KeptReplicates
 from .features import Features, residual_features
 from .intervals import exchanged, intervals
 from .limits import check_material, inadequate, verdict_text
@@ -44,11 +45,12 @@ REACHED_MARGIN_BIC = 2.0
 def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (), *, workdir: str | Path,
              options: DiagnoseOptions = DiagnoseOptions(), source: ModelSource = ModelSource(),
              log: Callable[[str], None] = print,
-             noise_fits: dict | None = None) -> Diagnosis:
+             noise_fits: dict | None = None, kept: KeptReplicates | None = None) -> Diagnosis:
     """Name what the base model misses on ``training`` (confirmed on ``heldout``), or say
     that nothing in the catalogue does; see the package docstring for the steps.
     ``noise_fits``: the recorders' noise fits of these experiments, where the caller has
-    them already (an identification shares one fit between its two parts)."""
+    them already (an identification shares one fit between its two parts); ``kept``: the
+    noise replicates it shares likewise (:class:`~.null.KeptReplicates`)."""
     if not training:
         raise ConfigError("diagnose needs at least one training experiment (none given, or every one held out)")
     for exp in [*training, *heldout]:
@@ -65,7 +67,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
                     and not all(p.name in e.fixed for e in [*training, *heldout] for p in CATALOGUE[c].parameters)]
     if undocumented:  # a constant no config documents cannot be "documented wrong"
         options = replace(options, candidates=tuple(c for c in options.candidates if c not in undocumented))
-    ctx = Context(training, heldout, workdir, options, source, log, noise_fits)
+    ctx = Context(training, heldout, workdir, options, source, log, noise_fits, kept)
     for fit in {id(f): f for f in ctx.noise_fits.values()}.values():
         log(f"noise of the recorder of {', '.join(fit.tests)} ({fit.n_stretches} quiet stretches, {fit.n_samples} "
             f"samples): {fit.model.describe()}")

@@ -39,6 +39,7 @@ from ..diagnose.context import METHOD
 from ..diagnose.selection import THRESHOLD
 from ..structures.structure import Structure, on_structure
 from ..structures.select import StructureFit, StructureVerdict, select_structure
+from ..diagnose.null import KeptReplicates
 from ..diagnose.result import Diagnosis
 from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
 from ..exchange import MODELS
@@ -67,15 +68,16 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, eng
     workdir = Path(workdir)
     log(f"identifying {unit.name}: {len(training)} training and {len(heldout)} held-out experiments")
     fitted_noise = campaign_noise([*training, *heldout])  # one noise model for both parts
+    kept = KeptReplicates()  # and one set of its replicates, where the parts' tests are the same
     log("the explanation (TG Type I and the effect catalogue):")
     explanation = diagnose(training, heldout, workdir=workdir / "explanation",
                            options=DiagnoseOptions(seed=seed, engine=engine, write_model=False),
-                           source=source, log=log, noise_fits=fitted_noise)
+                           source=source, log=log, noise_fits=fitted_noise, kept=kept)
     log(f"  {explanation.named.verdict}")
     log("the standard records:")
     options = RunOptions(method=METHOD, seed=seed, engine=engine).check()
     d = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
-                source=source, log=log, fitted_noise=fitted_noise)
+                source=source, log=log, fitted_noise=fitted_noise, kept=kept)
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=d.records, recommended=d.recommended,
@@ -110,7 +112,7 @@ class Delivery:
 def deliver(structures: Sequence[Structure], training: Sequence[Experiment], heldout: Sequence[Experiment],
             explanation=None, *, workdir: str | Path, options: RunOptions, source: ModelSource = ModelSource(),
             log: Callable[[str], None] = print,
-            fitted_noise: dict | None = None) -> Delivery:
+            fitted_noise: dict | None = None, kept: KeptReplicates | None = None) -> Delivery:
     """Every standard record by identify's rules (optional parts kept only where they win
     by the threshold; the record the criterion prefers recommended, a simpler one only in
     a tie; a structure no
@@ -120,7 +122,7 @@ def deliver(structures: Sequence[Structure], training: Sequence[Experiment], hel
     candidates = [*structures, *(v for s in structures for v in s.optional_variants())]
     fitted_noise = fitted_noise or campaign_noise([*training, *heldout])  # kept to predict the held-out tests
     verdict = select_structure(candidates, training, heldout, workdir=workdir, options=options,
-                               source=source, fitted_noise=fitted_noise, log=log)
+                               source=source, fitted_noise=fitted_noise, log=log, kept=kept)
     fits = {f.name: f for f in verdict.ranking}
     records = [_record(s, fits, explanation) for s in structures if s.name in MODELS]  # what a record can hold
     recommended, reason, tied_with, ties = _recommend(records)

@@ -46,7 +46,7 @@ from ..diagnose.catalogue import AMBIGUOUS, UNEXPLAINED
 from ..diagnose.candidates import jacobian_at, residuals_at
 from .identifiability import best_separating_step, identifiability
 from .structure import Structure, on_structure
-from ..diagnose.null import replicates_for
+from ..diagnose.null import KeptReplicates, replicates_for
 from ..diagnose.selection import THRESHOLD, noise_floors, score
 from ..diagnose.separate import separating_menu
 
@@ -119,10 +119,12 @@ def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Se
 def select_structure(structures: Sequence[Structure], training: Sequence[Experiment],
                      heldout: Sequence[Experiment] = (), *, workdir: str | Path, options: RunOptions,
                      source: ModelSource = ModelSource(), threshold: float = THRESHOLD, searches: Sequence[str] = (), fitted_noise: dict | None = None,
-                     log: Callable[[str], None] = print) -> StructureVerdict:
+                     log: Callable[[str], None] = print, kept: KeptReplicates | None = None) -> StructureVerdict:
     """Calibrate every structure on ``training`` by ``options.method`` and each of
     ``searches`` (the best kept), rank them and give the verdict. ``fitted_noise``: the
-    campaign's :func:`~rapid_cosim.noise.campaign_noise` when the caller has it already."""
+    campaign's :func:`~rapid_cosim.noise.campaign_noise` when the caller has it already;
+    ``kept``: the noise replicates the caller made with it (its explanation's), taken
+    where the tests are the same (:class:`~rapid_cosim.diagnose.null.KeptReplicates`)."""
     workdir = Path(workdir)
     fitted_noise = fitted_noise or campaign_noise([*training, *heldout])
     noise = noise_floors([*training, *heldout], fitted_noise)
@@ -147,7 +149,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
             jac.update(jacobian_at(held_inputs, x))
         if null is None:
             null = replicates_for([*inputs.experiments, *(held_inputs.experiments if held_inputs else ())],
-                                  fitted_noise, seed=options.seed)
+                                  fitted_noise, seed=options.seed, kept=kept)
         fit_ok = adequacy(tests, noise, null, {k_: np.nan_to_num(v) for k_, v in jac.items()},
                           [e.name for e in training])
         ident = identifiability(inputs, np.asarray(result.x), noise)
