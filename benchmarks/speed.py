@@ -22,6 +22,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 from rapid_cosim.compiler.source import ModelSource
+from rapid_cosim.fitting.engine import EngineSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -82,7 +83,7 @@ def measure(label: str, workload, options, counter: Counter, work: Path) -> None
         folder = work / f"{label}-{n_jobs}"
         shutil.rmtree(folder, ignore_errors=True)
         t0 = time.perf_counter()
-        d = diagnose(training, heldout, workdir=folder, options=replace(options, n_jobs=n_jobs), source=ModelSource(package=package, fmu_dir=fmu_dir), log=lambda *_: None)
+        d = diagnose(training, heldout, workdir=folder, options=replace(options, engine=EngineSpec(n_jobs)), source=ModelSource(package=package, fmu_dir=fmu_dir), log=lambda *_: None)
         rows.append((time.perf_counter() - t0, counter.sets - before[0], counter.seconds - before[1], d))
     (wall1, sets, seconds, d), (wall2, *_rest) = rows
     tests = len(training) + len(heldout)

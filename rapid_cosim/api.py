@@ -310,7 +310,7 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
         result.notes["report"] = "not asked for (--no-report)"
         return result
     log(f"the validation report of {record.fit} ...")
-    page = validation_page(record.archive, folder / "report.html", engine=engine, heldout=result.heldout_configs,
+    page = validation_page(record.archive, folder / "report.html", engine=engine.local(), heldout=result.heldout_configs,
                            diagnosis=result.diagnosis, bus=spec.bus, machine_id=spec.machine_id, mva=spec.mva,
                            source=source, record_note=record_note(result))
     result.files["report"] = str(page.path)

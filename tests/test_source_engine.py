@@ -56,6 +56,13 @@ def test_an_engine_spec_makes_the_engine_each_stage_needs():
     dask = rc.EngineSpec(4, "dask", "tcp://h:8786")
     assert isinstance(dask.make(), DaskEngine) and not dask.processes
     assert rc.EngineSpec(-1).workers() >= 1
+    assert rc.EngineSpec(2, "multiprocessing").single() == rc.EngineSpec(1, "multiprocessing")  # as archived
+    assert dask.local() == rc.EngineSpec(4) and rc.EngineSpec(1, "dask").local().make().workers == 1
+    import numpy as np
+
+    assert rc.EngineSpec(np.int64(2)).n_jobs == 2 and type(rc.EngineSpec(np.int64(2)).n_jobs) is int
+    with pytest.raises(RapidCosimError):
+        rc.EngineSpec(True)
 
 
 def test_an_archived_engine_is_overridden_setting_by_setting():
@@ -78,6 +85,9 @@ def test_an_archive_holds_the_engine_flat_as_it_always_did():
            "estimator_options": {}}  # an archive from before the compiled runner and the scheduler
     read = RunOptions.from_json(old)
     assert read.engine == rc.EngineSpec() and read.runner == "python"
+    with pytest.warns(UserWarning, match="the archived engine .* is not one this version runs"):
+        gone = RunOptions.from_json({**old, "backend": "threading"})  # a backend older versions ran
+    assert gone.engine == rc.EngineSpec() and gone.method == "pf:10+nm"
 
 
 def test_the_cli_builds_one_engine_and_one_source_from_its_options(tmp_path):

@@ -3,6 +3,7 @@ options), kept in its archive; and the ``METHOD.NAME=VALUE`` overrides of the CL
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Mapping, Sequence
 
@@ -36,9 +37,9 @@ class RunOptions:
         return self.engine.make()
 
     def check(self) -> "RunOptions":
-        """Every option valid (method, estimator options, runner; the engine checks itself
-        when made), so that a bad one is refused before an archive is created or a plan
-        announced."""
+        """Every option valid (method, estimator options, runner; the engine checked itself
+        when it was built), so that a bad one is refused before an archive is created or a
+        plan announced."""
         try:
             parse_method(self.method)
             stage_options(self)
@@ -53,7 +54,13 @@ class RunOptions:
         values = {k: v for k, v in data.items() if k in known and k != "engine"}
         values.setdefault("runner", "python")  # archives from before the compiled runner
         engine = {f.name: data[f.name] for f in fields(EngineSpec) if f.name in data}
-        return cls(**values, engine=EngineSpec(**engine))
+        try:
+            spec = EngineSpec(**engine)
+        except RapidCosimError as e:  # a backend an older version ran: where a run goes does not change it
+            warnings.warn(f"the archived engine {engine} is not one this version runs ({e}); it runs in this "
+                          "process unless --n-jobs/--joblib-backend say otherwise", stacklevel=2)
+            spec = EngineSpec()
+        return cls(**values, engine=spec)
 
 
 def parse_option_overrides(items: Sequence[str]) -> dict[str, dict[str, Any]]:

@@ -302,6 +302,7 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
         return start_run(inputs, options, archive, progress=progress), "new"
     with RunArchive(archive) as view:
         stored = RunOptions.from_json(view.options)
+        resumed_on = stored.engine.overridden(options.engine.n_jobs, options.engine.backend)
         differences = []
         if (stored.method, stored.seed, stored.estimator_options, stored.penalty) != \
                 (options.method, options.seed, options.estimator_options, options.penalty):
@@ -325,7 +326,7 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
                       "checks that the archived result still holds", stacklevel=2)
     if finished:
         return result, "archived"
-    return resume_run(archive, engine=options.engine, progress=progress), "resumed"
+    return resume_run(archive, engine=resumed_on, progress=progress), "resumed"
 
 
 # Searches run besides a run's own method when results are compared (structures,

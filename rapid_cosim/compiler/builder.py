@@ -185,7 +185,7 @@ def build_models(models: list[str] | None = None, *, package: str | Path | None 
     """Build (or confirm up to date) the FMUs of ``models``; default: every test bench."""
     package, fmu_dir = resolve_models(package, fmu_dir)
     if not package.exists():
-        raise BuildError(f"no Modelica package at {package} (--package, package= of the API, $RAPID_COSIM_PACKAGE)")
+        raise BuildError(f"no Modelica package at {package} (--package, source=ModelSource(package=...) of the API, $RAPID_COSIM_PACKAGE)")
     source, known = _parsed(package)
     chosen = resolve_compiler(compiler)
     models = models or test_benches(source)
@@ -362,7 +362,8 @@ def ensure_fmu(model: str, *, package: str | Path | None = None, fmu_dir: str | 
         if fmu.exists():
             return fmu
         raise BuildError(f"no FMU {fmu} and no Modelica package at {package} to build it from: name the package "
-                         "(--package, package= of the API) or a folder holding the FMU (--fmus, fmu_dir=)")
+                         "(--package, or ModelSource(package=...) of the API) or a folder holding the FMU (--fmus, "
+                         "ModelSource(fmu_dir=...))")
     key = (model, str(package.resolve()), str(fmu_dir.resolve()), compiler)
     signature = _signature(Path(package), fmu_path(model, fmu_dir))
     known = _CURRENT.get(key)

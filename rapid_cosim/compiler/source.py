@@ -38,13 +38,6 @@ class ModelSource:
         if self.compiler not in COMPILERS:
             raise BuildError(f"unknown compiler {self.compiler!r}; choose one of {', '.join(COMPILERS)}")
 
-    @classmethod
-    def of(cls, source: "ModelSource | str | Path | None" = None) -> "ModelSource":
-        """``source`` as a ModelSource: itself, a package's path, or None (the defaults)."""
-        if isinstance(source, ModelSource):
-            return source
-        return cls(package=None if source is None else Path(source))
-
     @property
     def package_path(self) -> Path:
         """The package, the default where none is named."""

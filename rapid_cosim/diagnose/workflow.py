@@ -136,7 +136,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
         verdict.note(search["warning"])
     gap_before = _gaps(ctx, before_tests)
     gap_after = _gaps(ctx, after_tests)
-    bands = intervals(final_fit, engine=ctx.options.engine, log=ctx.log)
+    bands = intervals(final_fit, engine=ctx.options.engine.local(), log=ctx.log)
     residuals = {name: {"time": t.time, "before": t.residual, "after": after_tests[name].residual,
                         "whitened_before": t.whitened, "whitened_after": after_tests[name].whitened}
                  for name, t in before_tests.items()}
@@ -318,7 +318,7 @@ def _profiles(ctx: Context, fit: CandidateFit) -> dict:
     if not names or fit.inputs is None:
         return {}
     problem = fit.inputs.problem
-    objective = ProblemObjective(problem, fit.inputs.fmus, engine=ctx.options.engine.make())
+    objective = ProblemObjective(problem, fit.inputs.fmus, engine=ctx.options.engine.local().make())
     x = np.array([fit.parameters[n] for n in problem.names])
     n_samples = fit.n_samples
     out = {}

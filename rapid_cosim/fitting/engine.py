@@ -10,6 +10,7 @@ engine, the number of workers or the chunking.
 from __future__ import annotations
 
 import functools
+import numbers
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -203,7 +204,8 @@ class EngineSpec:
     """Where a run's work goes, as one value the API passes down to every stage: ``n_jobs``
     workers (-1: every core; for the fleet, its units' workers), a joblib-style ``backend``
     (``loky``, ``multiprocessing``, ``sequential``, ``dask``) and, with ``dask``, the
-    ``scheduler``'s address (None: a local cluster). A value, not an engine: it travels
+    ``scheduler``'s address (None: the dask client already running, for batches; a local
+    cluster of ``n_jobs`` workers, for the fleet's units). A value, not an engine: it travels
     to workers, and each stage makes the engine it needs from it."""
 
     n_jobs: int = 1
@@ -214,7 +216,9 @@ class EngineSpec:
         if self.backend not in JOBLIB_BACKENDS:
             raise RapidCosimError(f"unknown joblib backend {self.backend!r}; choose one of "
                                   f"{', '.join(JOBLIB_BACKENDS)}")
-        if not isinstance(self.n_jobs, int) or self.n_jobs == 0 or self.n_jobs < -1:
+        if isinstance(self.n_jobs, numbers.Integral) and not isinstance(self.n_jobs, bool):
+            object.__setattr__(self, "n_jobs", int(self.n_jobs))
+        if not isinstance(self.n_jobs, int) or isinstance(self.n_jobs, bool) or self.n_jobs == 0 or self.n_jobs < -1:
             raise RapidCosimError(f"n_jobs must be a positive number of workers or -1 (all cores), got {self.n_jobs}")
         if self.scheduler is not None and self.backend != "dask":
             raise RapidCosimError("a scheduler address needs the dask backend (--joblib-backend dask)")
@@ -240,8 +244,15 @@ class EngineSpec:
         return EngineSpec(self.n_jobs if n_jobs is None else n_jobs, backend, scheduler)
 
     def single(self) -> "EngineSpec":
-        """One worker, in this process: what each of the stage's own workers runs with."""
-        return EngineSpec()
+        """One worker, in this process: what each of the stage's own workers runs with (the
+        backend kept, as the worker's archives record it)."""
+        return EngineSpec(1, self.backend if self.backend in LOCAL_PROCESSES else "loky")
+
+    def local(self) -> "EngineSpec":
+        """As many local processes (loky), never the cluster: what the short steps after a
+        fit run on (intervals, profiles, the report's Laplace approximation), as they
+        always did."""
+        return EngineSpec(self.n_jobs)
 
     def make(self) -> Engine:
         if self.backend == "dask":

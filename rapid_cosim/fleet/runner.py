@@ -55,6 +55,8 @@ def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
     h.update(json.dumps({k: v for k, v in asdict(options).items() if k not in ("results", "source")},
                         sort_keys=True).encode())
     h.update(options.source.digest().encode())
+    if options.source.compiler != "auto":  # another compiler, other FMUs (auto: as every earlier run)
+        h.update(options.source.compiler.encode())
     h.update(f"{__version__}; {RULES}".encode())  # another version or rule may judge or identify differently
     return h.hexdigest()
 
