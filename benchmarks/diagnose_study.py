@@ -109,6 +109,7 @@ def main(argv: list[str]) -> int:
     package = work / "package" / "iGrGen"
     shutil.copytree(ROOT / "modelica" / "iGrGen", package, dirs_exist_ok=True)
     fmu_dir = work / "fmus"
+    source = ModelSource(package, fmu_dir)
     build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in EFFECTS.values())])), package=package,
                  fmu_dir=fmu_dir, log=lambda *_: None)
     if args.calibration:
@@ -116,18 +117,18 @@ def main(argv: list[str]) -> int:
         if args.calibration_only:
             return 0
     t0 = time.perf_counter()
-    cases = [draw_case(t, s, source=ModelSource(package=package, fmu_dir=fmu_dir))
+    cases = [draw_case(t, s, source=source)
              for t in args.effects.split(",") if t for s in _seeds(args.seeds)]
-    cases += [draw_case(t, s, source=ModelSource(package=package, fmu_dir=fmu_dir), kind="event")
+    cases += [draw_case(t, s, source=source, kind="event")
               for t in args.event_effects.split(",") if t for s in _seeds(args.seeds)]
-    cases += [draw_case("none", s, source=ModelSource(package=package, fmu_dir=fmu_dir)) for s in _seeds(args.null_seeds)]
-    single = draw_case("deadband", 1, SINGLE_SIZE, source=ModelSource(package=package, fmu_dir=fmu_dir))
+    cases += [draw_case("none", s, source=source) for s in _seeds(args.null_seeds)]
+    single = draw_case("deadband", 1, SINGLE_SIZE, source=source)
     options = DiagnoseOptions(write_model=False, max_effects=args.max_effects)
 
     def one(case, label):
         opts = replace(options, judge=_truth_labels(case.truth))
         try:
-            result = run_case(case, work / label, options=opts, source=ModelSource(package=package, fmu_dir=fmu_dir))
+            result = run_case(case, work / label, options=opts, source=source)
             result.check = _reached_from_truth(result) if case.kind == "event" and case.truth == "rate_limit" \
                 else None
         except Exception as e:  # one campaign's crash is a finding, not the end of the study
@@ -161,14 +162,15 @@ def calibration(n: int, work: Path, package: Path, fmu_dir: Path, n_jobs: int, j
     from rapid_cosim.experiment import load_experiment
 
     options = DiagnoseOptions(write_model=False)
+    source = ModelSource(package, fmu_dir)
 
     def one(seed):
-        case = draw_case("none", seed, source=ModelSource(package=package, fmu_dir=fmu_dir))
+        case = draw_case("none", seed, source=source)
         folder = work / "calibration" / case.label
-        experiments = [load_experiment(p) for p in write_campaign(case, folder / "data", source=ModelSource(package=package, fmu_dir=fmu_dir))]
+        experiments = [load_experiment(p) for p in write_campaign(case, folder / "data", source=source)]
         truth = {k: v for k, v in case.plant.items() if k in ("gov.R", "gov.Ts")}
         fit = fit_truth(case.label, experiments[:-1], experiments[-1:], truth, folder / "fit", options,
-                        ModelSource(package, fmu_dir))
+                        source)
         shutil.rmtree(folder, ignore_errors=True)
         return fit
 

@@ -34,6 +34,11 @@ ROOT = Path(__file__).resolve().parents[1]
 BEFORE = "b2983af"  # the last commit before the speed work (issue 42)
 
 
+def tree_env(tree: Path) -> dict:
+    """The environment a revision's checkout runs in: its code, its FMUs."""
+    return {**os.environ, "PYTHONPATH": str(tree), "RAPID_COSIM_FMUS": str(tree / "fmus")}
+
+
 def checkout(rev: str, work: Path) -> Path:
     tree = work / f"tree-{rev}"
     if not tree.exists():
@@ -44,7 +49,7 @@ def checkout(rev: str, work: Path) -> Path:
 
 def build(tree: Path) -> None:
     """The tree's FMUs built before anything is timed."""
-    env = {**os.environ, "PYTHONPATH": str(tree), "RAPID_COSIM_FMUS": str(tree / "fmus")}
+    env = tree_env(tree)
     subprocess.run([sys.executable, "-m", "rapid_cosim.cli", "build"], env=env, cwd=tree, check=True,
                    stdout=subprocess.DEVNULL)
 
@@ -57,7 +62,7 @@ def run_profile(tree: Path, units: list[str], work: Path) -> dict:
     if out.exists():
         print(f"kept {out} (remove it to profile {tree.name} again)", file=sys.stderr)
         return json.loads(out.read_text())
-    env = {**os.environ, "PYTHONPATH": str(tree), "RAPID_COSIM_FMUS": str(tree / "fmus")}
+    env = tree_env(tree)
     subprocess.run([sys.executable, str(ROOT / "benchmarks" / "profile_identify.py"), "--units", ",".join(units),
                     "--work", str(work / f"runs-{tree.name}"), "--json", str(out)], env=env, check=True,
                    cwd=tree, stdout=subprocess.DEVNULL)
@@ -74,7 +79,7 @@ def run_fleet(tree: Path, fleet: Path, work: Path) -> dict:
             "print(json.dumps({'wall': time.perf_counter() - t0, 'units': [{'unit': u['unit'], 'route': "
             "u.get('route', u.get('path')), 'seconds': u['seconds'], 'recommended': u.get('recommended')} "
             "for u in rows]}, default=str))\n")
-    env = {**os.environ, "PYTHONPATH": str(tree), "RAPID_COSIM_FMUS": str(tree / "fmus")}
+    env = tree_env(tree)
     done = subprocess.run([sys.executable, "-c", code], env=env, cwd=tree, check=True, capture_output=True,
                           text=True)
     return json.loads(done.stdout.strip().splitlines()[-1])

@@ -227,7 +227,7 @@ def bench_api() -> None:
 
 def bench_pf() -> None:
     from rapid_cosim.estimators import PFOptions, particle_filter
-    from rapid_cosim.fitting.engine import make_engine
+    from rapid_cosim.fitting.engine import EngineSpec
     from rapid_cosim.fitting.objective import ProblemObjective
     from rapid_cosim.fitting.problem import build_problem
     from rapid_cosim.simulator import FmuRef
@@ -240,7 +240,7 @@ def bench_pf() -> None:
         return lambda: particle_filter(objective, problem.space, options=PFOptions(n_particles=100, max_iter=1),
                                        rng=np.random.default_rng(0))
 
-    one = {runner: best(iteration(ProblemObjective(problem, refs, engine=make_engine(1), runner=runner)), 3)
+    one = {runner: best(iteration(ProblemObjective(problem, refs, engine=EngineSpec(1).make(), runner=runner)), 3)
            for runner in ("python", "compiled")}
     print(f"pf: one iteration of 100 particles on staged test 1 ({exp.data.time.size} samples), one core")
     print(f"  Python reference loop                     {1e3 * one['python']:8.1f} ms")
@@ -248,7 +248,7 @@ def bench_pf() -> None:
           f"x{one['python'] / one['compiled']:.0f}   (target <= 25 ms)")
     print("  batches over workers (compiled runner; loky processes, started before timing):")
     rng = np.random.default_rng(1)
-    objectives = {n: ProblemObjective(problem, refs, engine=make_engine(n)) for n in (1, 2)}
+    objectives = {n: ProblemObjective(problem, refs, engine=EngineSpec(n).make()) for n in (1, 2)}
     for n in (1, 2):
         objectives[n](problem.space.from_unit(rng.uniform(size=(4, 2))))
     for size in (100, 1000, 4000):

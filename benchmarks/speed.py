@@ -58,8 +58,9 @@ def _campaign(kind: str, work: Path):
         shutil.copytree(ROOT / "modelica" / "iGrGen", package)
         build_models(list(dict.fromkeys([BASE_BENCH, *(e.bench for e in EFFECTS.values())])), package=package,
                      fmu_dir=work / "fmus", log=lambda *_: None)
-    case = draw_case("rate_limit", 1, source=ModelSource(package=package, fmu_dir=work / "fmus"), kind=kind)
-    configs = write_campaign(case, work / kind, source=ModelSource(package=package, fmu_dir=work / "fmus"))
+    source = ModelSource(package, work / "fmus")
+    case = draw_case("rate_limit", 1, source=source, kind=kind)
+    configs = write_campaign(case, work / kind, source=source)
     exps = [load_experiment(c) for c in configs]
     return exps[:-1], exps[-1:], package, work / "fmus"
 

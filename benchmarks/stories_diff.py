@@ -20,14 +20,13 @@ from __future__ import annotations
 import argparse
 import difflib
 import json
-import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from identify_bench import BEFORE, ROOT, checkout  # noqa: E402
+from identify_bench import BEFORE, ROOT, checkout, tree_env  # noqa: E402
 
 TARGETS = ("demo", "diagnose", "identify", "fleet")
 # the files of each target that hold its answers (relative to its results folder)
@@ -44,7 +43,7 @@ VOLATILE_KEYS = {"seconds", "wall", "wall_time", "created", "started", "finished
 def run_targets(tree: Path, targets: list[str], results: Path) -> dict[str, str]:
     """Each target's printed output under ``tree``'s code and Makefile."""
     venv = ROOT / ".venv"
-    env = {**os.environ, "PYTHONPATH": str(tree), "RAPID_COSIM_FMUS": str(tree / "fmus")}
+    env = tree_env(tree)
     out = {}
     for target in targets:
         # -o: this checkout's venv is not reinstalled from the tree's pyproject.toml

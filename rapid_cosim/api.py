@@ -27,6 +27,7 @@ import numpy as np
 from .archive import RunArchive
 from .calibration import RunInputs, RunOptions, inputs_from_archive, inputs_from_experiments
 from .calibration import rerun as _rerun
+from .calibration.runs import Resumed
 from .calibration import resume_run, start_run
 from .compiler.source import ModelSource
 from .errors import ArchiveError, ConfigError, ParameterError, RapidCosimError
@@ -185,15 +186,15 @@ def calibrate_with(experiments: Sequence[str | Path | Experiment] | str | Path |
 
 
 @pinned
-def resume(path: str | Path, *, engine: EngineSpec | None = None, progress: bool = False) -> Calibration:
+def resume(path: str | Path, *, engine: Resumed = None, progress: bool = False) -> Calibration:
     """Continue an interrupted run from its archive, on the archived engine or on
-    ``engine``; the result is the uninterrupted one."""
+    ``engine`` (or a function of the archived one); the result is the uninterrupted one."""
     result = resume_run(path, engine=engine, progress=progress)
     return _calibration(result, _inputs(path), Path(path), "finished")
 
 
 @pinned
-def rerun(path: str | Path, *, engine: EngineSpec | None = None, progress: bool = False) -> Calibration:
+def rerun(path: str | Path, *, engine: Resumed = None, progress: bool = False) -> Calibration:
     """Execute an archived run again from the archive alone and compare it bit for bit
     (``identical``; ``message`` names the first difference when there is one), on the
     archived engine or on ``engine``."""

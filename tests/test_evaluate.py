@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rapid_cosim.fitting.engine import make_engine
+from rapid_cosim.fitting.engine import EngineSpec
 from rapid_cosim.fitting.objective import PENALTY, ProblemObjective, evaluate_in_detail
 from rapid_cosim.experiment import load_experiment
 from rapid_cosim.fitting.problem import build_problem
@@ -33,8 +33,8 @@ def _cloud(problem, n=12, seed=0):
 def test_n_jobs_one_and_two_give_equal_results(problem):
     prob, refs = problem
     X = _cloud(prob)
-    one = ProblemObjective(prob, refs, engine=make_engine(1))(X)
-    two = ProblemObjective(prob, refs, engine=make_engine(2))(X)
+    one = ProblemObjective(prob, refs, engine=EngineSpec(1).make())(X)
+    two = ProblemObjective(prob, refs, engine=EngineSpec(2).make())(X)
     assert np.array_equal(one.fitness, two.fitness)
     assert np.array_equal(one.rssd, two.rssd)
     assert not one.failed.any()
@@ -44,10 +44,10 @@ def test_dask_backend_gives_equal_results(problem):
     distributed = pytest.importorskip("distributed")
     prob, refs = problem
     X = _cloud(prob, n=6, seed=1)
-    local = ProblemObjective(prob, refs, engine=make_engine(1))(X)
+    local = ProblemObjective(prob, refs, engine=EngineSpec(1).make())(X)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster, distributed.Client(cluster):
-        remote = ProblemObjective(prob, refs, engine=make_engine(2, "dask"))(X)
+        remote = ProblemObjective(prob, refs, engine=EngineSpec(2, "dask").make())(X)
     assert np.array_equal(local.fitness, remote.fitness)
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from rapid_cosim.calibration import inputs_from_configs, log_likelihood_for
 from rapid_cosim.estimators import PFOptions, PSOOptions, SMCOptions, run_chain
-from rapid_cosim.fitting.engine import make_engine
+from rapid_cosim.fitting.engine import EngineSpec
 from rapid_cosim.fitting.objective import ProblemObjective
 from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 
@@ -55,7 +55,7 @@ def test_bayesian_interval_covers_the_truth_at_its_level(fmus, tmp_path):
                                   fixed=FIXED, estimate=ESTIMATE,
                                   fitness={"offset": True, "noise": "pre-step", "pre_step_end": 5.0})
         inputs = inputs_from_configs([config])
-        result = run_chain(ProblemObjective(inputs.problem, inputs.fmus, engine=make_engine(2)), inputs.problem.space, "smc",
+        result = run_chain(ProblemObjective(inputs.problem, inputs.fmus, engine=EngineSpec(2).make()), inputs.problem.space, "smc",
                            options={"smc": SMCOptions(n_particles=80, n_mcmc_steps=3)},
                            rng=np.random.default_rng(seed), log_likelihood=log_likelihood_for(inputs.problem))
         interval = result.uncertainty.interval

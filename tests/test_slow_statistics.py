@@ -25,7 +25,7 @@ from rapid_cosim.compiler import build_models
 from rapid_cosim.diagnose.catalogue import BASE_BENCH, EFFECTS
 from rapid_cosim.diagnose.study import HIDDEN, confusion_text, draw_case, run_case
 from rapid_cosim.diagnose.workflow import DiagnoseOptions
-from rapid_cosim.fitting.engine import make_engine
+from rapid_cosim.fitting.engine import EngineSpec
 from rapid_cosim.estimators import SMCOptions, run_chain
 from rapid_cosim.fitting.objective import ProblemObjective
 from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
@@ -82,7 +82,7 @@ def test_intervals_of_r_and_ts_cover_the_truth_over_30_synthetic_tests(fmus, tmp
                                   values=y, fixed=FIXED, estimate=ESTIMATE,
                                   fitness={"offset": True, "noise": "pre-step", "pre_step_end": 5.0})
         inputs = inputs_from_configs([config])
-        result = run_chain(ProblemObjective(inputs.problem, inputs.fmus, engine=make_engine(2)),
+        result = run_chain(ProblemObjective(inputs.problem, inputs.fmus, engine=EngineSpec(2).make()),
                            inputs.problem.space, "smc", options={"smc": SMCOptions(n_particles=80, n_mcmc_steps=3)},
                            rng=np.random.default_rng(seed), log_likelihood=log_likelihood_for(inputs.problem))
         interval = result.uncertainty.interval

@@ -7,7 +7,7 @@ import warnings
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Mapping, Sequence
 
-from ..fitting.engine import Engine, EngineSpec
+from ..fitting.engine import EngineSpec
 from ..errors import RapidCosimError
 from ..estimators.chain import REGISTRY, parse_method
 from ..fitting.objective import PENALTY
@@ -32,9 +32,6 @@ class RunOptions:
                 "backend": self.engine.backend, "penalty": self.penalty,
                 "estimator_options": asdict(self)["estimator_options"], "runner": self.runner,
                 "scheduler": self.engine.scheduler}
-
-    def make_engine(self) -> Engine:
-        return self.engine.make()
 
     def check(self) -> "RunOptions":
         """Every option valid (method, estimator options, runner; the engine checked itself

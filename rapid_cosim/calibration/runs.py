@@ -110,7 +110,7 @@ def _all_data(experiments) -> dict[str, dict[str, np.ndarray]]:
 
 
 def _objective(inputs: RunInputs, options: RunOptions, known=None) -> RecordingObjective:
-    return RecordingObjective(ProblemObjective(inputs.problem, inputs.fmus, engine=options.make_engine(),
+    return RecordingObjective(ProblemObjective(inputs.problem, inputs.fmus, engine=options.engine.make(),
                                                penalty=options.penalty, runner=options.runner), known)
 
 
@@ -180,7 +180,7 @@ def _interruptible(writer: ArchiveWriter):
                          "machine") from None
 
 
-def resume_run(archive: str | Path, *, engine: EngineSpec | None = None, progress: bool = True) -> EstimationResult:
+def resume_run(archive: str | Path, *, engine: Resumed = None, progress: bool = True) -> EstimationResult:
     """Continue an interrupted run, on the archived engine or ``engine``; the result
     equals that of an uninterrupted run."""
     with RunArchive(archive) as view:
@@ -216,12 +216,19 @@ def resume_run(archive: str | Path, *, engine: EngineSpec | None = None, progres
     return result
 
 
-def _resumed_options(view: RunArchive, engine: EngineSpec | None) -> RunOptions:
-    """The archived options, on another engine where one is given: where a run goes on
-    does not change its result."""
+# Where a resumed or re-run run goes: the archived engine (None), another one, or the
+# archived one changed (a function of it: the CLI's settings, each over the archived one).
+Resumed = EngineSpec | Callable[[EngineSpec], EngineSpec] | None
+
+
+def _resumed_options(view: RunArchive, engine: Resumed) -> RunOptions:
+    """The archived options, on the engine ``engine`` says: where a run goes on does not
+    change its result."""
     options = RunOptions.from_json(view.options)
     if options.method != view.method or options.seed != view.seed:
         raise ArchiveError(f"{view.path}: the stored options disagree with the run's method/seed")
+    if callable(engine):
+        engine = engine(options.engine)
     return (options if engine is None else replace(options, engine=engine)).check()
 
 
@@ -235,7 +242,7 @@ class RerunReport:
     finished: bool = True  # False: the archive held an unfinished run, compared as far as it went
 
 
-def rerun(archive: str | Path, *, engine: EngineSpec | None = None, progress: bool = True) -> RerunReport:
+def rerun(archive: str | Path, *, engine: Resumed = None, progress: bool = True) -> RerunReport:
     """Execute the archived run again, every simulation included, and compare."""
     with RunArchive(archive) as view:
         inputs = inputs_from_archive(view)
@@ -302,7 +309,6 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
         return start_run(inputs, options, archive, progress=progress), "new"
     with RunArchive(archive) as view:
         stored = RunOptions.from_json(view.options)
-        resumed_on = stored.engine.overridden(options.engine.n_jobs, options.engine.backend)
         differences = []
         if (stored.method, stored.seed, stored.estimator_options, stored.penalty) != \
                 (options.method, options.seed, options.estimator_options, options.penalty):
@@ -326,7 +332,10 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
                       "checks that the archived result still holds", stacklevel=2)
     if finished:
         return result, "archived"
-    return resume_run(archive, engine=resumed_on, progress=progress), "resumed"
+    # the archived scheduler, with this run's workers and backend
+    return resume_run(archive, engine=lambda archived: archived.overridden(options.engine.n_jobs,
+                                                                           options.engine.backend),
+                      progress=progress), "resumed"
 
 
 # Searches run besides a run's own method when results are compared (structures,

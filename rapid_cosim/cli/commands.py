@@ -38,16 +38,12 @@ def _engine(args) -> EngineSpec:
     return EngineSpec(args.n_jobs, args.joblib_backend, args.scheduler)
 
 
-def _archived_engine(args) -> EngineSpec | None:
-    """The archive's engine with what the command line overrides (None: nothing)."""
+def _archived_engine(args):
+    """The archived engine with each setting the command line gives over it (None: the
+    archived one), applied where the archive is read."""
     if args.n_jobs is None and args.joblib_backend is None and args.scheduler is None:
         return None
-    from ..archive import RunArchive
-    from ..calibration import RunOptions
-
-    with RunArchive(args.archive) as view:
-        archived = RunOptions.from_json(view.options).engine
-    return archived.overridden(args.n_jobs, args.joblib_backend, args.scheduler)
+    return lambda archived: archived.overridden(args.n_jobs, args.joblib_backend, args.scheduler)
 
 
 def cmd_build(args) -> int:

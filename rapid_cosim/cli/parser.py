@@ -44,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     def engine_options(p, where: str, archived: bool = False):
         """--n-jobs, --joblib-backend and --scheduler: one setting of where the work runs
-        (fitting.engine.make_engine), its choices written once."""
+        (fitting.engine.EngineSpec), its choices written once."""
         from ..fitting.engine import JOBLIB_BACKENDS
 
         default = "as archived" if archived else "%(default)s"

@@ -91,10 +91,14 @@ class BuildOutcome:
     manifest: Manifest
 
 
-def resolve_compiler(compiler: str) -> str:
+def check_compiler(compiler: str) -> str:
     if compiler not in COMPILERS:
         raise BuildError(f"unknown compiler {compiler!r}; choose one of {', '.join(COMPILERS)}")
-    if compiler == "auto":
+    return compiler
+
+
+def resolve_compiler(compiler: str) -> str:
+    if check_compiler(compiler) == "auto":
         return "openmodelica" if find_omc() else "embedded"
     return compiler
 

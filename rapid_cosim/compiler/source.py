@@ -14,9 +14,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
-from ..errors import BuildError
-from .builder import (COMPILERS, BuildOutcome, build_models, default_fmu_dir, default_package, ensure_fmu,
-                      package_digest)
+from .builder import BuildOutcome, build_models, check_compiler, ensure_fmu, package_digest, resolve_models
 
 
 @dataclass(frozen=True)
@@ -35,18 +33,17 @@ class ModelSource:
             value = getattr(self, name)
             if value is not None and not isinstance(value, Path):
                 object.__setattr__(self, name, Path(value))
-        if self.compiler not in COMPILERS:
-            raise BuildError(f"unknown compiler {self.compiler!r}; choose one of {', '.join(COMPILERS)}")
+        check_compiler(self.compiler)
 
     @property
     def package_path(self) -> Path:
         """The package, the default where none is named."""
-        return self.package if self.package is not None else default_package()
+        return resolve_models(self.package, self.fmu_dir)[0]
 
     @property
     def fmu_path(self) -> Path:
         """The FMU folder, the default where none is named."""
-        return self.fmu_dir if self.fmu_dir is not None else default_fmu_dir()
+        return resolve_models(self.package, self.fmu_dir)[1]
 
     @property
     def users_package(self) -> bool:

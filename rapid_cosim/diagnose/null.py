@@ -76,10 +76,15 @@ def replicates_for(experiments, noise_fits: Mapping[str, NoiseFit], replicates: 
 def with_extra(models: list, extra: tuple) -> list:
     """The recorder's drawn models with the residual's further components: the slow-component
     form joins the recorder's; a filtered one is the whitening's own (Whitening.sample)."""
-    for component in extra:
-        if not isinstance(component, FilteredNoise):
-            models = [with_component(m, component) for m in models]
+    for component in slow_components(extra):
+        models = [with_component(m, component) for m in models]
     return models
+
+
+def slow_components(extra: tuple) -> tuple:
+    """The further components joined to the recorder's model (a filtered one is the
+    whitening's own)."""
+    return tuple(c for c in extra if not isinstance(c, FilteredNoise))
 
 
 def ljung_box_q(e: np.ndarray, lags: int = LAGS) -> np.ndarray:
@@ -158,9 +163,8 @@ class NoiseReplicates:
 
 
 def _same_test(a: ScoredTest, b: ScoredTest) -> bool:
-    slow = [tuple(c for c in t.extra if not isinstance(c, FilteredNoise)) for t in (a, b)]  # what with_extra uses
     return (a.name == b.name and a.whitening is b.whitening and a.offset == b.offset and a.noise is b.noise
-            and np.array_equal(a.times, b.times) and slow[0] == slow[1])
+            and np.array_equal(a.times, b.times) and slow_components(a.extra) == slow_components(b.extra))
 
 
 class KeptReplicates:

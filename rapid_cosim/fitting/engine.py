@@ -193,12 +193,6 @@ def dask_client(scheduler: str | None = None, workers: int = 2):
             cluster.close()
 
 
-def make_engine(n_jobs: int = 1, backend: str = "loky", scheduler: str | None = None) -> Engine:
-    """The engine for ``n_jobs`` workers of a joblib-style ``backend`` name (what the
-    CLI's ``--n-jobs``, ``--joblib-backend`` and ``--scheduler`` say)."""
-    return EngineSpec(n_jobs, backend, scheduler).make()
-
-
 @dataclass(frozen=True)
 class EngineSpec:
     """Where a run's work goes, as one value the API passes down to every stage: ``n_jobs``

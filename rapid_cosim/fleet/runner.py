@@ -33,8 +33,22 @@ from .result import FleetResult, UnitResult
 from .unit_job import FleetOptions, run_unit
 
 
-def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
-    """A digest of what a unit's result is made from (module docstring)."""
+def common_digest(options: FleetOptions) -> bytes:
+    """What every unit's digest ends with: the options, the models by their sources (not
+    by where they lie: a fleet run again from another folder keeps its units), the
+    version and the rules. Read once per fleet, not once per unit (the package's every
+    source file)."""
+    parts = [json.dumps({k: v for k, v in asdict(options).items() if k not in ("results", "source")},
+                        sort_keys=True).encode(), options.source.digest().encode()]
+    if options.source.compiler != "auto":  # another compiler, other FMUs (auto: as every earlier run)
+        parts.append(options.source.compiler.encode())
+    parts.append(f"{__version__}; {RULES}".encode())  # another version or rule may judge or identify differently
+    return b"".join(parts)
+
+
+def unit_digest(entry: UnitEntry, options: FleetOptions, common: bytes | None = None) -> str:
+    """A digest of what a unit's result is made from (module docstring); ``common``:
+    :func:`common_digest` of ``options``, where the caller has it."""
     h = hashlib.blake2b(digest_size=16)
     files = sorted(p for p in entry.folder.rglob("*") if p.is_file())
     for config in entry.folder.rglob("config.toml"):  # recordings a config reads from outside the folder
@@ -51,13 +65,7 @@ def unit_digest(entry: UnitEntry, options: FleetOptions) -> str:
         if path.is_file():
             h.update(str(path.name).encode())
             h.update(path.read_bytes())
-    # the models by their sources, not by where they lie: a fleet run again from another folder keeps its units
-    h.update(json.dumps({k: v for k, v in asdict(options).items() if k not in ("results", "source")},
-                        sort_keys=True).encode())
-    h.update(options.source.digest().encode())
-    if options.source.compiler != "auto":  # another compiler, other FMUs (auto: as every earlier run)
-        h.update(options.source.compiler.encode())
-    h.update(f"{__version__}; {RULES}".encode())  # another version or rule may judge or identify differently
+    h.update(common_digest(options) if common is None else common)
     return h.hexdigest()
 
 
@@ -80,9 +88,9 @@ def run_fleet(fleet: str | Path, *, results: str | Path, engine: EngineSpec = En
     source = source.resolved()  # the workers' paths, whatever their folder
     options = FleetOptions(str(results.resolve()), seed, source, pdf, str(spec.tolerances) if spec.tolerances else None, check_only)
     t0 = time.perf_counter()
-    done, todo = {}, []
+    done, todo, common = {}, [], common_digest(options)
     for entry in spec.units:
-        digest = unit_digest(entry, options)
+        digest = unit_digest(entry, options, common)
         kept = _read(folder / f"{entry.name}.json")
         if kept is not None and kept.digest == digest:
             done[entry.name] = kept
