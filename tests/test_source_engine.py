@@ -1,8 +1,13 @@
 """The two values passed down from the API (issue 43): where the models come from
 (``ModelSource``) and where the work runs (``EngineSpec``)."""
 
+import os
 import pickle
+import signal
+import time
 from pathlib import Path
+
+import numpy as np
 
 import pytest
 
@@ -11,7 +16,7 @@ from rapid_cosim.calibration import RunOptions
 from rapid_cosim.cli.parser import build_parser
 from rapid_cosim.compiler import default_fmu_dir, default_package
 from rapid_cosim.errors import BuildError, RapidCosimError
-from rapid_cosim.fitting.engine import DaskEngine, JoblibEngine, SequentialEngine
+from rapid_cosim.fitting.engine import DaskEngine, JoblibEngine, SequentialEngine, Started
 
 
 def test_a_model_source_is_a_value_of_paths_with_the_defaults_filled_in_when_resolved(tmp_path, monkeypatch):
@@ -101,3 +106,47 @@ def test_the_cli_builds_one_engine_and_one_source_from_its_options(tmp_path):
     assert fleet.n_jobs == 3 and parser.parse_args(["fleet", "fleet.toml"]).n_jobs == 2
     with pytest.raises(RapidCosimError, match="a scheduler address needs the dask backend"):
         _engine(parser.parse_args(["estimate", "cfg.toml", "--scheduler", "tcp://h:1"]))
+
+
+def _chunk_work(payload, chunk):
+    """A worker's chunk: what it was given, and the BLAS threads it ran with."""
+    from threadpoolctl import threadpool_info
+
+    if payload == "die" and chunk[0] == 1:
+        os.kill(os.getpid(), signal.SIGKILL)
+    if isinstance(payload, Path):  # say it is running, then sleep
+        (payload / str(chunk[0])).touch()
+        time.sleep(120)
+    threads = max((p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"), default=1)
+    return [(int(k), float(np.sum(np.arange(k + 1.0))), threads, os.getpid()) for k in chunk]
+
+
+def test_work_started_early_comes_back_in_order_as_mapped_and_pinned():
+    chunks = [np.array([k, k + 5]) for k in range(4)]
+    started = rc.EngineSpec(2).start(_chunk_work, "go", chunks)
+    assert rc.EngineSpec(1).start(_chunk_work, "go", chunks) is None  # one worker: mapped when asked
+    assert rc.EngineSpec(2).start(_chunk_work, "go", chunks[:1]) is None
+    parts = started.result()
+    assert [[r[:2] for r in p] for p in parts] == [[r[:2] for r in p] for p in SequentialEngine().map(_chunk_work, "go", chunks)]
+    assert all(r[2] == 1 for p in parts for r in p)  # BLAS at one thread, as every engine's chunks run
+    assert os.getpid() not in {r[3] for p in parts for r in p}
+
+
+def test_work_started_early_on_a_pool_that_loses_a_worker_is_given_back_to_the_caller():
+    started = Started(_chunk_work, "die", [np.array([0]), np.array([1])], 2)
+    with pytest.warns(UserWarning, match="worker process died"):
+        assert started.result() is None
+
+
+def test_closing_work_started_early_stops_its_workers(tmp_path):
+    started = Started(_chunk_work, tmp_path, [np.array([0]), np.array([1])], 2)
+    for _ in range(600):  # until both chunks run
+        if all((tmp_path / k).exists() for k in "01"):
+            break
+        time.sleep(0.1)
+    processes = list(started._executor._processes.values())
+    assert processes and all(p.is_alive() for p in processes)
+    started.close()
+    for p in processes:
+        p.join(timeout=20)
+    assert not any(p.is_alive() for p in processes)

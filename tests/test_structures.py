@@ -10,6 +10,7 @@ import json
 import shutil
 import tomllib
 
+from pathlib import Path
 import numpy as np
 import pytest
 
@@ -22,11 +23,12 @@ from rapid_cosim.diagnose.catalogue import bench_name, bench_source, composable,
 from rapid_cosim.structures.identifiability import best_separating_step, identifiability
 from rapid_cosim.diagnose.selection import noise_floors
 from rapid_cosim.structures.structure import Structure
-from rapid_cosim.structures.select import StructureFit, _verdict, select_structure
+from rapid_cosim.structures.select import Calibrations, StructureFit, _verdict, select_structure
 from rapid_cosim.experiment import render_config
 from rapid_cosim.errors import ConfigError
 from rapid_cosim.report.structures import markdown as structures_markdown
 from rapid_cosim.experiment import load_experiment
+from rapid_cosim.noise import campaign_noise
 from rapid_cosim.experiment.synthetic import NoiseModel, synthesize, write_experiment
 from rapid_cosim.compiler.source import ModelSource
 
@@ -316,3 +318,24 @@ def test_tg_type_i_with_its_reheater_free_fits_servo_and_reheater_either_way_rou
     assert [(a, b) for a, b, _ in ident.exchanges] == [("gov.Ts", "gov.T5")]
     assert "gov.Ts and gov.T5 exchange" in ident.summary()
     assert ident.to_json()["exchanges"][0]["a"] == "gov.Ts"
+
+
+def test_calibrations_started_early_are_the_ones_fitted_when_asked(repo, campaign, tmp_path):
+    """identify starts its structures' fits on a pool of their own before its explanation
+    (structures.select.Calibrations): each is the same fit, number for number, as the
+    one made in this process when the selection asks for it."""
+    work, configs = campaign
+    structures = [Structure.load(repo / "experiments" / "structures" / f"{n}.toml") for n in ("TGTypeI", "TGOV1")]
+    training = [load_experiment(c) for c in configs[:2]]
+    source = ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=work / "fmus")
+    noise = campaign_noise(training)
+    runs = {}
+    for n_jobs in (1, 2):
+        options = RunOptions(method="pf:10+nm", seed=3, engine=EngineSpec(n_jobs=n_jobs))
+        calibrations = Calibrations(structures, training, noise, options, tmp_path / f"n{n_jobs}", source=source,
+                                    start=True)
+        assert (calibrations._started is not None) == (n_jobs == 2)
+        runs[n_jobs] = calibrations.runs()
+    for (one, _), (two, archive) in zip(runs[1], runs[2]):
+        assert np.array_equal(one.x, two.x) and one.fun == two.fun and one.nfev == two.nfev
+        assert Path(archive).parent == tmp_path / "n2"

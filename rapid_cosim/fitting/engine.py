@@ -111,6 +111,43 @@ class JoblibEngine:
         raise AssertionError("unreachable")
 
 
+class Started:
+    """Chunks of work started now on worker processes of their own, collected later by
+    :meth:`result`, while this process goes on with other work (an identification fits
+    its standard structures while its explanation runs: the explanation's serial stretches
+    and the tail of its rounds leave the cores idle, and the operating system shares them
+    between the two pools). A separate pool, not joblib's reusable one, which may be
+    resized or restarted by a :class:`JoblibEngine` map in this process meanwhile. Each
+    chunk runs pinned (:func:`pinned_threads`), as every engine's chunks do, so its results
+    are the same as mapped. A pool that breaks (a worker killed) gives ``None``: the caller
+    then runs the work its own way."""
+
+    def __init__(self, fn: Callable[[Any, np.ndarray], Any], payload: Any, chunks: Sequence[np.ndarray], workers: int):
+        from joblib.externals.loky import ProcessPoolExecutor
+
+        self._executor = ProcessPoolExecutor(max_workers=max(1, min(workers, len(chunks))))
+        self._futures = [self._executor.submit(_pinned_call, fn, payload, c) for c in chunks]
+
+    def result(self) -> list | None:
+        """The chunks' results in order (waiting for them), or None where the pool broke."""
+        from joblib.externals.loky.process_executor import BrokenProcessPool, TerminatedWorkerError
+
+        try:
+            return [f.result() for f in self._futures]
+        except (TerminatedWorkerError, BrokenProcessPool) as e:
+            warnings.warn(f"a worker process died ({str(e).strip().splitlines()[0][:200]}); "
+                          "its work runs again", stacklevel=2)
+            return None
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Stop the pool (its unfinished work dropped): on the caller's way out, error or not."""
+        for f in self._futures:
+            f.cancel()
+        self._executor.shutdown(wait=False, kill_workers=True)
+
+
 @dataclass
 class DaskEngine:
     """A dask.distributed cluster: the active ``Client``, or one connected to
@@ -247,6 +284,13 @@ class EngineSpec:
         fit run on (intervals, profiles, the report's Laplace approximation), as they
         always did."""
         return EngineSpec(self.n_jobs)
+
+    def start(self, fn: Callable[[Any, np.ndarray], Any], payload: Any,
+              chunks: Sequence[np.ndarray]) -> Started | None:
+        """``fn`` over ``chunks`` started now on a pool of its own of this engine's
+        workers (:class:`Started`), where it runs on local processes; None otherwise (the
+        caller maps the work when it needs it)."""
+        return Started(fn, payload, chunks, self.workers()) if self.processes and len(chunks) > 1 else None
 
     def make(self) -> Engine:
         if self.backend == "dask":

@@ -38,7 +38,7 @@ from ..compiler.source import ModelSource
 from ..diagnose.context import METHOD
 from ..diagnose.selection import THRESHOLD
 from ..structures.structure import Structure, on_structure
-from ..structures.select import StructureFit, StructureVerdict, select_structure
+from ..structures.select import Calibrations, StructureFit, StructureVerdict, select_structure
 from ..diagnose.null import KeptReplicates
 from ..diagnose.result import Diagnosis
 from ..diagnose.workflow import DiagnoseOptions, diagnose, split_holdout
@@ -69,15 +69,22 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, eng
     log(f"identifying {unit.name}: {len(training)} training and {len(heldout)} held-out experiments")
     fitted_noise = campaign_noise([*training, *heldout])  # one noise model for both parts
     kept = KeptReplicates()  # and one set of its replicates, where the parts' tests are the same
-    log("the explanation (TG Type I and the effect catalogue):")
-    explanation = diagnose(training, heldout, workdir=workdir / "explanation",
-                           options=DiagnoseOptions(seed=seed, engine=engine, write_model=False),
-                           source=source, log=log, noise_fits=fitted_noise, kept=kept)
-    log(f"  {explanation.named.verdict}")
-    log("the standard records:")
     options = RunOptions(method=METHOD, seed=seed, engine=engine).check()
-    d = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
-                source=source, log=log, fitted_noise=fitted_noise, kept=kept)
+    # the standard records' fits do not depend on the explanation: on local workers they
+    # start now, on a pool of their own, and fill the cores the explanation leaves idle
+    calibrations = Calibrations(delivery_candidates(structures), training, fitted_noise, options,
+                                workdir / "records", source=source, start=True)
+    try:
+        log("the explanation (TG Type I and the effect catalogue):")
+        explanation = diagnose(training, heldout, workdir=workdir / "explanation",
+                               options=DiagnoseOptions(seed=seed, engine=engine, write_model=False),
+                               source=source, log=log, noise_fits=fitted_noise, kept=kept)
+        log(f"  {explanation.named.verdict}")
+        log("the standard records:")
+        d = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
+                    source=source, log=log, fitted_noise=fitted_noise, kept=kept, calibrations=calibrations)
+    finally:
+        calibrations.close()
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=d.records, recommended=d.recommended,
@@ -112,22 +119,30 @@ class Delivery:
 def deliver(structures: Sequence[Structure], training: Sequence[Experiment], heldout: Sequence[Experiment],
             explanation=None, *, workdir: str | Path, options: RunOptions, source: ModelSource = ModelSource(),
             log: Callable[[str], None] = print,
-            fitted_noise: dict | None = None, kept: KeptReplicates | None = None) -> Delivery:
+            fitted_noise: dict | None = None, kept: KeptReplicates | None = None,
+            calibrations: Calibrations | None = None) -> Delivery:
     """Every standard record by identify's rules (optional parts kept only where they win
     by the threshold; the record the criterion prefers recommended, a simpler one only in
     a tie; a structure no
     grid simulator's record holds, TG Type I, is ranked but gets no record). ``identify``
     gives it the explanation, whose effects say what each record cannot carry;
-    ``rapid-cosim structures`` runs this part alone (no explanation)."""
-    candidates = [*structures, *(v for s in structures for v in s.optional_variants())]
+    ``rapid-cosim structures`` runs this part alone (no explanation). ``calibrations``:
+    those of :func:`delivery_candidates`, started before."""
+    candidates = delivery_candidates(structures)
     fitted_noise = fitted_noise or campaign_noise([*training, *heldout])  # kept to predict the held-out tests
     verdict = select_structure(candidates, training, heldout, workdir=workdir, options=options,
-                               source=source, fitted_noise=fitted_noise, log=log, kept=kept)
+                               source=source, fitted_noise=fitted_noise, log=log, kept=kept,
+                               calibrations=calibrations)
     fits = {f.name: f for f in verdict.ranking}
     records = [_record(s, fits, explanation) for s in structures if s.name in MODELS]  # what a record can hold
     recommended, reason, tied_with, ties = _recommend(records)
     log(f"  recommended: {recommended or 'none'} ({reason})")
     return Delivery(verdict, records, recommended, reason, candidates, fitted_noise, tied_with, ties)
+
+
+def delivery_candidates(structures: Sequence[Structure]) -> list[Structure]:
+    """What the deliverable fits: each structure, and each with its optional parts free."""
+    return [*structures, *(v for s in structures for v in s.optional_variants())]
 
 
 def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Diagnosis | None) -> StandardRecord:

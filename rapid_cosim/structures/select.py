@@ -119,18 +119,24 @@ def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Se
 def select_structure(structures: Sequence[Structure], training: Sequence[Experiment],
                      heldout: Sequence[Experiment] = (), *, workdir: str | Path, options: RunOptions,
                      source: ModelSource = ModelSource(), threshold: float = THRESHOLD, searches: Sequence[str] = (), fitted_noise: dict | None = None,
-                     log: Callable[[str], None] = print, kept: KeptReplicates | None = None) -> StructureVerdict:
+                     log: Callable[[str], None] = print, kept: KeptReplicates | None = None,
+                     calibrations: "Calibrations | None" = None) -> StructureVerdict:
     """Calibrate every structure on ``training`` by ``options.method`` and each of
     ``searches`` (the best kept), rank them and give the verdict. ``fitted_noise``: the
     campaign's :func:`~rapid_cosim.noise.campaign_noise` when the caller has it already;
     ``kept``: the noise replicates the caller made with it (its explanation's), taken
-    where the tests are the same (:class:`~rapid_cosim.diagnose.null.KeptReplicates`)."""
+    where the tests are the same (:class:`~rapid_cosim.diagnose.null.KeptReplicates`);
+    ``calibrations``: these structures' calibrations, started by the caller before."""
     workdir = Path(workdir)
     fitted_noise = fitted_noise or campaign_noise([*training, *heldout])
     noise = noise_floors([*training, *heldout], fitted_noise)
     fits, null = [], None
     log(f"  calibrating {', '.join(s.name for s in structures)} ...")
-    runs = _calibrate_all(structures, training, fitted_noise, options, workdir, searches, source)
+    if calibrations is None:
+        calibrations = Calibrations(structures, training, fitted_noise, options, workdir, searches, source)
+    elif [s.name for s in calibrations.structures] != [s.name for s in structures]:
+        raise ValueError("the calibrations given were started for other structures")
+    runs = calibrations.runs()
     for s, (result, archive) in zip(structures, runs):
         exps = on_structure(s, training, fitted_noise)
         inputs = inputs_from_experiments(exps, source=source)
@@ -172,6 +178,49 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
     return verdict
 
 
+class Calibrations:
+    """Every structure's calibration: (result, archive) of each, by :func:`_calibrate_all`
+    when asked for (:meth:`runs`), or started at once (``start``) on a pool of their own
+    where the options give local workers (:meth:`EngineSpec.start
+    <rapid_cosim.fitting.engine.EngineSpec.start>`), so that the caller's other work (an
+    identification's explanation) runs meanwhile. Either way each structure is fitted
+    whole in one process, pinned, and gives the same numbers. :meth:`close` stops a
+    started pool whose results are not wanted (the caller failed)."""
+
+    def __init__(self, structures: Sequence[Structure], training: Sequence[Experiment], fitted_noise: dict,
+                 options: RunOptions, workdir: str | Path, searches: Sequence[str] = (),
+                 source: ModelSource = ModelSource(), start: bool = False):
+        self.structures = list(structures)
+        self._args = (self.structures, list(training), fitted_noise, options, Path(workdir), tuple(searches), source)
+        self._started = None
+        if start and options.engine.processes and len(self.structures) > 1:
+            payload = _worker_payload(*self._args)
+            self._started = options.engine.start(_calibrated, payload,
+                                                 [np.array([k]) for k in range(len(self.structures))])
+
+    def runs(self) -> list[tuple]:
+        started, self._started = self._started, None
+        parts = started.result() if started is not None else None
+        if parts is not None:
+            return [run for part in parts for run in part]
+        return _calibrate_all(*self._args)
+
+    def close(self) -> None:
+        if self._started is not None:
+            self._started.close()
+            self._started = None
+
+
+def _worker_payload(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches,
+                    source: ModelSource) -> tuple:
+    """What a worker fitting whole structures takes: their benches built here first (once,
+    not per worker), the options' engine one worker in that process."""
+    benches = sorted({b for s in structures for b in (s.bench, s.input_bench) if b})
+    source.build(benches)
+    return (list(structures), list(training), fitted_noise, replace(options, engine=options.engine.single()),
+            workdir, tuple(searches), source)
+
+
 def _calibrate_all(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches,
                    source: ModelSource) -> list[tuple]:
     """Every structure's (result, archive), each fitted whole in one worker process where
@@ -179,14 +228,11 @@ def _calibrate_all(structures, training, fitted_noise, options: RunOptions, work
     whole fits in workers: a structure's batches are a few dozen simulations each, and
     sending each batch to a pool cost more than it saved (an identification of the
     electrical unit took 28 s on 2 workers, 15 s in one process)."""
-    payload = (list(structures), list(training), fitted_noise, options, workdir, tuple(searches), source)
     if not options.engine.processes or len(structures) < 2:
+        payload = (list(structures), list(training), fitted_noise, options, workdir, tuple(searches), source)
         return _calibrated(payload, np.arange(len(structures)))
-    benches = sorted({b for s in structures for b in (s.bench, s.input_bench) if b})
-    source.build(benches)  # once here, not per worker
-    payload = (*payload[:3], replace(options, engine=options.engine.single()), *payload[4:])
-    parts = options.engine.make().map(_calibrated, payload,
-                                                                [np.array([k]) for k in range(len(structures))])
+    payload = _worker_payload(structures, training, fitted_noise, options, workdir, searches, source)
+    parts = options.engine.make().map(_calibrated, payload, [np.array([k]) for k in range(len(structures))])
     return [run for part in parts for run in part]
 
 
