@@ -149,14 +149,11 @@ class Context:
             # built once, not per worker
             self.source.build(sorted({bench_name(spec.effects, b) for spec, _ in jobs for b in self.bases}))
             payload = (jobs, self, replace(self.run_options, engine=options_engine.single()))
-            engine = options_engine.make()
-            # one chunk per worker, dealt round-robin: the payload (tests, FMUs) travels once per worker
-            chunks = [np.arange(w, len(jobs), engine.workers) for w in range(min(engine.workers, len(jobs)))]
-            order = np.concatenate(chunks)
-            parts = engine.map(_fit_jobs, payload, chunks)
-            fits = [None] * len(jobs)
-            for k, fit in zip(order, (f for part in parts for f in part)):
-                fits[k] = fit
+            # one candidate a chunk, handed to whichever worker is free: candidates differ up to
+            # fourfold in their simulations, and chunks dealt round-robin left a worker idle for
+            # a fifth of a round (the payload, a few MB, then travels once per candidate)
+            parts = options_engine.make().map(_fit_jobs, payload, [np.array([k]) for k in range(len(jobs))])
+            fits = [f for part in parts for f in part]
         else:
             fits = _fit_jobs((jobs, self, self.run_options), np.arange(len(jobs)))
         for fit in fits:
