@@ -118,7 +118,8 @@ def _chunk_work(payload, chunk):
         (payload / str(chunk[0])).touch()
         time.sleep(120)
     threads = max((p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"), default=1)
-    return [(int(k), float(np.sum(np.arange(k + 1.0))), threads, os.getpid()) for k in chunk]
+    return [(int(k), float(np.sum(np.arange(k + 1.0))), threads, os.getpid(), os.nice(0), time.time_ns())
+            for k in chunk]
 
 
 def test_work_started_early_comes_back_in_order_as_mapped_and_pinned():
@@ -130,6 +131,15 @@ def test_work_started_early_comes_back_in_order_as_mapped_and_pinned():
     assert [[r[:2] for r in p] for p in parts] == [[r[:2] for r in p] for p in SequentialEngine().map(_chunk_work, "go", chunks)]
     assert all(r[2] == 1 for p in parts for r in p)  # BLAS at one thread, as every engine's chunks run
     assert os.getpid() not in {r[3] for p in parts for r in p}
+    assert all(r[4] == min(19, os.nice(0) + 10) for p in parts for r in p)  # below the work waited on
+
+
+def test_work_started_early_starts_in_the_order_asked_and_comes_back_in_its_own():
+    chunks = [np.array([k]) for k in range(5)]
+    started = Started(_chunk_work, "go", chunks, 1, first=[3, 1, 0, 2, 4])
+    parts = started.result()
+    assert [p[0][0] for p in parts] == [0, 1, 2, 3, 4]
+    assert sorted(range(5), key=lambda k: parts[k][0][5]) == [3, 1, 0, 2, 4]  # one worker: one after another
 
 
 def test_work_started_early_on_a_pool_that_loses_a_worker_is_given_back_to_the_caller():

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import numbers
+import os
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -111,22 +112,34 @@ class JoblibEngine:
         raise AssertionError("unreachable")
 
 
+def _yielding() -> None:
+    """A background worker's start: a lower priority than the work waited on."""
+    if hasattr(os, "nice"):
+        os.nice(10)
+
+
 class Started:
     """Chunks of work started now on worker processes of their own, collected later by
     :meth:`result`, while this process goes on with other work (an identification fits
     its standard structures while its explanation runs: the explanation's serial stretches
     and the tail of its rounds leave the cores idle, and the operating system shares them
-    between the two pools). A separate pool, not joblib's reusable one, which may be
+    between the two pools). Its workers run at a lower priority (nice 10), so the work
+    this process waits on goes first and this fills what it leaves; ``first`` gives the
+    order chunks start in (the longest first: the last to finish sets the time). A
+    separate pool, not joblib's reusable one, which may be
     resized or restarted by a :class:`JoblibEngine` map in this process meanwhile. Each
     chunk runs pinned (:func:`pinned_threads`), as every engine's chunks do, so its results
     are the same as mapped. A pool that breaks (a worker killed) gives ``None``: the caller
     then runs the work its own way."""
 
-    def __init__(self, fn: Callable[[Any, np.ndarray], Any], payload: Any, chunks: Sequence[np.ndarray], workers: int):
+    def __init__(self, fn: Callable[[Any, np.ndarray], Any], payload: Any, chunks: Sequence[np.ndarray], workers: int,
+                 first: Sequence[int] | None = None):
         from joblib.externals.loky import ProcessPoolExecutor
 
-        self._executor = ProcessPoolExecutor(max_workers=max(1, min(workers, len(chunks))))
-        self._futures = [self._executor.submit(_pinned_call, fn, payload, c) for c in chunks]
+        self._executor = ProcessPoolExecutor(max_workers=max(1, min(workers, len(chunks))), initializer=_yielding)
+        order = list(first) if first is not None else list(range(len(chunks)))
+        futures = {k: self._executor.submit(_pinned_call, fn, payload, chunks[k]) for k in order}
+        self._futures = [futures[k] for k in range(len(chunks))]
 
     def result(self) -> list | None:
         """The chunks' results in order (waiting for them), or None where the pool broke."""
@@ -145,7 +158,7 @@ class Started:
         """Stop the pool (its unfinished work dropped): on the caller's way out, error or not."""
         for f in self._futures:
             f.cancel()
-        self._executor.shutdown(wait=False, kill_workers=True)
+        self._executor.shutdown(wait=True, kill_workers=True)
 
 
 @dataclass
@@ -285,12 +298,14 @@ class EngineSpec:
         always did."""
         return EngineSpec(self.n_jobs)
 
-    def start(self, fn: Callable[[Any, np.ndarray], Any], payload: Any,
-              chunks: Sequence[np.ndarray]) -> Started | None:
+    def start(self, fn: Callable[[Any, np.ndarray], Any], payload: Any, chunks: Sequence[np.ndarray],
+              first: Sequence[int] | None = None) -> Started | None:
         """``fn`` over ``chunks`` started now on a pool of its own of this engine's
         workers (:class:`Started`), where it runs on local processes; None otherwise (the
         caller maps the work when it needs it)."""
-        return Started(fn, payload, chunks, self.workers()) if self.processes and len(chunks) > 1 else None
+        if not self.processes or len(chunks) < 2:
+            return None
+        return Started(fn, payload, chunks, self.workers(), first)
 
     def make(self) -> Engine:
         if self.backend == "dask":

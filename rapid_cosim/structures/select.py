@@ -195,8 +195,10 @@ class Calibrations:
         self._started = None
         if start and options.engine.processes and len(self.structures) > 1:
             payload = _worker_payload(*self._args)
+            # the richest structures first: they take the most simulations
+            first = sorted(range(len(self.structures)), key=lambda k: -len(self.structures[k].estimate))
             self._started = options.engine.start(_calibrated, payload,
-                                                 [np.array([k]) for k in range(len(self.structures))])
+                                                 [np.array([k]) for k in range(len(self.structures))], first)
 
     def runs(self) -> list[tuple]:
         started, self._started = self._started, None
