@@ -162,3 +162,13 @@ def test_kept_replicates_are_taken_only_for_the_same_tests(campaign):
                     ([replace(tests[0], whitening=Whitening(MODEL, tests[0].times)), tests[1]], 200, 3)):
         assert kept.get(*changed) is not first
     assert kept.reused == 1 and len(kept.made) == 7
+
+
+def test_the_ljung_box_statistic_is_its_definition_row_by_row():
+    """Q = n (n + 2) sum_k rho_k^2 / (n - k), rho_k the lag-k autocorrelation about the
+    row's mean, written out for each row against the vectorised one."""
+    e = np.random.default_rng(11).standard_normal((7, 300)) + np.linspace(0, 1, 300)
+    for row, q in zip(e, ljung_box_q(e, lags=10)):
+        d = row - row.mean()
+        rho = [np.dot(d[k:], d[:-k]) / np.dot(d, d) for k in range(1, 11)]
+        assert q == pytest.approx(300 * 302 * sum(r * r / (300 - k) for k, r in enumerate(rho, start=1)), rel=1e-12)
