@@ -106,20 +106,25 @@ def _jacobians(t: Tracker, U: np.ndarray, R: np.ndarray, idx: list[int], free: n
     return out
 
 
-def _step(J: np.ndarray, r: np.ndarray, u: np.ndarray, free: np.ndarray, lam: float) -> np.ndarray:
+def _steps(J: np.ndarray, r: np.ndarray, u: np.ndarray, free: np.ndarray, lams) -> list[np.ndarray]:
+    """The damped Gauss-Newton step for each damping in ``lams``: the normal equations are
+    formed once for all of them (they do not depend on the damping)."""
     g = J.T @ r
     move = free.copy()
     move &= ~((u <= 0.0) & (g > 0)) & ~((u >= 1.0) & (g < 0))  # held on a bound it pushes against
-    delta = np.zeros_like(u)
     if not move.any():
-        return delta
+        return [np.zeros_like(u) for _ in lams]
     A = J[:, move].T @ J[:, move]
     D = np.maximum(np.diag(A), 1e-12 * max(float(np.max(np.diag(A))), 1e-300))
-    try:
-        delta[move] = np.linalg.solve(A + lam * np.diag(D), -g[move])
-    except np.linalg.LinAlgError:
-        delta[move] = -g[move] / (D * (1 + lam))
-    return delta
+    out = []
+    for lam in lams:
+        delta = np.zeros_like(u)
+        try:
+            delta[move] = np.linalg.solve(A + lam * np.diag(D), -g[move])
+        except np.linalg.LinAlgError:
+            delta[move] = -g[move] / (D * (1 + lam))
+        out.append(delta)
+    return out
 
 
 def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptions(),
@@ -165,11 +170,11 @@ def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptio
             break
         trials, owner, lams = [], [], []
         for s in live:
-            for factor in (0.1, 1.0, 10.0):
-                delta = _step(J[s], R[s], U[s], free[s], lam[s] * factor)
+            factors = [lam[s] * factor for factor in (0.1, 1.0, 10.0)]
+            for lam_s, delta in zip(factors, _steps(J[s], R[s], U[s], free[s], factors)):
                 trials.append(np.clip(U[s] + delta, 0.0, 1.0))
                 owner.append(s)
-                lams.append(lam[s] * factor)
+                lams.append(lam_s)
         T = np.array(trials)
         ev, RT = t.evaluate_residuals(T)
         pts.append(T), fs.append(ev.fitness), fails.append(ev.failed)
