@@ -33,6 +33,7 @@ derivative of its own samples.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,6 +96,25 @@ class RocofOperator:
 
 def rocof_operator(time: np.ndarray, window: float = WINDOW, breaks: tuple[float, ...] = (),
                    valid: np.ndarray | None = None) -> RocofOperator:
+    """:func:`_operator`, kept per stamps, window, breaks and valid samples: a diagnosis
+    builds each test's inputs again for every candidate (157 operators of 4 ms each on the
+    steam unit). Its arrays are read-only, as the operator is shared."""
+    t = np.ascontiguousarray(time, dtype=float)
+    v = None if valid is None else np.ascontiguousarray(valid, dtype=bool)
+    return _kept(t.tobytes(), float(window), tuple(float(b) for b in np.atleast_1d(breaks)),
+                 None if v is None else v.tobytes())
+
+
+@functools.lru_cache(maxsize=64)
+def _kept(time: bytes, window: float, breaks: tuple[float, ...], valid: bytes | None) -> RocofOperator:
+    op = _operator(np.frombuffer(time), window, breaks, None if valid is None else np.frombuffer(valid, dtype=bool))
+    op.matrix.data.flags.writeable = op.matrix.indices.flags.writeable = op.matrix.indptr.flags.writeable = False
+    op.unfit.flags.writeable = False
+    return op
+
+
+def _operator(time: np.ndarray, window: float, breaks: tuple[float, ...],
+              valid: np.ndarray | None) -> RocofOperator:
     """The local least-squares quadratic's slope at each sample, fitted on the samples as
     stamped (jittered, with frames missing), valid ones only, between steps and
     ``breaks``.
