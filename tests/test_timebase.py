@@ -319,3 +319,19 @@ def test_every_repair_is_said_by_the_cli_the_archive_json_and_the_report(tmp_pat
     validation_page(archive, tmp_path / "page.html", pdf=False)
     html = (tmp_path / "page.html").read_text()
     assert "id=timebase" in html and "1 repeated stamp(s) dropped" in html and "STAT word" in html
+
+
+def test_without_a_c_compiler_the_whitening_warns_and_takes_the_sparse_product(tmp_path, monkeypatch):
+    t = _jittered(n=200, drop=(40,))
+    model = RecorderNoise(0.9e-3, ((1.2e-3, 0.6),), DT)
+    r = np.random.default_rng(2).standard_normal((3, t.size))
+    expected = TimedWhitener(model, t).whiten(r)
+    monkeypatch.setenv("RAPID_COSIM_CACHE", str(tmp_path))  # nothing built there yet
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    timed._recursion.cache_clear()
+    try:
+        with pytest.warns(UserWarning, match="C compiler .*no-such-cc.* not found.*sparse product"):
+            got = TimedWhitener(model, t).whiten(r)
+    finally:
+        timed._recursion.cache_clear()
+    assert np.max(np.abs(got - expected)) < 1e-9 * np.max(np.abs(expected))
