@@ -18,7 +18,6 @@ from rapid_cosim.experiment import load_experiment
 from rapid_cosim.noise import RecorderNoise
 from rapid_cosim.noise.filtered import FilteredNoise, LevinsonWhitener
 from rapid_cosim.noise.timed import DerivedNoise, TimedWhitener, dense_covariance
-from rapid_cosim.noise import timed
 from rapid_cosim.noise.whitening import Whitening
 from rapid_cosim.simulator.rocof import noise_gain, points, rocof_operator
 
@@ -98,29 +97,6 @@ def test_the_timed_whitening_is_the_exact_covariances_inverse_cholesky_factor(so
     sigma = dense_covariance(model, t[rows], derived, rows)
     exact = linalg.solve_triangular(np.linalg.cholesky(sigma), np.eye(rows.size), lower=True)
     assert np.max(np.abs(w.W.toarray() - exact)) < 1e-9 * np.max(np.abs(exact))
-
-
-@pytest.mark.parametrize("source", [RecorderNoise(0.3e-3, ((0.9e-3, 0.15),), DT), RecorderNoise(1e-3, (), DT),
-                                    None])
-def test_the_compiled_recursion_whitens_as_the_exact_factor(source):
-    """What a fit uses (the filter's recursion in C, kalman.c) against the inverse
-    Cholesky factor of the exact covariance: jittered stamps, missing frames, masked
-    samples, with and without a derived ROCOF (its source with and without OU parts)."""
-    t = _jittered(n=300, drop=(40, 41, 42, 150))
-    model = RecorderNoise(0.9e-3, ((1.2e-3, 0.6), (0.4e-3, 0.05)), DT)
-    rows = np.delete(np.arange(t.size), [10, 11, 100])
-    derived = None
-    if source is not None:
-        op = rocof_operator(t, breaks=(5.0,))
-        derived = DerivedNoise(source, (1.0,), time=t, matrix=(0.2 * op.matrix).tocsr())
-    w = TimedWhitener(model, t[rows], derived, rows if derived is not None else None)
-    assert timed._recursion() is not None, "kalman.c did not build: the test would check the sparse product"
-    sigma = dense_covariance(model, t[rows], derived, rows if derived is not None else None)
-    exact = linalg.solve_triangular(np.linalg.cholesky(sigma), np.eye(rows.size), lower=True)
-    r = np.random.default_rng(5).multivariate_normal(np.zeros(rows.size), sigma, size=4)
-    e = w.whiten(r)
-    assert np.max(np.abs(e - r @ exact.T)) < 1e-8 * np.max(np.abs(e))
-    assert np.max(np.abs(e - np.asarray((w.W @ r.T).T))) < 1e-9 * np.max(np.abs(e))
 
 
 def test_on_regular_stamps_the_timed_whitening_is_the_stationary_ones():
@@ -320,18 +296,3 @@ def test_every_repair_is_said_by_the_cli_the_archive_json_and_the_report(tmp_pat
     html = (tmp_path / "page.html").read_text()
     assert "id=timebase" in html and "1 repeated stamp(s) dropped" in html and "STAT word" in html
 
-
-def test_without_a_c_compiler_the_whitening_warns_and_takes_the_sparse_product(tmp_path, monkeypatch):
-    t = _jittered(n=200, drop=(40,))
-    model = RecorderNoise(0.9e-3, ((1.2e-3, 0.6),), DT)
-    r = np.random.default_rng(2).standard_normal((3, t.size))
-    expected = TimedWhitener(model, t).whiten(r)
-    monkeypatch.setenv("RAPID_COSIM_CACHE", str(tmp_path))  # nothing built there yet
-    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
-    timed._recursion.cache_clear()
-    try:
-        with pytest.warns(UserWarning, match="C compiler .*no-such-cc.* not found.*sparse product"):
-            got = TimedWhitener(model, t).whiten(r)
-    finally:
-        timed._recursion.cache_clear()
-    assert np.max(np.abs(got - expected)) < 1e-9 * np.max(np.abs(expected))

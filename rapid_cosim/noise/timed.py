@@ -14,14 +14,12 @@ true stamps; ``f``: the other recorder's noise (white + OU, at its own stamps, w
 the record's) seen through the rows of ``M`` (the derived ROCOF's map, scale included).
 The state holds the OU values and the window of ``f`` samples that any row of ``M``
 reaches, so the Kalman filter is exact. Its innovations, standardised, are a linear map
-``e = W y`` with ``W`` lower triangular. A batch is whitened by running the filter's mean
-recursion on each row in C (``kalman.c``: O(d) a sample, where a row of ``W`` holds a
-couple of hundred coefficients on jittered PMU recordings); where no C compiler is
-found, by the sparse product with ``W``, each of whose rows is kept to the coefficients
-above ``TOL`` since the filter forgets (the Levinson whitener truncates its order the same
-way). The gains are built once per noise model and set of samples (a few tens of ms);
-the tests check ``W`` against the dense Cholesky factor of the exact covariance, the
-recursion against ``W``, and both against the stationary whiteners on a regular grid.
+``e = W y`` with ``W`` lower triangular; since the filter forgets (it is stable), each row
+of ``W`` is kept to the coefficients above ``TOL`` (the Levinson whitener truncates its
+order the same way), and a batch is whitened by one sparse product. Built once per
+noise model and set of samples (a few tens of ms); the tests check it against the dense
+Cholesky factor of the exact covariance, and against the stationary whiteners on a
+regular grid.
 """
 
 from __future__ import annotations
@@ -29,9 +27,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import math
-import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from scipy import sparse
@@ -95,13 +91,14 @@ def regular(times: np.ndarray) -> bool:
 @dataclass(eq=False)
 class TimedWhitener:
     """The exact innovations map of :data:`model` (and ``derived``, at ``rows`` of its
-    map) on samples at ``times`` (module docstring). ``s`` holds each sample's innovation
-    variance; ``W`` (n, n) sparse, the map itself, is built on first use."""
+    map) on samples at ``times`` (module docstring). ``W`` whitens (n, n) sparse,
+    ``s`` holds each sample's innovation variance."""
 
     model: RecorderNoise  # the recorder's own part (its filtered components are ignored here)
     times: np.ndarray
     derived: DerivedNoise | None = None
     rows: np.ndarray | None = None  # the samples' rows of derived's map
+    W: sparse.csr_matrix = field(init=False, repr=False)
     s: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self):
@@ -119,154 +116,15 @@ class TimedWhitener:
             H_f = np.zeros((observed.size, L))
             H_f[sub.row, sub.col - observed[sub.row] - lag_lo] = sub.data
             src = self.derived.source
-        self._filter = _Filter.run(self.model, grid, observed, H_f, lag_lo, L, src)
-        self.s = self._filter.s
-
-    @functools.cached_property
-    def W(self) -> sparse.csr_matrix:
-        return self._filter.innovations_map()
+        self.W, self.s = _kalman_map(self.model, grid, observed, H_f, lag_lo, L, src)
 
     def whiten(self, r: np.ndarray) -> np.ndarray:
         """Standardised innovations of residual rows ``r`` (rows, n)."""
         r = np.atleast_2d(np.asarray(r, dtype=float))
-        run = _recursion()
-        if run is None or self._filter.white:
-            return np.asarray((self.W @ r.T).T)
-        return self._filter.whiten(run, r)
+        return np.asarray((self.W @ r.T).T)
 
     def log_det(self) -> float:
         return float(np.sum(np.log(self.s)))
-
-
-@dataclass
-class _Filter:
-    """The filter's gains on the observed samples (``K`` (n, d), ``s`` (n,)), the
-    observation rows ``H`` (n, d), the step of each observation ``at`` and the transitions
-    ``F`` of every step; ``white``: no state (white noise alone)."""
-
-    F: np.ndarray
-    H: np.ndarray
-    K: np.ndarray
-    s: np.ndarray
-    at: np.ndarray
-    sizes: tuple[int, int, int]  # kp, L, kf: the state's layout (see _system)
-    sigma_white: float
-
-    @property
-    def white(self) -> bool:
-        return sum(self.sizes) == 0
-
-    @classmethod
-    def run(cls, model: RecorderNoise, grid, observed, H_f, lag_lo: int, L: int, src: RecorderNoise | None):
-        """Run the filter over ``grid`` (every sample from the first observed one;
-        innovations at ``observed`` ones)."""
-        comps = list(model.components)
-        kp = len(comps)
-        fcomps = list(src.components) if (src is not None and L) else []
-        kf = len(fcomps)
-        d = kp + L + kf
-        n = observed.size
-        white2 = model.sigma_white ** 2
-        if n == 0 or d == 0:
-            empty = np.zeros((n, 0))
-            return cls(np.zeros((0, d, d)), empty, empty, np.full(n, white2), np.arange(n), (kp, L, kf) if n else (0, 0, 0),
-                       model.sigma_white)
-        first, last = int(observed[0]), int(observed[-1])
-        F, Q, P = _system(grid, first, last, comps, fcomps, L, lag_lo, src)
-        H = np.zeros((n, d))
-        H[:, :kp] = 1.0
-        if L:
-            H[:, kp:kp + L] = H_f
-        at = observed - first  # the step of each observation
-        K, s = np.empty((n, d)), np.empty(n)
-        k = 0
-        for j in range(last - first + 1):
-            if at[k] == j:
-                PH = P @ H[k]
-                s[k] = float(H[k] @ PH) + white2
-                K[k] = PH / s[k]
-                P = P - np.outer(K[k], PH)
-                k += 1
-                if k == n:
-                    break
-            P = F[j] @ P @ F[j].T + Q[j]
-        return cls(F, H, K, s, at, (kp, L, kf), model.sigma_white)
-
-    def whiten(self, run, r: np.ndarray) -> np.ndarray:
-        """The recursion on each row of ``r`` (``kalman.c``)."""
-        kp, L, kf = self.sizes
-        y = np.ascontiguousarray(r, dtype=np.float64)
-        e = np.empty_like(y)
-        at, a, b, rinv = self._arguments
-        if run(y.shape[0], self.s.size, self.F.shape[0], _p(at), kp, L, kf, _p(a), _p(b), _p(self.H),
-               _p(self.K), _p(rinv), _p(y), _p(e)):
-            raise MemoryError("the Kalman whitener could not allocate its state")
-        return e
-
-    @functools.cached_property
-    def _arguments(self) -> tuple[np.ndarray, ...]:
-        """The recursion's per-step arrays: the step of each observation, the diagonal
-        transitions of the OU parts (recorder's, source's), 1 / sqrt(s)."""
-        kp, L, kf = self.sizes
-        z = np.arange(kp + L, kp + L + kf)
-        return (np.ascontiguousarray(self.at, dtype=np.int64), np.ascontiguousarray(self.F[:, range(kp), range(kp)]),
-                np.ascontiguousarray(self.F[:, z, z]), 1.0 / np.sqrt(self.s))
-
-    def innovations_map(self) -> sparse.csr_matrix:
-        """``W``: each innovation's coefficients on the observations up to it, tracked
-        through the prediction's coefficients ``G`` on past observations and truncated
-        below ``TOL``."""
-        n = self.s.size
-        if self.white:
-            return sparse.identity(n, format="csr") / self.sigma_white
-        d = self.H.shape[1]
-        G = np.zeros((d, 0))  # newest first
-        data, cols = [], []
-        indptr = np.zeros(n + 1, dtype=np.int64)
-        k = 0
-        for j in range(self.F.shape[0]):
-            if self.at[k] == j:
-                HG = self.H[k] @ G
-                root = math.sqrt(self.s[k])
-                data.append(np.concatenate((-HG[::-1] / root, (1.0 / root,))))
-                cols.append(np.arange(k - HG.size, k + 1))
-                indptr[k + 1] = indptr[k] + HG.size + 1
-                G = np.concatenate((self.K[k][:, None], G - self.K[k][:, None] * HG), axis=1)
-                k += 1
-                if k == n:
-                    break
-            G = self.F[j] @ G
-            if G.shape[1] > 1 and np.abs(G[:, -1]).max() < TOL:
-                big = np.flatnonzero(np.abs(G).max(axis=0) >= TOL)
-                G = G[:, :big[-1] + 1] if big.size else G[:, :0]
-        return sparse.csr_matrix((np.concatenate(data), np.concatenate(cols), indptr), shape=(n, n))
-
-
-def _p(a: np.ndarray) -> int:
-    return a.ctypes.data
-
-
-@functools.lru_cache(maxsize=1)
-def _recursion():
-    """``rc_kalman_whiten`` from ``kalman.c``, built on first use; None where it cannot be
-    built (no C compiler: the sparse product is used)."""
-    import ctypes
-
-    from ..compiler.embedded import shared_library
-    from ..errors import BuildError
-
-    source = Path(__file__).with_name("kalman.c")
-    try:
-        lib = ctypes.CDLL(str(shared_library("rapid_cosim_kalman", (source,), (source,), ("-O3",),
-                                                what="the Kalman whitener")))
-    except BuildError as err:
-        warnings.warn(f"{err}; whitening jittered recordings by the sparse product instead (slower)", stacklevel=3)
-        return None
-    f = lib.rc_kalman_whiten
-    f.restype = ctypes.c_int
-    f.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
-                  ctypes.c_int] + [ctypes.c_void_p] * 7
-    return f
 
 
 def _stamps(grid: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -282,6 +140,59 @@ def _ou_cov(t: np.ndarray, comps, white: float) -> np.ndarray:
     lag = np.abs(np.subtract.outer(t, t))
     cov = sum(s * s * np.exp(-lag / tau) for s, tau in comps) if comps else np.zeros_like(lag)
     return cov + white ** 2 * np.eye(t.size)
+
+
+def _kalman_map(model: RecorderNoise, grid, observed, H_f, lag_lo: int, L: int,
+                src: RecorderNoise | None) -> tuple[sparse.csr_matrix, np.ndarray]:
+    """Run the filter over ``grid`` (every sample from the first observed one; innovations
+    at ``observed`` ones), tracking the prediction's coefficients on past observations;
+    returns (W, s)."""
+    comps = list(model.components)
+    kp = len(comps)
+    fcomps = list(src.components) if (src is not None and L) else []
+    kf = len(fcomps)
+    d = kp + L + kf
+    n = observed.size
+    if n == 0:
+        return sparse.csr_matrix((0, 0)), np.zeros(0)
+    if d == 0:  # white noise alone
+        return sparse.identity(n, format="csr") / model.sigma_white, np.full(n, model.sigma_white ** 2)
+    first, last = int(observed[0]), int(observed[-1])
+    F, Q, P = _system(grid, first, last, comps, fcomps, L, lag_lo, src)
+    white2 = model.sigma_white ** 2
+    H = np.zeros((n, d))
+    H[:, :kp] = 1.0
+    if L:
+        H[:, kp:kp + L] = H_f
+    at = observed - first  # the step of each observation
+    G = np.zeros((d, 0))  # the state prediction's coefficients on past observations, newest first
+    data, cols, s_out = [], [], np.empty(n)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    k = 0
+    for j in range(last - first + 1):
+        if at[k] == j:
+            h = H[k]
+            PH = P @ h
+            S = float(h @ PH) + white2
+            HG = h @ G
+            root = math.sqrt(S)
+            data.append(np.concatenate((-HG[::-1] / root, (1.0 / root,))))
+            cols.append(np.arange(k - HG.size, k + 1))
+            indptr[k + 1] = indptr[k] + HG.size + 1
+            s_out[k] = S
+            K = PH / S
+            G = np.concatenate((K[:, None], G - K[:, None] * HG), axis=1)
+            P = P - np.outer(K, PH)
+            k += 1
+            if k == n:
+                break
+        G = F[j] @ G
+        P = F[j] @ P @ F[j].T + Q[j]
+        if G.shape[1] > 1 and np.abs(G[:, -1]).max() < TOL:
+            big = np.flatnonzero(np.abs(G).max(axis=0) >= TOL)
+            G = G[:, :big[-1] + 1] if big.size else G[:, :0]
+    W = sparse.csr_matrix((np.concatenate(data), np.concatenate(cols), indptr), shape=(n, n))
+    return W, s_out
 
 
 def _system(grid, first: int, last: int, comps, fcomps, L: int, lag_lo: int, src):
