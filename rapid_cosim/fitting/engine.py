@@ -117,7 +117,8 @@ def _yielding() -> None:
     (a third of the weight of the work waited on): on 2 workers, rapid-cosim identify took
     18.5 / 10.6 / 52.8 s on the steam, electrical and field units at nice 5, 18.9 / 11.6 /
     63.0 s at nice 10 (the field unit's long structure fits, its critical path, starved) and
-    21.9 / 13.0 / 51.8 s at nice 0 (the steam unit's explanation slowed by half)."""
+    21.9 / 13.0 / 51.8 s at nice 0 (the steam unit's explanation slowed by half), measured
+    with a quicker whitening since reverted (docs/studies.md)."""
     if hasattr(os, "nice"):
         os.nice(5)
 
