@@ -117,25 +117,27 @@ def _chunk_work(payload, chunk):
     if isinstance(payload, Path):  # say it is running, then sleep
         (payload / str(chunk[0])).touch()
         time.sleep(120)
-    threads = max((p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"), default=1)
-    return [(int(k), float(np.sum(np.arange(k + 1.0))), threads, os.getpid(), os.nice(0), time.time_ns())
+    threads = max((p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"), default=None)
+    return [(int(k), float(np.sum(np.arange(k + 1.0))), threads, os.getpid(), os.nice(0), time.monotonic_ns())
             for k in chunk]
 
 
 def test_work_started_early_comes_back_in_order_as_mapped_and_pinned():
     chunks = [np.array([k, k + 5]) for k in range(4)]
-    started = rc.EngineSpec(2).start(_chunk_work, "go", chunks)
     assert rc.EngineSpec(1).start(_chunk_work, "go", chunks) is None  # one worker: mapped when asked
     assert rc.EngineSpec(2).start(_chunk_work, "go", chunks[:1]) is None
-    parts = started.result()
+    started = rc.EngineSpec(2).start(_chunk_work, "go", chunks)
+    parts = started.result()  # closes the pool, whatever happens
     assert [[r[:2] for r in p] for p in parts] == [[r[:2] for r in p] for p in SequentialEngine().map(_chunk_work, "go", chunks)]
-    assert all(r[2] == 1 for p in parts for r in p)  # BLAS at one thread, as every engine's chunks run
+    assert all(r[2] == 1 for p in parts for r in p)  # numpy's BLAS found, at one thread, as every engine's chunks run
     assert os.getpid() not in {r[3] for p in parts for r in p}
     assert all(r[4] == min(19, os.nice(0) + 5) for p in parts for r in p)  # below the work waited on
 
 
 def test_work_started_early_starts_in_the_order_asked_and_comes_back_in_its_own():
     chunks = [np.array([k]) for k in range(5)]
+    with pytest.raises(ValueError, match="each of the 5 chunks once"):
+        Started(_chunk_work, "go", chunks, 1, first=[3, 1, 0, 2])
     started = Started(_chunk_work, "go", chunks, 1, first=[3, 1, 0, 2, 4])
     parts = started.result()
     assert [p[0][0] for p in parts] == [0, 1, 2, 3, 4]
@@ -150,13 +152,15 @@ def test_work_started_early_on_a_pool_that_loses_a_worker_is_given_back_to_the_c
 
 def test_closing_work_started_early_stops_its_workers(tmp_path):
     started = Started(_chunk_work, tmp_path, [np.array([0]), np.array([1])], 2)
-    for _ in range(600):  # until both chunks run
-        if all((tmp_path / k).exists() for k in "01"):
-            break
-        time.sleep(0.1)
-    processes = list(started._executor._processes.values())
-    assert processes and all(p.is_alive() for p in processes)
-    started.close()
+    try:
+        for _ in range(600):  # until both chunks run
+            if all((tmp_path / k).exists() for k in "01"):
+                break
+            time.sleep(0.1)
+        processes = list(started._executor._processes.values())
+        assert processes and all(p.is_alive() for p in processes)
+    finally:
+        started.close()
     for p in processes:
         p.join(timeout=20)
     assert not any(p.is_alive() for p in processes)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import shutil
 import tomllib
+import warnings
 
 from pathlib import Path
 import numpy as np
@@ -335,7 +336,11 @@ def test_calibrations_started_early_are_the_ones_fitted_when_asked(repo, campaig
         calibrations = Calibrations(structures, training, noise, options, tmp_path / f"n{n_jobs}", source=source,
                                     start=True)
         assert (calibrations._started is not None) == (n_jobs == 2)
-        runs[n_jobs] = calibrations.runs()
+        with warnings.catch_warnings():  # the started pool's own results, not the fallback's
+            warnings.filterwarnings("error", message="a worker process died")
+            runs[n_jobs] = calibrations.runs()
+        assert calibrations.made_for(structures, training, options, tmp_path / f"n{n_jobs}", (), source)
+        assert not calibrations.made_for(structures[:1], training, options, tmp_path / f"n{n_jobs}", (), source)
     for (one, _), (two, archive) in zip(runs[1], runs[2]):
         assert np.array_equal(one.x, two.x) and one.fun == two.fun and one.nfev == two.nfev
         assert Path(archive).parent == tmp_path / "n2"

@@ -295,4 +295,3 @@ def test_every_repair_is_said_by_the_cli_the_archive_json_and_the_report(tmp_pat
     validation_page(archive, tmp_path / "page.html", pdf=False)
     html = (tmp_path / "page.html").read_text()
     assert "id=timebase" in html and "1 repeated stamp(s) dropped" in html and "STAT word" in html
-

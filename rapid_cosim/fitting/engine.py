@@ -135,15 +135,24 @@ class Started:
     resized or restarted by a :class:`JoblibEngine` map in this process meanwhile. Each
     chunk runs pinned (:func:`pinned_threads`), as every engine's chunks do, so its results
     are the same as mapped. A pool that breaks (a worker killed) gives ``None``: the caller
-    then runs the work its own way."""
+    then runs the work its own way. The pool is loky's whatever the engine's backend (its
+    workers are this machine's processes either way); the BLAS pools are pinned by
+    threadpoolctl in each chunk, as in every engine, not by environment variables."""
 
     def __init__(self, fn: Callable[[Any, np.ndarray], Any], payload: Any, chunks: Sequence[np.ndarray], workers: int,
                  first: Sequence[int] | None = None):
         from joblib.externals.loky import ProcessPoolExecutor
 
-        self._executor = ProcessPoolExecutor(max_workers=max(1, min(workers, len(chunks))), initializer=_yielding)
         order = list(first) if first is not None else list(range(len(chunks)))
-        futures = {k: self._executor.submit(_pinned_call, fn, payload, chunks[k]) for k in order}
+        if sorted(order) != list(range(len(chunks))):
+            raise ValueError(f"first must name each of the {len(chunks)} chunks once, got {order}")
+        self._executor = ProcessPoolExecutor(max_workers=max(1, min(workers, len(chunks))), initializer=_yielding)
+        self._futures = []
+        try:
+            futures = {k: self._executor.submit(_pinned_call, fn, payload, chunks[k]) for k in order}
+        except BaseException:  # a payload that does not pickle, Ctrl-C: no pool left behind
+            self._executor.shutdown(wait=True, kill_workers=True)
+            raise
         self._futures = [futures[k] for k in range(len(chunks))]
 
     def result(self) -> list | None:

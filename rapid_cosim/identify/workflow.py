@@ -72,9 +72,10 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, eng
     options = RunOptions(method=METHOD, seed=seed, engine=engine).check()
     # the standard records' fits do not depend on the explanation: on local workers they
     # start now, on a pool of their own, and fill the cores the explanation leaves idle
-    calibrations = Calibrations(delivery_candidates(structures), training, fitted_noise, options,
-                                workdir / "records", source=source, start=True)
+    calibrations = None
     try:
+        calibrations = Calibrations(delivery_candidates(structures), training, fitted_noise, options,
+                                    workdir / "records", source=source, start=True)
         log("the explanation (TG Type I and the effect catalogue):")
         explanation = diagnose(training, heldout, workdir=workdir / "explanation",
                                options=DiagnoseOptions(seed=seed, engine=engine, write_model=False),
@@ -83,8 +84,9 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, eng
         log("the standard records:")
         d = deliver(structures, training, heldout, explanation, workdir=workdir / "records", options=options,
                     source=source, log=log, fitted_noise=fitted_noise, kept=kept, calibrations=calibrations)
-    finally:
-        calibrations.close()
+    finally:  # stopped on any way out: an interrupted record's archive is resumed by the next run
+        if calibrations is not None:
+            calibrations.close()
     result = Identification(unit=unit.name, mva=unit.mva, bus=unit.bus, machine_id=unit.machine_id,
                             training=[e.name for e in training], heldout=[e.name for e in heldout],
                             explanation=_explanation(explanation), records=d.records, recommended=d.recommended,

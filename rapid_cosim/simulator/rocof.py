@@ -98,14 +98,15 @@ def rocof_operator(time: np.ndarray, window: float = WINDOW, breaks: tuple[float
                    valid: np.ndarray | None = None) -> RocofOperator:
     """:func:`_operator`, kept per stamps, window, breaks and valid samples: a diagnosis
     builds each test's inputs again for every candidate (157 operators of 4 ms each on the
-    steam unit). Its arrays are read-only, as the operator is shared."""
+    steam unit); the last 16, a unit's tests (about 200 bytes a sample each). Its arrays are
+    read-only, as the operator is shared."""
     t = np.ascontiguousarray(time, dtype=float)
     v = None if valid is None else np.ascontiguousarray(valid, dtype=bool)
     return _kept(t.tobytes(), float(window), tuple(float(b) for b in np.atleast_1d(breaks)),
                  None if v is None else v.tobytes())
 
 
-@functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=16)
 def _kept(time: bytes, window: float, breaks: tuple[float, ...], valid: bytes | None) -> RocofOperator:
     op = _operator(np.frombuffer(time), window, breaks, None if valid is None else np.frombuffer(valid, dtype=bool))
     op.matrix.data.flags.writeable = op.matrix.indices.flags.writeable = op.matrix.indptr.flags.writeable = False

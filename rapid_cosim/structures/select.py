@@ -134,8 +134,8 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
     log(f"  calibrating {', '.join(s.name for s in structures)} ...")
     if calibrations is None:
         calibrations = Calibrations(structures, training, fitted_noise, options, workdir, searches, source)
-    elif [s.name for s in calibrations.structures] != [s.name for s in structures]:
-        raise ValueError("the calibrations given were started for other structures")
+    elif not calibrations.made_for(structures, training, options, workdir, searches, source):
+        raise ValueError("the calibrations given were started for other structures, tests or options")
     runs = calibrations.runs()
     for s, (result, archive) in zip(structures, runs):
         exps = on_structure(s, training, fitted_noise)
@@ -185,7 +185,9 @@ class Calibrations:
     <rapid_cosim.fitting.engine.EngineSpec.start>`), so that the caller's other work (an
     identification's explanation) runs meanwhile. Either way each structure is fitted
     whole in one process, pinned, and gives the same numbers. :meth:`close` stops a
-    started pool whose results are not wanted (the caller failed)."""
+    started pool whose results are not wanted (the caller failed): its fits are killed
+    where they are, and their archives are resumed by the next run (with a word on the
+    locks taken over)."""
 
     def __init__(self, structures: Sequence[Structure], training: Sequence[Experiment], fitted_noise: dict,
                  options: RunOptions, workdir: str | Path, searches: Sequence[str] = (),
@@ -199,6 +201,14 @@ class Calibrations:
             first = sorted(range(len(self.structures)), key=lambda k: -len(self.structures[k].estimate))
             self._started = options.engine.start(_calibrated, payload,
                                                  [np.array([k]) for k in range(len(self.structures))], first)
+
+    def made_for(self, structures, training, options: RunOptions, workdir, searches, source: ModelSource) -> bool:
+        """Whether these are the calibrations of ``structures`` on ``training`` with these
+        options, work folder, searches and models."""
+        mine, tests, opts, folder, searched, models = (self._args[0], self._args[1], *self._args[3:])
+        return ([s.name for s in mine] == [s.name for s in structures]
+                and [e.name for e in tests] == [e.name for e in training] and opts == options
+                and folder == Path(workdir) and searched == tuple(searches) and models == source)
 
     def runs(self) -> list[tuple]:
         started, self._started = self._started, None
