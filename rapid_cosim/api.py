@@ -39,9 +39,13 @@ from .simulator import DEFAULT_RUNNER, BatchResult, Trajectory, get_simulator
 
 
 def pinned(func):
-    """The API function run with one BLAS and OpenMP thread (:func:`~rapid_cosim.fitting.engine.pinned_threads`)."""
+    """The API function run with one BLAS and OpenMP thread (:func:`~rapid_cosim.fitting.engine.pinned_threads`),
+    its ``source=`` checked first (:meth:`~rapid_cosim.compiler.source.ModelSource.check`)."""
     @functools.wraps(func)
     def run(*args, **kwargs):
+        source = kwargs.get("source")
+        if isinstance(source, ModelSource):
+            source.check()
         with pinned_threads():
             return func(*args, **kwargs)
 

@@ -15,7 +15,7 @@ import rapid_cosim as rc
 from rapid_cosim.calibration import RunOptions
 from rapid_cosim.cli.parser import build_parser
 from rapid_cosim.compiler import default_fmu_dir, default_package
-from rapid_cosim.errors import BuildError, RapidCosimError
+from rapid_cosim.errors import BuildError, ConfigError, RapidCosimError
 from rapid_cosim.fitting.engine import DaskEngine, JoblibEngine, SequentialEngine, Started
 
 
@@ -99,6 +99,7 @@ def test_the_cli_builds_one_engine_and_one_source_from_its_options(tmp_path):
     from rapid_cosim.cli.commands import _engine, _source
 
     parser = build_parser()
+    (tmp_path / "package.mo").write_text("package P\nend P;\n")  # a package, as the CLI checks
     args = parser.parse_args(["identify", "unit.toml", "--n-jobs", "2", "--package", str(tmp_path), "--fmus",
                               str(tmp_path / "f"), "--compiler", "embedded"])
     assert _engine(args) == rc.EngineSpec(2) and _source(args) == rc.ModelSource(tmp_path, tmp_path / "f", "embedded")
@@ -164,3 +165,27 @@ def test_closing_work_started_early_stops_its_workers(tmp_path):
     for p in processes:
         p.join(timeout=20)
     assert not any(p.is_alive() for p in processes)
+
+
+@pytest.mark.parametrize("command", [["diagnose", "experiments/test1", "--results", "{tmp}/r"],
+                                     ["structures", "experiments/test1", "--structures",
+                                      "experiments/structures/TGOV1.toml", "--results", "{tmp}/r"],
+                                     ["check", "experiments/test1"]])
+def test_a_package_named_wrong_is_said_in_one_line_with_its_option(command, tmp_path, repo, capsys):
+    """Not a FileNotFoundError from deep in a run (diagnose and structures), nor a check
+    that passes without the package (check)."""
+    from rapid_cosim.cli import main
+
+    args = [a.replace("{tmp}", str(tmp_path)) if "{tmp}" in a else (str(repo / a) if a.startswith("experiments") else a)
+            for a in command]
+    assert main([*args, "--package", str(tmp_path / "nope")]) == 2
+    err = capsys.readouterr().err
+    assert "[--package (source.package)]: no Modelica package at" in err and "nope" in err
+    assert "Traceback" not in err
+
+
+def test_the_api_checks_the_source_it_is_given(tmp_path):
+    (tmp_path / "lone.mo").write_text("package lone\nend lone;\n")
+    assert rc.ModelSource(package=tmp_path / "lone.mo").check().package == tmp_path / "lone.mo"
+    with pytest.raises(ConfigError, match="no Modelica package at"):
+        rc.check(str(tmp_path / "config.toml"), source=rc.ModelSource(package=tmp_path / "nope"))

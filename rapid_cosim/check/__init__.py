@@ -43,7 +43,9 @@ def kind_of(path: str | Path) -> tuple[str, Path]:
 
 def check(path: str | Path, *, method: str = "pf:10+nm", source: ModelSource = ModelSource()) -> CheckReport:
     """Check what a run of ``path`` would load (module docstring); ``method``: the
-    estimator chain a calibration of a config would run."""
+    estimator chain a calibration of a config would run. A ``source`` whose package is
+    not there raises, as every API call does (:meth:`ModelSource.check`)."""
+    source.check()
     kind, file = kind_of(path)
     if kind == "fleet":
         return check_fleet(file, source=source)

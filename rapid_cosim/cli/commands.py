@@ -29,7 +29,7 @@ def _assignments(items: list[str]) -> dict[str, float]:
 
 def _source(args) -> ModelSource:
     """The models of ``--package``, ``--fmus`` and ``--compiler`` (the parser's ``model_options``)."""
-    return ModelSource(args.package, args.fmus, args.compiler)
+    return ModelSource(args.package, args.fmus, args.compiler).check()
 
 
 def _engine(args) -> EngineSpec:

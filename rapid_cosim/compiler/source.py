@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
+from ..errors import ConfigError
 from .builder import BuildOutcome, build_models, check_compiler, ensure_fmu, package_digest, resolve_models
 
 
@@ -50,6 +51,18 @@ class ModelSource:
         """Whether the package is the user's own (named, or ``$RAPID_COSIM_PACKAGE``), not
         the one shipped inside rapid_cosim: only the user's own may be written into."""
         return self.package is not None or bool(os.environ.get("RAPID_COSIM_PACKAGE"))
+
+    def check(self) -> "ModelSource":
+        """This source, once its package is found: a folder with a ``package.mo``, or a
+        ``.mo`` file. A package named wrong is said at once, with where it was named, not
+        as a missing file deep in a run (the shipped one is always there)."""
+        if self.users_package:
+            path = self.package_path
+            if not ((path.is_dir() and (path / "package.mo").is_file()) or (path.is_file() and path.suffix == ".mo")):
+                named = "--package (source.package)" if self.package is not None else "$RAPID_COSIM_PACKAGE"
+                raise ConfigError(f"no Modelica package at {path}: name a folder with a package.mo, or a .mo file",
+                                  None, named)
+        return self
 
     def resolved(self) -> "ModelSource":
         """Absolute paths with the defaults filled in: what a worker in another folder, or
