@@ -194,6 +194,7 @@ class Calibrations:
                  source: ModelSource = ModelSource(), start: bool = False):
         self.structures = list(structures)
         self._args = (self.structures, list(training), fitted_noise, options, Path(workdir), tuple(searches), source)
+        self._key = _key(structures, training, options, workdir, searches, source)
         self._started = None
         if start and options.engine.processes and len(self.structures) > 1:
             payload = _worker_payload(*self._args)
@@ -205,10 +206,7 @@ class Calibrations:
     def made_for(self, structures, training, options: RunOptions, workdir, searches, source: ModelSource) -> bool:
         """Whether these are the calibrations of ``structures`` on ``training`` with these
         options, work folder, searches and models."""
-        mine, tests, opts, folder, searched, models = (self._args[0], self._args[1], *self._args[3:])
-        return ([s.name for s in mine] == [s.name for s in structures]
-                and [e.name for e in tests] == [e.name for e in training] and opts == options
-                and folder == Path(workdir) and searched == tuple(searches) and models == source)
+        return self._key == _key(structures, training, options, workdir, searches, source)
 
     def runs(self) -> list[tuple]:
         started, self._started = self._started, None
@@ -221,6 +219,12 @@ class Calibrations:
         if self._started is not None:
             self._started.close()
             self._started = None
+
+
+def _key(structures, training, options: RunOptions, workdir, searches, source: ModelSource) -> tuple:
+    """What a selection's calibrations are made for, comparable."""
+    return ([s.name for s in structures], [e.name for e in training], options, Path(workdir), tuple(searches),
+            source)
 
 
 def _worker_payload(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches,
