@@ -103,6 +103,24 @@ def test_draws_follow_the_likelihood_of_the_quiet_data():
     assert np.array_equal(NoiseFit.known(FIELD_LIKE).draw(rng, 3)[0].log_parameters(), FIELD_LIKE.log_parameters())
 
 
+def test_noise_models_drawn_on_workers_are_the_ones_drawn_here():
+    """The null's proposals' likelihoods may be computed on an engine's workers: the same
+    deviances bit for bit, in the same order, so the same models drawn."""
+    import rapid_cosim as rc
+    from rapid_cosim.fitting.engine import pinned_threads
+
+    fit = fit_noise(_stretches(FIELD_LIKE, np.random.default_rng(6)))
+    likelihood = fit.likelihoods[fit.model.family]
+    with pinned_threads():  # as every run is, here and in the workers
+        here = fit.draw(np.random.default_rng(0), 300)
+        there = fit.draw(np.random.default_rng(0), 300, rc.EngineSpec(2))
+        thetas = np.array([m.log_parameters() for m in here[:6]] + [np.full(here[0].log_parameters().size, 50.0)])
+        serial = np.array([likelihood.deviance(t) for t in thetas])
+    assert [m.log_parameters().tobytes() for m in here] == [m.log_parameters().tobytes() for m in there]
+    assert np.array_equal(likelihood.deviances(thetas, rc.EngineSpec(2)), serial) and np.isinf(serial[-1])
+    assert np.array_equal(likelihood.deviances(thetas, rc.EngineSpec(1)), serial)
+
+
 def test_an_undetermined_component_draws_bounded_models():
     """A covariance the quiet data cannot pin down (huge, or not finite) still draws
     recorders: each parameter within the truncation factor of the estimate."""

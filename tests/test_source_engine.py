@@ -135,6 +135,22 @@ def test_work_started_early_comes_back_in_order_as_mapped_and_pinned():
     assert all(r[4] == min(19, os.nice(0) + 5) for p in parts for r in p)  # below the work waited on
 
 
+def test_workers_started_ahead_are_the_ones_the_maps_then_run_on():
+    assert rc.EngineSpec(1).warm() is None
+    assert rc.EngineSpec(2, "sequential").warm() is None
+    assert rc.EngineSpec(2, "multiprocessing").warm() is None  # not joblib's reusable pool
+    chunks = [np.array([k, k + 5]) for k in range(4)]
+    thread = rc.EngineSpec(2).warm()
+    parts = JoblibEngine(2).map(_chunk_work, "go", chunks)  # while the workers may still be starting
+    thread.join(timeout=120)
+    assert not thread.is_alive()
+    again = JoblibEngine(2).map(_chunk_work, "go", chunks)
+    expected = [[r[:2] for r in p] for p in SequentialEngine().map(_chunk_work, "go", chunks)]
+    assert [[r[:2] for r in p] for p in parts] == [[r[:2] for r in p] for p in again] == expected
+    assert len(thread.workers) == 2 and os.getpid() not in thread.workers
+    assert {r[3] for p in parts + again for r in p} <= set(thread.workers)  # one pool, started ahead and kept
+
+
 def test_work_started_early_starts_in_the_order_asked_and_comes_back_in_its_own():
     chunks = [np.array([k]) for k in range(5)]
     with pytest.raises(ValueError, match="each of the 5 chunks once"):

@@ -100,6 +100,7 @@ class Context:
                  log: Callable[[str], None], noise_fits: dict | None = None, kept: KeptReplicates | None = None):
         self.training, self.heldout = list(training), list(heldout)
         self.workdir, self.options = Path(workdir), options
+        options.engine.warm()  # the candidates' workers start while the noise and the base model are fitted here
         # the user's models: a named model may be written into the user's own package (source.users_package),
         # never into the one shipped inside rapid_cosim (an installed wheel's files are not the user's)
         self.user_source, self.log = source, log
@@ -176,7 +177,7 @@ class Context:
         if self.heldout:
             exps += list(self._heldout_inputs(fit).experiments)
         self.null = replicates_for(exps, self.noise_fits, self.options.replicates, seed=self.options.seed,
-                                   kept=self.kept)
+                                   kept=self.kept, engine=self.options.engine)
 
     def base_parameters(self) -> dict[str, float] | None:
         base = self.fits.get(NONE)

@@ -24,7 +24,7 @@ Step 2 is the same for every candidate of a diagnosis and is done once
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 from scipy import stats
@@ -33,6 +33,9 @@ from ..experiment.electrical import rocof_component, with_component
 from ..fitting.fitness import whitenings
 from ..noise import NoiseFit
 from ..noise.filtered import FilteredNoise
+
+if TYPE_CHECKING:
+    from ..fitting.engine import EngineSpec
 
 LAGS = 10
 REPLICATES = 1000
@@ -55,12 +58,15 @@ class ScoredTest:
 
 
 def replicates_for(experiments, noise_fits: Mapping[str, NoiseFit], replicates: int = REPLICATES,
-                   seed: int = 0, kept: "KeptReplicates | None" = None) -> "NoiseReplicates":
+                   seed: int = 0, kept: "KeptReplicates | None" = None,
+                   engine: "EngineSpec | None" = None) -> "NoiseReplicates":
     """The noise replicates of whitened experiments (one compared output each), whitened
     as their fitness whitens them. An electrical-power test's residual carries the derived
     ROCOF's noise besides the recorder's (:func:`rapid_cosim.experiment.electrical.rocof_component`):
     its replicates carry it too, or a correct model's residual would look too large (a
-    null without it put the variance ratio of correct models at 0.8 where they gave 1)."""
+    null without it put the variance ratio of correct models at 0.8 where they gave 1).
+    ``engine``: where the drawn noise models' likelihoods are computed (the same numbers
+    anywhere, :meth:`rapid_cosim.noise.estimate.Likelihood.deviances`)."""
     tests = []
     for exp in experiments:
         (w,) = whitenings(exp).values()
@@ -69,8 +75,8 @@ def replicates_for(experiments, noise_fits: Mapping[str, NoiseFit], replicates: 
         tests.append(ScoredTest(exp.name, exp.windowed_data().time[index], w, exp.offset, noise_fits[exp.name],
                                 (component,) if component else ()))
     if kept is not None:
-        return kept.get(tests, replicates, seed)
-    return NoiseReplicates(tests, replicates, seed=seed)
+        return kept.get(tests, replicates, seed, engine)
+    return NoiseReplicates(tests, replicates, seed=seed, engine=engine)
 
 
 def with_extra(models: list, extra: tuple) -> list:
@@ -106,14 +112,15 @@ class NoiseReplicates:
     """Whitened, offset-profiled noise replicates of every test (step 2 above), kept in
     single precision: the part of the null every candidate shares."""
 
-    def __init__(self, tests: Sequence[ScoredTest], replicates: int = REPLICATES, seed: int = 0):
+    def __init__(self, tests: Sequence[ScoredTest], replicates: int = REPLICATES, seed: int = 0,
+                 engine: "EngineSpec | None" = None):
         self.tests = list(tests)
         self.replicates, self.seed = int(replicates), seed
         rng = np.random.default_rng([seed, 17])
         recorders: dict[int, list] = {}
         for t in self.tests:  # one draw of each recorder's model per replicate, shared by its tests
             if id(t.noise) not in recorders:
-                recorders[id(t.noise)] = t.noise.draw(rng, self.replicates)
+                recorders[id(t.noise)] = t.noise.draw(rng, self.replicates, engine)
         self.e: dict[str, np.ndarray] = {}
         self._stats: dict[bytes, dict] = {}
         for t in self.tests:
@@ -180,12 +187,13 @@ class KeptReplicates:
         self.made: list[NoiseReplicates] = []
         self.reused = 0
 
-    def get(self, tests: Sequence[ScoredTest], replicates: int, seed: int) -> NoiseReplicates:
+    def get(self, tests: Sequence[ScoredTest], replicates: int, seed: int,
+            engine: "EngineSpec | None" = None) -> NoiseReplicates:
         for r in self.made:
             if r.made_for(tests, replicates, seed):
                 self.reused += 1
                 return r
-        self.made.append(NoiseReplicates(tests, replicates, seed=seed))
+        self.made.append(NoiseReplicates(tests, replicates, seed=seed, engine=engine))
         return self.made[-1]
 
 

@@ -155,7 +155,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
             jac.update(jacobian_at(held_inputs, x))
         if null is None:
             null = replicates_for([*inputs.experiments, *(held_inputs.experiments if held_inputs else ())],
-                                  fitted_noise, seed=options.seed, kept=kept)
+                                  fitted_noise, seed=options.seed, kept=kept, engine=options.engine)
         fit_ok = adequacy(tests, noise, null, {k_: np.nan_to_num(v) for k_, v in jac.items()},
                           [e.name for e in training])
         ident = identifiability(inputs, np.asarray(result.x), noise)
