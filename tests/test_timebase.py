@@ -99,6 +99,58 @@ def test_the_timed_whitening_is_the_exact_covariances_inverse_cholesky_factor(so
     assert np.max(np.abs(w.W.toarray() - exact)) < 1e-9 * np.max(np.abs(exact))
 
 
+@pytest.mark.parametrize("rows", [1, 2, 3, 6, 17, 39, 129, 1000])
+def test_the_timed_whitening_gives_scipys_sparse_product_bit_for_bit(rows):
+    """The band kernel (noise/band.c) in place of scipy's CSR product: the same numbers to
+    the last bit, laid out the same, on a jittered recording with the derived ROCOF's
+    noise (rows of W of every length up to a couple of hundred)."""
+    from rapid_cosim.noise import band
+
+    t = _jittered(n=600, drop=(40, 41, 42, 150))
+    model = RecorderNoise(0.9e-3, ((1.2e-3, 0.6),), DT)
+    derived = DerivedNoise(RecorderNoise(0.3e-3, ((0.9e-3, 0.15),), DT), (1.0,), time=t,
+                           matrix=(0.2 * rocof_operator(t, breaks=(5.0,)).matrix).tocsr())
+    keep = np.delete(np.arange(t.size), [10, 11, 100])
+    w = TimedWhitener(model, t[keep], derived, keep)
+    assert band.library() is not None, "the band kernel was not built or does not agree with scipy here"
+    assert w._band is not None and np.diff(w.W.indptr).max() > 50
+    r = np.random.default_rng(rows).standard_normal((rows, keep.size)) * 1e-3
+    got, expected = w.whiten(r), np.asarray((w.W @ r.T).T)
+    assert np.array_equal(got, expected)
+    assert got.flags.f_contiguous == expected.flags.f_contiguous and got.flags.c_contiguous == expected.flags.c_contiguous
+
+
+def test_a_matrix_that_is_not_a_band_is_left_to_scipy():
+    from scipy import sparse
+
+    from rapid_cosim.noise.band import Band, product
+
+    gappy = sparse.csr_matrix(np.array([[1.0, 0.0, 0.0], [2.0, 0.0, 3.0], [0.0, 4.0, 5.0]]))
+    assert Band.of(gappy) is None and Band.of(sparse.csr_matrix((3, 3))) is None
+    assert Band.of(sparse.csr_matrix(np.ones((2, 3)))) is None
+    r = np.arange(6.0).reshape(2, 3)
+    assert np.array_equal(product(gappy, None, r), (gappy @ r.T).T)
+    band = Band.of(sparse.csr_matrix(np.tril(np.ones((3, 3)))))
+    assert band is not None and band.first.tolist() == [0, 0, 0]
+
+
+def test_without_a_c_compiler_the_whitening_says_so_and_uses_scipys_product(monkeypatch, tmp_path):
+    from rapid_cosim.noise import band
+
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    monkeypatch.setenv("RAPID_COSIM_CACHE", str(tmp_path / "cache"))
+    band.library.cache_clear()
+    try:
+        with pytest.warns(UserWarning, match="no-such-cc.*scipy's sparse product"):
+            assert band.library() is None
+        t = _jittered(n=200)
+        w = TimedWhitener(RecorderNoise(0.9e-3, ((1.2e-3, 0.6),), DT), t)
+        r = np.random.default_rng(0).standard_normal((3, t.size))
+        assert np.array_equal(w.whiten(r), (w.W @ r.T).T)
+    finally:
+        band.library.cache_clear()
+
+
 def test_on_regular_stamps_the_timed_whitening_is_the_stationary_ones():
     t = np.arange(400) * DT
     model = RecorderNoise(0.9e-3, ((1.2e-3, 0.6),), DT)

@@ -16,7 +16,8 @@ The state holds the OU values and the window of ``f`` samples that any row of ``
 reaches, so the Kalman filter is exact. Its innovations, standardised, are a linear map
 ``e = W y`` with ``W`` lower triangular; since the filter forgets (it is stable), each row
 of ``W`` is kept to the coefficients above ``TOL`` (the Levinson whitener truncates its
-order the same way), and a batch is whitened by one sparse product. Built once per
+order the same way), and a batch is whitened by one sparse product (:mod:`.band`'s,
+scipy's numbers computed quicker, where each row is a run of columns). Built once per
 noise model and set of samples (a few tens of ms); the tests check it against the dense
 Cholesky factor of the exact covariance, and against the stationary whiteners on a
 regular grid.
@@ -32,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import sparse
 
+from .band import Band, product
 from .filtered import FilteredNoise
 from .model import RecorderNoise
 
@@ -117,11 +119,11 @@ class TimedWhitener:
             H_f[sub.row, sub.col - observed[sub.row] - lag_lo] = sub.data
             src = self.derived.source
         self.W, self.s = _kalman_map(self.model, grid, observed, H_f, lag_lo, L, src)
+        self._band = Band.of(self.W)  # its rows are runs of columns: band.c's product, scipy's numbers
 
     def whiten(self, r: np.ndarray) -> np.ndarray:
         """Standardised innovations of residual rows ``r`` (rows, n)."""
-        r = np.atleast_2d(np.asarray(r, dtype=float))
-        return np.asarray((self.W @ r.T).T)
+        return product(self.W, self._band, np.atleast_2d(np.asarray(r, dtype=float)))
 
     def log_det(self) -> float:
         return float(np.sum(np.log(self.s)))

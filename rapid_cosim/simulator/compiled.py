@@ -26,10 +26,6 @@ it uses from the SUNDIALS 7 API and checks the library's version when it opens.
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import platform
-import subprocess
 import weakref
 from ctypes import POINTER, c_char_p, c_double, c_int, c_uint, c_void_p
 from pathlib import Path
@@ -37,7 +33,7 @@ from pathlib import Path
 import fmpy
 import numpy as np
 
-from ..errors import BuildError, SimulationError
+from ..errors import SimulationError
 from .fmu import LoadedFmu
 from .inputs import InputTable
 
@@ -74,30 +70,12 @@ def sundials_libraries() -> list[str]:
 
 def library_path() -> Path:
     """The runner library for this machine, compiled on first use."""
-    from ..compiler.embedded import c_compiler, cache_dir  # one place says which compiler builds C here
+    from ..compiler.embedded import shared_library  # one place says which compiler builds C here
 
-    cc = c_compiler()
-    source = b"".join(p.read_bytes() for p in SOURCES)
-    key = hashlib.sha256(source + f"|{cc}|{platform.machine()}|{fmpy.__version__}".encode()).hexdigest()[:16]
-    folder = cache_dir()
-    lib = folder / f"rapid_cosim_runner-{key}{fmpy.sharedLibraryExtension}"
-    if lib.exists():
-        return lib
-    folder.mkdir(parents=True, exist_ok=True)
     include = Path(fmpy.__file__).parent / "c-code"
-    part = lib.with_name(f"{lib.name}.{os.getpid()}.part")
-    cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", f"-I{include}", str(SOURCE),
-           str(COSIM_SOURCE), "-o", str(part), "-lm", "-ldl"]
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-    except FileNotFoundError:
-        raise BuildError(f"C compiler {cc!r} not found; the compiled runner needs one (install gcc or set CC), "
-                         "or choose runner='python'") from None
-    if proc.returncode != 0:
-        part.unlink(missing_ok=True)
-        raise BuildError(f"compiling the runner failed:\n{' '.join(cmd)}\n{proc.stderr[-4000:]}")
-    os.replace(part, lib)
-    return lib
+    return shared_library("rapid_cosim_runner", SOURCES, (SOURCE, COSIM_SOURCE),
+                          (f"-I{include}", "-lm", "-ldl"), identity=fmpy.__version__,
+                          what="the compiled runner", hint=", or choose runner='python'")
 
 
 _LIBRARY: ctypes.CDLL | None = None
