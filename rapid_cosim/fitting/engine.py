@@ -337,8 +337,8 @@ class EngineSpec:
     def warm(self) -> threading.Thread | None:
         """Start this engine's local workers now, in the background, so that they have
         started and imported rapid_cosim when the first map comes (a worker takes about a
-        second to start; a staged-test diagnosis waited 0.8 s of its 4.7 s for them). The
-        same reusable loky pool the maps then use; None where there is none to start
+        second to start, which a staged-test diagnosis otherwise waits for after fitting
+        its base model). The same reusable loky pool the maps then use; None where there is none to start
         (one worker, another backend). The thread ends once the workers answer; its
         ``workers`` then lists their process ids."""
         if not self.processes or self.backend != "loky":
