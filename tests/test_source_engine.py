@@ -147,8 +147,9 @@ def test_workers_started_ahead_are_the_ones_the_maps_then_run_on():
     again = JoblibEngine(2).map(_chunk_work, "go", chunks)
     expected = [[r[:2] for r in p] for p in SequentialEngine().map(_chunk_work, "go", chunks)]
     assert [[r[:2] for r in p] for p in parts] == [[r[:2] for r in p] for p in again] == expected
-    assert len(thread.workers) == 2 and os.getpid() not in thread.workers
-    assert {r[3] for p in parts + again for r in p} <= set(thread.workers)  # one pool, started ahead and kept
+    assert thread.workers and os.getpid() not in thread.workers
+    # one pool, started ahead and kept: a map on a pool made otherwise would have started two more processes
+    assert len(set(thread.workers) | {r[3] for p in parts + again for r in p}) <= 2
 
 
 def test_work_started_early_starts_in_the_order_asked_and_comes_back_in_its_own():

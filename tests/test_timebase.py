@@ -151,6 +151,22 @@ def test_without_a_c_compiler_the_whitening_says_so_and_uses_scipys_product(monk
         band.library.cache_clear()
 
 
+def test_a_band_product_that_differs_from_scipys_is_not_used(monkeypatch):
+    from rapid_cosim.noise import band
+
+    monkeypatch.setattr(band, "_agrees", lambda lib: False)
+    band.library.cache_clear()
+    try:
+        with pytest.warns(UserWarning, match="does not give scipy's numbers"):
+            assert band.library() is None
+    finally:
+        band.library.cache_clear()
+    t = _jittered(n=200)
+    w = TimedWhitener(RecorderNoise(0.9e-3, ((1.2e-3, 0.6),), DT), t)
+    with pytest.raises(ValueError, match="dimension mismatch"):
+        w._band.apply(np.zeros((2, t.size - 1)), band.library())
+
+
 def test_on_regular_stamps_the_timed_whitening_is_the_stationary_ones():
     t = np.arange(400) * DT
     model = RecorderNoise(0.9e-3, ((1.2e-3, 0.6),), DT)

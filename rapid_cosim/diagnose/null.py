@@ -120,7 +120,7 @@ class NoiseReplicates:
         recorders: dict[int, list] = {}
         for t in self.tests:  # one draw of each recorder's model per replicate, shared by its tests
             if id(t.noise) not in recorders:
-                recorders[id(t.noise)] = t.noise.draw(rng, self.replicates, engine)
+                recorders[id(t.noise)] = t.noise.draw(rng, self.replicates, _mapper(engine))
         self.e: dict[str, np.ndarray] = {}
         self._stats: dict[bytes, dict] = {}
         for t in self.tests:
@@ -169,6 +169,12 @@ class NoiseReplicates:
                 e -= beta @ jacobians[t.name].T
             out[t.name] = (np.mean(e * e, axis=1), ljung_box_q(e, lags))
         return out
+
+
+def _mapper(engine: "EngineSpec | None"):
+    """The engine's local workers to compute the drawn models' likelihoods on, or None
+    (here): only local processes, whose pool the candidates' fits use next."""
+    return engine.make() if engine is not None and engine.processes else None
 
 
 def _same_test(a: ScoredTest, b: ScoredTest) -> bool:

@@ -50,6 +50,9 @@ def _pinned_call(fn, *args, **kwargs):
     with pinned_threads():
         return fn(*args, **kwargs)
 LOST_WORKER_RETRIES = 3  # times a batch is run again on a fresh pool after a worker died
+# joblib's reusable pool is one per process, and two threads making it at once can find it half made
+# (joblib issue 1794): a map holds this while it runs, and a map from another thread (EngineSpec.warm) waits
+_POOL = threading.RLock()
 
 
 class Engine(Protocol):
@@ -100,7 +103,7 @@ class JoblibEngine:
 
         for attempt in range(self.retries + 1):
             try:
-                with joblib.parallel_config(backend=self.backend, n_jobs=self.n_jobs):
+                with _POOL, joblib.parallel_config(backend=self.backend, n_jobs=self.n_jobs):
                     return joblib.Parallel()(joblib.delayed(pinned(fn))(payload, c) for c in chunks)
             except (TerminatedWorkerError, BrokenProcessPool) as e:
                 reason = str(e).strip().splitlines()[0][:200]
@@ -339,8 +342,10 @@ class EngineSpec:
         started and imported rapid_cosim when the first map comes (a worker takes about a
         second to start, which a staged-test diagnosis otherwise waits for after fitting
         its base model). The same reusable loky pool the maps then use; None where there is none to start
-        (one worker, another backend). The thread ends once the workers answer; its
-        ``workers`` then lists their process ids."""
+        (one worker, another backend). A map from this process waits for the start (one
+        map at a time holds joblib's pool). The thread ends once the workers answer; its
+        ``workers`` then holds the process ids that answered (both tasks may go to one
+        worker). Not a daemon: a run that fails at once waits a second for it at exit."""
         if not self.processes or self.backend != "loky":
             return None
         workers: list[int] = []

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import Any, Callable, Mapping, Protocol, Sequence
 
 import numpy as np
 from scipy import optimize
@@ -27,8 +27,13 @@ from ..errors import DataError
 from .model import FAMILIES, RecorderNoise, n_components
 from .quiet import QuietStretch, Recorded, quiet_stretches, recorder_groups
 
-if TYPE_CHECKING:
-    from ..fitting.engine import EngineSpec
+
+class Mapper(Protocol):
+    """What computes a function over chunks elsewhere, results in the chunks' order (a
+    local engine of :mod:`rapid_cosim.fitting.engine`, made by the caller: this layer
+    imports none)."""
+
+    def map(self, fn: Callable[[Any, np.ndarray], Any], payload: Any, chunks: Sequence[np.ndarray]) -> list: ...
 
 LAGS = 12  # autocorrelation lags reported against the model's
 DRAW_FACTOR = 3.0  # noise models drawn for the adequacy null stay within this factor of the estimate
@@ -78,7 +83,7 @@ class NoiseFit:
         """Relative standard errors of the parameters (log scale: ~ relative)."""
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
 
-    def draw(self, rng: np.random.Generator, size: int, engine: "EngineSpec | None" = None) -> list[RecorderNoise]:
+    def draw(self, rng: np.random.Generator, size: int, mapper: Mapper | None = None) -> list[RecorderNoise]:
         """Noise models as plausible as the quiet data allow: drawn from the REML
         likelihood itself (sampling-importance-resampling from a Student-t proposal
         around the estimate, twice as wide as its Hessian says), where the fit kept it.
@@ -94,7 +99,7 @@ class NoiseFit:
         slow component a third of the white noise's size, which the quiet data could not
         select, failed Ljung-Box on whole tests of a campaign whose null was white).
         Without a likelihood (a model taken as known, or an old fit), the normal
-        approximation truncated at a factor :data:`DRAW_FACTOR`, as before. ``engine``:
+        approximation truncated at a factor :data:`DRAW_FACTOR`, as before. ``mapper``:
         where the proposals' deviances are computed (:meth:`Likelihood.deviances`)."""
         model, cov = self.richest if self.richest is not None else (self.model, self.covariance)
         theta = model.log_parameters()
@@ -103,7 +108,7 @@ class NoiseFit:
             cov = np.diag(np.full(theta.size, (math.log(DRAW_FACTOR) / 2) ** 2))
         likelihood = self.likelihoods.get(model.family)
         if likelihood is not None and theta.size:
-            return likelihood.draw(theta, cov, rng, size, engine)
+            return likelihood.draw(theta, cov, rng, size, mapper)
         draws = rng.multivariate_normal(theta, cov, size=size, method="eigh")
         draws = np.clip(draws, theta - math.log(DRAW_FACTOR), theta + math.log(DRAW_FACTOR))
         return [RecorderNoise.from_log_parameters(model.family, d, model.dt) for d in draws]
@@ -140,6 +145,7 @@ def _deviance(model: RecorderNoise, batches) -> float:
 
 PROPOSAL_WIDTH = 2.0  # the proposal's covariance: this many times the Hessian's
 PROPOSAL_DF = 4  # its Student-t degrees of freedom (heavy tails: the likelihood's are lopsided)
+DEVIANCE_CHUNK = 250  # proposals a worker takes at a time (Likelihood.deviances)
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,21 +168,22 @@ class Likelihood:
         except (ValueError, np.linalg.LinAlgError):
             return math.inf
 
-    def deviances(self, thetas: np.ndarray, engine: "EngineSpec | None" = None) -> np.ndarray:
-        """The deviance at each row of ``thetas``, on ``engine``'s local workers where it
-        has several: a thousand of them took about 0.7 s of a staged-test diagnosis in
-        this process, with its workers idle. Each value is computed alone
-        and pinned, so the same wherever it is computed."""
-        if engine is None or not engine.processes or len(thetas) < 2:
+    def deviances(self, thetas: np.ndarray, mapper: Mapper | None = None) -> np.ndarray:
+        """The deviance at each row of ``thetas``, over ``mapper``'s workers where it is
+        given: a thousand of them took about 0.7 s of a staged-test diagnosis in this
+        process, with its workers idle. Each value is computed alone, so the same
+        wherever it is computed (the engines pin their workers' threads, as every run
+        pins its own)."""
+        if mapper is None or len(thetas) < 2:
             return np.array([self.deviance(v) for v in thetas], dtype=float)
-        chunks = np.array_split(np.arange(len(thetas)), min(engine.workers(), len(thetas)))
-        return np.concatenate(engine.make().map(_deviances, (self, thetas), chunks))
+        chunks = [np.arange(a, min(a + DEVIANCE_CHUNK, len(thetas))) for a in range(0, len(thetas), DEVIANCE_CHUNK)]
+        return np.concatenate(mapper.map(_deviances, (self, thetas), chunks))
 
     def draw(self, theta: np.ndarray, cov: np.ndarray, rng: np.random.Generator, size: int,
-             engine: "EngineSpec | None" = None) -> list[RecorderNoise]:
+             mapper: Mapper | None = None) -> list[RecorderNoise]:
         """``size`` models by sampling-importance-resampling (``size`` Student-t proposals
         of scale PROPOSAL_WIDTH x ``cov`` around ``theta``, weighted by the likelihood;
-        their deviances computed on ``engine``, :meth:`deviances`)."""
+        their deviances computed over ``mapper``, :meth:`deviances`)."""
         d = theta.size
         scale = PROPOSAL_WIDTH * cov
         z = rng.multivariate_normal(np.zeros(d), scale, size=size, method="eigh")
@@ -186,7 +193,7 @@ class Likelihood:
         inv = vecs @ np.diag(1.0 / np.clip(vals, 1e-12, None)) @ vecs.T
         maha = np.einsum("ni,ij,nj->n", x - theta, inv, x - theta)
         log_q = -0.5 * (PROPOSAL_DF + d) * np.log1p(maha / PROPOSAL_DF)
-        log_p = -0.5 * (self.deviances(x, engine) - self.best)
+        log_p = -0.5 * (self.deviances(x, mapper) - self.best)
         log_w = np.where(np.isfinite(log_p), log_p - log_q, -np.inf)
         if not np.any(np.isfinite(log_w)):
             x, log_w = theta[None], np.zeros(1)

@@ -1229,12 +1229,13 @@ RC_EXPORT int rc_run_exp(Runner *r, const Batch *b, Plan *p, double *out, int *s
     return run_batch(r, b, exp_set, p, out, status, t_reached, messages);
 }
 
-/* The plan's counters (see EX_SETS ...), summed over its calls. */
 /* c = a b by the sized products where they apply (plain = 0) or the plain loop (plain = 1):
  * for the tests, which check the two give the same numbers. */
 RC_EXPORT void rc_mat_mul(int n, const double *a, const double *b, double *c, int plain) {
     (plain ? mat_mul_plain : mat_mul)(n, a, b, c);
 }
+
+/* The plan's counters (see EX_SETS ...), summed over its calls. */
 
 RC_EXPORT int rc_plan_counters(Plan *p, long long *counters) {
     memcpy(counters, p->counters, sizeof(p->counters));

@@ -5,6 +5,7 @@ import os
 import platform
 import subprocess
 import tempfile
+import threading
 from pathlib import Path
 from typing import Sequence
 
@@ -36,23 +37,25 @@ def shared_library(stem: str, sources: Sequence[Path], compile: Sequence[Path], 
                    identity: str = "", what: str = "a compiled part", hint: str = "") -> Path:
     """A C library of this package built once per machine: ``compile`` compiled with
     ``flags`` by :func:`c_compiler` into :func:`cache_dir`, named by the hash of
-    ``sources`` (every file it reads), the compiler, the platform and ``identity``. Built to
-    a side file and renamed into place, so processes starting at once are safe."""
+    ``sources`` (every file it reads), the compiler and its flags, the platform and
+    ``identity``. Built to a side file and renamed into place, so processes and threads
+    starting at once are safe."""
     import fmpy
 
     from ...errors import BuildError
 
     cc = c_compiler()
     source = b"".join(Path(p).read_bytes() for p in sources)
-    key = hashlib.sha256(source + f"|{cc}|{platform.machine()}|{identity}".encode()).hexdigest()[:16]
+    base = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden"]
+    how = " ".join([*base, *flags])  # the flags too: a library built with others is another library
+    key = hashlib.sha256(source + f"|{how}|{platform.machine()}|{identity}".encode()).hexdigest()[:16]
     folder = cache_dir()
     lib = folder / f"{stem}-{key}{fmpy.sharedLibraryExtension}"
     if lib.exists():
         return lib
     folder.mkdir(parents=True, exist_ok=True)
-    part = lib.with_name(f"{lib.name}.{os.getpid()}.part")
-    cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", *map(str, compile), *flags,
-           "-o", str(part)]
+    part = lib.with_name(f"{lib.name}.{os.getpid()}.{threading.get_ident()}.part")  # threads of one process too
+    cmd = [*base, *map(str, compile), *flags, "-o", str(part)]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True)
     except FileNotFoundError:
