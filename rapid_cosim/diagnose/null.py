@@ -36,6 +36,7 @@ from ..noise.filtered import FilteredNoise
 
 if TYPE_CHECKING:
     from ..fitting.engine import EngineSpec
+    from ..noise.estimate import Mapper
 
 LAGS = 10
 REPLICATES = 1000
@@ -74,9 +75,10 @@ def replicates_for(experiments, noise_fits: Mapping[str, NoiseFit], replicates: 
         component = rocof_component(exp)
         tests.append(ScoredTest(exp.name, exp.windowed_data().time[index], w, exp.offset, noise_fits[exp.name],
                                 (component,) if component else ()))
+    mapper = engine.make() if engine is not None and engine.processes else None  # local workers only
     if kept is not None:
-        return kept.get(tests, replicates, seed, engine)
-    return NoiseReplicates(tests, replicates, seed=seed, engine=engine)
+        return kept.get(tests, replicates, seed, mapper)
+    return NoiseReplicates(tests, replicates, seed=seed, mapper=mapper)
 
 
 def with_extra(models: list, extra: tuple) -> list:
@@ -113,14 +115,14 @@ class NoiseReplicates:
     single precision: the part of the null every candidate shares."""
 
     def __init__(self, tests: Sequence[ScoredTest], replicates: int = REPLICATES, seed: int = 0,
-                 engine: "EngineSpec | None" = None):
+                 mapper: "Mapper | None" = None):
         self.tests = list(tests)
         self.replicates, self.seed = int(replicates), seed
         rng = np.random.default_rng([seed, 17])
         recorders: dict[int, list] = {}
         for t in self.tests:  # one draw of each recorder's model per replicate, shared by its tests
             if id(t.noise) not in recorders:
-                recorders[id(t.noise)] = t.noise.draw(rng, self.replicates, _mapper(engine))
+                recorders[id(t.noise)] = t.noise.draw(rng, self.replicates, mapper)
         self.e: dict[str, np.ndarray] = {}
         self._stats: dict[bytes, dict] = {}
         for t in self.tests:
@@ -171,12 +173,6 @@ class NoiseReplicates:
         return out
 
 
-def _mapper(engine: "EngineSpec | None"):
-    """The engine's local workers to compute the drawn models' likelihoods on, or None
-    (here): only local processes, whose pool the candidates' fits use next."""
-    return engine.make() if engine is not None and engine.processes else None
-
-
 def _same_test(a: ScoredTest, b: ScoredTest) -> bool:
     return (a.name == b.name and a.whitening is b.whitening and a.offset == b.offset and a.noise is b.noise
             and np.array_equal(a.times, b.times) and slow_components(a.extra) == slow_components(b.extra))
@@ -194,12 +190,12 @@ class KeptReplicates:
         self.reused = 0
 
     def get(self, tests: Sequence[ScoredTest], replicates: int, seed: int,
-            engine: "EngineSpec | None" = None) -> NoiseReplicates:
+            mapper: "Mapper | None" = None) -> NoiseReplicates:
         for r in self.made:
             if r.made_for(tests, replicates, seed):
                 self.reused += 1
                 return r
-        self.made.append(NoiseReplicates(tests, replicates, seed=seed, engine=engine))
+        self.made.append(NoiseReplicates(tests, replicates, seed=seed, mapper=mapper))
         return self.made[-1]
 
 

@@ -175,7 +175,7 @@ class Likelihood:
         wherever it is computed (the engines pin their workers' threads, as every run
         pins its own)."""
         if mapper is None or len(thetas) < 2:
-            return np.array([self.deviance(v) for v in thetas], dtype=float)
+            return _deviances((self, thetas), np.arange(len(thetas)))
         chunks = [np.arange(a, min(a + DEVIANCE_CHUNK, len(thetas))) for a in range(0, len(thetas), DEVIANCE_CHUNK)]
         return np.concatenate(mapper.map(_deviances, (self, thetas), chunks))
 
