@@ -72,3 +72,41 @@ def test_failed_simulations_get_the_penalty_and_the_run_goes_on(tmp_path, blowup
     assert ev.fitness[1] == PENALTY and np.isinf(ev.rssd[1]).all()
     assert ev.fitness[0] < 1e-6
     assert obj.failures.count == 2 and "Blowup" in obj.failures.messages[0]
+
+
+@pytest.fixture(scope="module")
+def whitened(repo):
+    """Problems as identify scores them, whitened by their recorders' fitted noise: TG
+    Type I on two staged tests (jittered stamps: the band product; weighted by their
+    samples) and IEEEG1 on an ANDES event (the stationary whitener)."""
+    from rapid_cosim.calibration.inputs import inputs_from_experiments
+    from rapid_cosim.noise import campaign_noise
+    from rapid_cosim.structures.structure import Structure, on_structure
+
+    out = []
+    for structure, tests in (("experiments/structures/TGTypeI.toml", ("experiments/test1", "experiments/test2")),
+                             ("experiments/electrical/structures/IEEEG1.toml", ("experiments/electrical/tgtypei_on",))):
+        exps = [load_experiment(repo / t) for t in tests]
+        inputs = inputs_from_experiments(on_structure(Structure.load(repo / structure), exps, campaign_noise(exps)))
+        assert all(e.noise_models for e in inputs.experiments)
+        out.append((inputs.problem, inputs.fmus))
+    return out
+
+
+def test_a_sets_score_does_not_depend_on_the_rows_beside_it(whitened):
+    """Scored alone, in a batch and split over two workers, a set gets the same residual
+    rows and fitness bit for bit: BLAS summed a one-row batch in another order (and the
+    band product's transposed rows were reduced in another order), so an optimiser's
+    path depended on its batches and on the workers."""
+    for prob, refs in whitened:
+        X = _cloud(prob, n=13, seed=4)
+        here = ProblemObjective(prob, refs)
+        ev, R = here.residuals(X)
+        for k in range(len(X)):
+            one, r = here.residuals(X[k:k + 1])
+            assert one.fitness[0] == ev.fitness[k] and np.array_equal(r[0], R[k], equal_nan=True)
+            assert here(X[k:k + 1]).fitness[0] == ev.fitness[k]
+        assert np.array_equal(here(X[3:8]).fitness, ev.fitness[3:8])
+        ev2, R2 = ProblemObjective(prob, refs, engine=EngineSpec(2).make()).residuals(X)
+        assert np.array_equal(ev2.fitness, ev.fitness) and np.array_equal(R2, R, equal_nan=True)
+        assert not ev.failed.all()

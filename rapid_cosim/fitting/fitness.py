@@ -248,7 +248,10 @@ def arssd(values, weights: np.ndarray | None = None):
     v = np.asarray(values, dtype=np.float64)
     if v.ndim == 0 or v.shape[-1] == 0:
         raise ValueError("arssd needs at least one experiment's RSSD")
-    mean = v.mean(axis=-1) if weights is None else (v @ weights) / np.sum(weights)
+    # einsum, not BLAS: a set's value must not depend on the rows scored beside it
+    # (noise.runs.rowwise says why)
+    mean = v.mean(axis=-1) if weights is None else \
+        np.einsum("...j,j->...", np.ascontiguousarray(v), np.asarray(weights, dtype=np.float64)) / np.sum(weights)
     return float(mean) if v.ndim == 1 else mean
 
 

@@ -33,7 +33,7 @@ from typing import Protocol
 import numpy as np
 from scipy import signal
 
-from .runs import RunWhitening
+from .runs import RunWhitening, rowwise
 
 
 
@@ -133,8 +133,8 @@ class LevinsonWhitener(RunWhitening):
         y = np.atleast_2d(np.asarray(y, dtype=float))
         n, m = y.shape[1], self.m
         if n <= m:
-            return y @ self._W[:n, :n].T
+            return rowwise(y, self._W[:n, :n])
         e = np.empty_like(y)
-        e[:, :m] = y[:, :m] @ self._W.T
+        e[:, :m] = rowwise(y[:, :m], self._W)
         e[:, m:] = signal.lfilter(self._a, [1.0], y, axis=1)[:, m:] / math.sqrt(self.s_inf)
         return e

@@ -34,7 +34,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from .filtered import FilteredNoise, LevinsonWhitener
-from .runs import RunWhitening
+from .runs import RunWhitening, rowwise
 
 FAMILIES = ("white", "ar1", "white+ar1", "white+2ar1")
 _GAIN_TOL = 1e-13  # the gains have converged when they change less than this (relative)
@@ -278,13 +278,13 @@ class Whitener(RunWhitening):
             return y / self.model.sigma_white
         n, m = y.shape[1], self.m
         if n <= m:
-            return y @ self._W[:n, :n].T
+            return rowwise(y, self._W[:n, :n])
         e = np.empty_like(y)
-        e[:, :m] = y[:, :m] @ self._W.T
-        state = y[:, :m] @ self._M.T  # (rows, k)
+        e[:, :m] = rowwise(y[:, :m], self._W)
+        state = rowwise(y[:, :m], self._M)  # (rows, k)
         rest = signal.lfilter(self._b, self._a, y[:, m:], axis=1)
         L = min(n - m, self._free.shape[0])
-        rest[:, :L] += state @ self._free[:L].T
+        rest[:, :L] += rowwise(state, self._free[:L])
         e[:, m:] = rest / math.sqrt(self.s_inf)
         return e
 

@@ -1,7 +1,13 @@
 """What every whitener of a run of samples shares, and the runs of a mask: a leaf of
 :mod:`rapid_cosim.noise` that imports nothing from the package, so the stationary
 whiteners (:mod:`.model`) and the autocovariance one (:mod:`.filtered`) both build on
-it without importing each other."""
+it without importing each other.
+
+Every product of residual rows here is taken row by row (:func:`rowwise`), never by
+BLAS: BLAS sums a row in an order that depends on how many rows come with it (one row
+goes to ``dot``/``gemv``, several to ``gemm``, and a row's place in its block of four
+decides its kernel), so the same parameter set scored alone and in a batch differed in
+its last bits, and with it an optimiser's path on one worker and on two."""
 
 from __future__ import annotations
 
@@ -44,6 +50,14 @@ class RunWhitening:
     def log_det(self, n: int) -> float:
         """log |Cov| of a gap-free run of ``n`` samples."""
         return float(np.sum(np.log(self.variances(n))))
+
+
+def rowwise(y: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """``y @ A.T`` for rows ``y`` (rows, n) and ``A`` (k, n) or a vector (n,): each
+    output summed over ``n`` in one order, whatever the rows beside it (numpy's einsum
+    loop over C-ordered rows, not BLAS: on a transposed layout it sums in another order)."""
+    return np.einsum("rj,kj->rk" if np.ndim(A) == 2 else "rj,j->r", np.ascontiguousarray(y),
+                     np.ascontiguousarray(A))
 
 
 def runs(valid: np.ndarray) -> list[tuple[int, int]]:

@@ -18,6 +18,7 @@ import numpy as np
 
 from .model import RecorderNoise, sample_draws
 from .timed import DerivedNoise, TimedWhitener, regular
+from .runs import rowwise
 
 
 class Whitening:
@@ -45,11 +46,13 @@ class Whitening:
         self.ones_norm2 = float(self.ones @ self.ones)
 
     def whiten(self, r: np.ndarray) -> np.ndarray:
-        """Standardised innovations of residual rows ``r`` (rows, samples)."""
+        """Standardised innovations of residual rows ``r`` (rows, samples), C-ordered
+        (the band product's are transposed; numpy's reductions sum a row in another order
+        there, so a set's score would depend on the rows beside it)."""
         r = np.atleast_2d(np.asarray(r, dtype=float))
         if self._timed is not None:
-            return self._timed.whiten(r)
-        out = np.empty_like(r)
+            return np.ascontiguousarray(self._timed.whiten(r))
+        out = np.empty(r.shape)
         for a, b in self.runs:
             out[:, a:b] = self._stationary.whiten_runs(r[:, a:b])
         return out
@@ -58,12 +61,12 @@ class Whitening:
         """Whitened residual rows, the GLS offset projected out when ``offset``."""
         e = self.whiten(r)
         if offset:
-            e -= np.outer(e @ self.ones / self.ones_norm2, self.ones)
+            e -= np.outer(rowwise(e, self.ones) / self.ones_norm2, self.ones)
         return e
 
     def offset(self, r: np.ndarray) -> np.ndarray:
         """The GLS offset of each row of ``r``."""
-        return self.whiten(r) @ self.ones / self.ones_norm2
+        return rowwise(self.whiten(r), self.ones) / self.ones_norm2
 
     def sample(self, models: Sequence[RecorderNoise], rng: np.random.Generator) -> np.ndarray:
         """One replicate of the noise per recorder model (drawn for the null: they share
