@@ -33,7 +33,8 @@ from typing import Protocol
 import numpy as np
 from scipy import signal
 
-from .runs import RunWhitening, rowwise
+from .band import Triangular
+from .runs import RunWhitening
 
 
 
@@ -125,7 +126,7 @@ class LevinsonWhitener(RunWhitening):
         W = np.eye(self.m)  # row t: y_t minus its prediction from the t samples before it
         for t, coef in enumerate(rows):
             W[t, t - coef.size:t] = -coef[::-1]
-        self._W = W / np.sqrt(self.s)[:, None]
+        self._T = Triangular(W / np.sqrt(self.s)[:, None])
         self._a = np.concatenate([[1.0], -phi])  # the order-m predictor's error filter
 
     def whiten_runs(self, y: np.ndarray) -> np.ndarray:
@@ -133,8 +134,8 @@ class LevinsonWhitener(RunWhitening):
         y = np.atleast_2d(np.asarray(y, dtype=float))
         n, m = y.shape[1], self.m
         if n <= m:
-            return rowwise(y, self._W[:n, :n])
+            return self._T.apply(y)
         e = np.empty_like(y)
-        e[:, :m] = rowwise(y[:, :m], self._W)
+        e[:, :m] = self._T.apply(y[:, :m])
         e[:, m:] = signal.lfilter(self._a, [1.0], y, axis=1)[:, m:] / math.sqrt(self.s_inf)
         return e

@@ -34,6 +34,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from .filtered import FilteredNoise, LevinsonWhitener
+from .band import Triangular
 from .runs import RunWhitening, rowwise
 
 FAMILIES = ("white", "ar1", "white+ar1", "white+2ar1")
@@ -259,7 +260,7 @@ class Whitener(RunWhitening):
         cov = R * np.eye(m) + sum(s * s * p ** lag for s, p in zip(sig, phi))
         L = np.linalg.cholesky(cov)
         self.m, self.s, self.s_inf = m, np.diag(L) ** 2, S_inf
-        self._W = linalg.solve_triangular(L, np.eye(m), lower=True)  # standardised: eps[:m] = W @ y[:m]
+        self._T = Triangular(linalg.solve_triangular(L, np.eye(m), lower=True))  # standardised: eps[:m] = W @ y[:m]
         # the prediction of the states at sample m from the first m samples: x = M @ y[:m]
         cross = (sig ** 2)[:, None] * phi[:, None] ** (m - np.arange(m))[None, :]  # Cov(x_m, y_i)
         self._M = linalg.cho_solve((L, True), cross.T).T
@@ -278,9 +279,9 @@ class Whitener(RunWhitening):
             return y / self.model.sigma_white
         n, m = y.shape[1], self.m
         if n <= m:
-            return rowwise(y, self._W[:n, :n])
+            return self._T.apply(y)
         e = np.empty_like(y)
-        e[:, :m] = rowwise(y[:, :m], self._W)
+        e[:, :m] = self._T.apply(y[:, :m])
         state = rowwise(y[:, :m], self._M)  # (rows, k)
         rest = signal.lfilter(self._b, self._a, y[:, m:], axis=1)
         L = min(n - m, self._free.shape[0])

@@ -3,11 +3,12 @@
 whiteners (:mod:`.model`) and the autocovariance one (:mod:`.filtered`) both build on
 it without importing each other.
 
-Every product of residual rows here is taken row by row (:func:`rowwise`), never by
-BLAS: BLAS sums a row in an order that depends on how many rows come with it (one row
-goes to ``dot``/``gemv``, several to ``gemm``, and a row's place in its block of four
-decides its kernel), so the same parameter set scored alone and in a batch differed in
-its last bits, and with it an optimiser's path on one worker and on two."""
+No product of residual rows in :mod:`rapid_cosim.noise` goes to BLAS: BLAS sums a row
+in an order that depends on the rows that come with it (one row goes to ``dot`` or
+``gemv``, several to ``gemm``), so the same parameter set scored alone and in a batch
+differed in its last bits, and with it an optimiser's path on one worker and on two.
+Thin products (a vector, a state of one or two components) go through :func:`rowwise`;
+the whiteners' triangular maps through :class:`~.band.Triangular`."""
 
 from __future__ import annotations
 
