@@ -206,3 +206,19 @@ def test_the_api_checks_the_source_it_is_given(tmp_path):
     assert rc.ModelSource(package=tmp_path / "lone.mo").check().package == tmp_path / "lone.mo"
     with pytest.raises(ConfigError, match="no Modelica package at"):
         rc.check(str(tmp_path / "config.toml"), source=rc.ModelSource(package=tmp_path / "nope"))
+
+
+def test_a_diagnosis_gives_the_same_numbers_on_one_worker_and_on_two(repo, tmp_path):
+    """Its base model fitted here and its candidates in workers, or everything here: the
+    same fits, fitness values and verdict bit for bit (a set's score does not depend on
+    the batch or the process it is computed in)."""
+    import json
+
+    out = {}
+    for n in (1, 2):
+        d = rc.diagnose([repo / "experiments" / "test1"], workdir=tmp_path / f"n{n}", engine=rc.EngineSpec(n),
+                        log=lambda *a, **k: None)
+        out[n] = json.loads(json.dumps(d.to_json(), default=str).replace(str(tmp_path / f"n{n}"), "W"))
+        out[n].pop("created", None)
+    assert out[1] == out[2]
+    assert out[1]["verdict"]
