@@ -155,3 +155,30 @@ def test_a_run_with_one_optimum_adds_nothing_to_its_stop_reason():
     space = SearchSpace(("T1", "T3", "R"), np.array([0.1, 0.1, 0.0]), np.array([5.0, 5.0, 1.0]))
     unique = multistart(Residuals(lambda X: X - np.array([1.0, 2.0, 0.5])), space, rng=np.random.default_rng(1))
     assert unique.stop_reason.endswith("reached the best")
+
+
+def test_a_point_scored_before_is_not_simulated_again_and_the_run_is_as_if_it_were():
+    """The starts were scored in the design, and a start held by its damping tries its own
+    point and the last iteration's largest step again: those rows are recorded as before,
+    with the scores they had, but not given to the objective again (a set's score does not
+    depend on its batch). Each recorded score is the one the point gets alone."""
+    batches = []
+
+    class Alone(Residuals):  # every row scored by itself: what a new simulation gives
+        def residuals(self, X):
+            X = np.atleast_2d(X)
+            batches.append(X.copy())
+            R = np.vstack([self.f(x[None]) for x in X])
+            fit = np.sum(R ** 2, axis=1)
+            return Evaluations(fit, fit[:, None], np.zeros(len(fit), bool)), R
+
+    res = multistart(Alone(_narrow), SPACE, rng=np.random.default_rng(0))
+    given = np.vstack(batches)
+    recorded = np.vstack([it.x for it in res.history])
+    n_starts = len(res.history[-1].extras["start_fun"])
+    assert res.nfev == len(given) and len(recorded) - len(given) > n_starts  # the starts and more not simulated
+    design = {x.tobytes() for x in batches[0]}
+    assert not any(x.tobytes() in design for b in batches[1:] for x in b)
+    for it in res.history:
+        for x, f in zip(it.x, it.fitness):
+            assert f == np.sum(_narrow(x[None]) ** 2)

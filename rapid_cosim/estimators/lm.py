@@ -23,7 +23,10 @@ bounds, log-scaled ones by their logarithm):
   in an accepted step, the step is shorter than ``xtol``, ``lam`` exceeds ``lam_max``, or
   after ``max_iter`` iterations;
 * two running starts closer than ``merge_tol`` (largest coordinate difference) are in
-  one basin: the worse stops, merged into the better, and shares its end point.
+  one basin: the worse stops, merged into the better, and shares its end point;
+* a point scored before (a start's own point, a trial of the last iteration, a start
+  scored in a multistart's design) is recorded with its score, not simulated again:
+  a set's score does not depend on its batch, so the run is the one it would be.
 
 Coordinates listed in ``fixed`` are never moved (a profile holds one parameter at each
 value of a grid). Deterministic: no randomness, ties broken by start index.
@@ -74,6 +77,28 @@ class LMRun:
     status: np.ndarray  # (starts,) codes of STATUS
     merged_into: np.ndarray  # (starts,)
     iterations: np.ndarray  # (starts,)
+
+
+def _evaluate(t: Tracker, P: np.ndarray, known: dict[bytes, tuple] | None = None):
+    """(fitness, failed, residual rows) of the points ``P`` (unit coordinates): each
+    distinct point not in ``known`` (a row's bytes -> its fitness, failed flag and
+    residual row) simulated once, all in one objective call. A set's score does not
+    depend on the rows beside it, so a point taken from ``known`` or scored once for two
+    rows has the numbers a simulation of it would give: a start held on a bound tries
+    its own point again, and a multistart's starts were scored in its design."""
+    known = known or {}
+    keys = [p.tobytes() for p in P]
+    todo: dict[bytes, int] = {}
+    for i, k in enumerate(keys):
+        if k not in known and k not in todo:
+            todo[k] = i
+    scored = {}
+    if todo:
+        ev, R = t.evaluate_residuals(P[list(todo.values())])
+        scored = {k: (ev.fitness[j], ev.failed[j], R[j]) for j, k in enumerate(todo)}
+    rows = [scored[k] if k in scored else known[k] for k in keys]
+    return (np.array([r[0] for r in rows], dtype=float), np.array([r[1] for r in rows], dtype=bool),
+            np.vstack([r[2] for r in rows]))
 
 
 def _jacobians(t: Tracker, U: np.ndarray, R: np.ndarray, idx: list[int], free: np.ndarray, h: float,
@@ -128,11 +153,13 @@ def _steps(J: np.ndarray, r: np.ndarray, u: np.ndarray, free: np.ndarray, lams) 
 
 
 def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptions(),
-                        fixed: np.ndarray | None = None, extras_every=None) -> LMRun:
+                        fixed: np.ndarray | None = None, extras_every=None,
+                        known: dict[bytes, tuple] | None = None) -> LMRun:
     """Run LM from every row of ``U0`` (unit coordinates) in lockstep, recording one
     iteration per lockstep step through the tracker. ``fixed`` (starts, d) marks
     coordinates held at their start value. ``extras_every(run)`` may add arrays to each
-    recorded iteration (``run`` as it stands, merged starts at their basin's point)."""
+    recorded iteration (``run`` as it stands, merged starts at their basin's point).
+    ``known``: starts scored already (:func:`_evaluate`), not simulated again."""
     o = options
     n, d = U0.shape
     U = np.clip(np.array(U0, dtype=float), 0.0, 1.0)
@@ -142,10 +169,9 @@ def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptio
     merged = np.full(n, -1)
     iters = np.zeros(n, dtype=int)
     pts, fs, fails = [], [], []
-    ev, R = t.evaluate_residuals(U)
-    pts.append(U.copy()), fs.append(ev.fitness), fails.append(ev.failed)
-    f = np.array(ev.fitness, dtype=float)
-    status[ev.failed | ~np.all(np.isfinite(R), axis=1)] = FAILED
+    f, failed0, R = _evaluate(t, U, known)
+    pts.append(U.copy()), fs.append(f.copy()), fails.append(failed0)
+    status[failed0 | ~np.all(np.isfinite(R), axis=1)] = FAILED
     live = [s for s in range(n) if status[s] == RUNNING]
     J = _jacobians(t, U, R, live, free, o.fd_step, pts, fs, fails)
     for s in live:
@@ -161,6 +187,7 @@ def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptio
         t.record(np.vstack(pts), np.concatenate(fs), np.concatenate(fails), None, extras)
         pts.clear(), fs.clear(), fails.clear()
 
+    tried: dict[bytes, tuple] = {}  # the last iteration's trials, scored
     fresh = np.ones(n, dtype=bool)  # J of the start is a finite-difference one taken at its point
     since = np.zeros(n, dtype=int)  # accepted steps since that one
     record()
@@ -176,17 +203,21 @@ def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptio
                 owner.append(s)
                 lams.append(lam_s)
         T = np.array(trials)
-        ev, RT = t.evaluate_residuals(T)
-        pts.append(T), fs.append(ev.fitness), fails.append(ev.failed)
+        # a start's own point and the last iteration's trials (a damping raised a
+        # hundredfold tries the last one's largest again) are not simulated again
+        tried.update({U[s].tobytes(): (f[s], False, R[s]) for s in live})
+        fT, failedT, RT = _evaluate(t, T, tried)
+        tried = {T[k].tobytes(): (fT[k], failedT[k], RT[k]) for k in range(len(T))}
+        pts.append(T), fs.append(fT), fails.append(failedT)
         refresh = []  # starts whose Jacobian is taken again by finite differences
         for s in live:
             iters[s] += 1
-            rows = [k for k, o_ in enumerate(owner) if o_ == s and not ev.failed[k] and np.all(np.isfinite(RT[k]))]
-            best = min(rows, key=lambda k: (ev.fitness[k], k)) if rows else None
-            if best is not None and ev.fitness[best] < f[s]:
-                gain = f[s] - ev.fitness[best]
+            rows = [k for k, o_ in enumerate(owner) if o_ == s and not failedT[k] and np.all(np.isfinite(RT[k]))]
+            best = min(rows, key=lambda k: (fT[k], k)) if rows else None
+            if best is not None and fT[best] < f[s]:
+                gain = f[s] - fT[best]
                 step = T[best] - U[s]
-                done = gain <= o.ftol * max(abs(ev.fitness[best]), 1e-300) or np.max(np.abs(step)) < o.xtol
+                done = gain <= o.ftol * max(abs(fT[best]), 1e-300) or np.max(np.abs(step)) < o.xtol
                 if done and fresh[s]:
                     status[s] = CONVERGED  # on a Jacobian taken at the point, never on an updated one
                 elif not done and o.broyden_every and since[s] + 1 < o.broyden_every:
@@ -195,7 +226,7 @@ def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptio
                     fresh[s], since[s] = False, since[s] + 1
                 else:
                     refresh.append(s)
-                U[s], f[s], R[s] = T[best], ev.fitness[best], RT[best]
+                U[s], f[s], R[s] = T[best], fT[best], RT[best]
                 lam[s] = max(lams[best] * 0.3, 1e-12)
             elif not fresh[s]:
                 refresh.append(s)  # an updated Jacobian misled the step: take it again before damping more

@@ -79,13 +79,17 @@ class MSOptions:
                          merge_tol=self.merge_tol, broyden_every=self.broyden_every)
 
 
-def _screened_design(t: Tracker, d: int, m: int, rng) -> np.ndarray:
+def _screened_design(t: Tracker, d: int, m: int, rng, keep: int) -> tuple[np.ndarray, dict]:
     """``m`` points of a scrambled Sobol design, scored in one batch (recorded as one
-    iteration), best first: the starts are taken from its head."""
+    iteration), best first: the starts are taken from its head. With them, the scores
+    of the first ``keep`` (residual rows too), so that a start is not simulated again
+    (:func:`~.lm.levenberg_marquardt`'s ``known``)."""
     design = qmc.Sobol(d, scramble=True, seed=rng).random_base2(max(1, math.ceil(math.log2(m))))[:m]
-    ev = t.evaluate(design)
+    ev, R = t.evaluate_residuals(design)
     t.record(design, ev.fitness, ev.failed, None, {"screen": np.ones(1)})
-    return design[np.lexsort((np.arange(m), np.where(ev.failed, np.inf, ev.fitness)))]
+    order = np.lexsort((np.arange(m), np.where(ev.failed, np.inf, ev.fitness)))
+    known = {design[i].tobytes(): (ev.fitness[i], ev.failed[i], R[i].copy()) for i in order[:keep]}
+    return design[order], known
 
 
 def _nested_starts(space: SearchSpace, u0: np.ndarray, vary: tuple[str, ...], rng) -> np.ndarray:
@@ -125,9 +129,9 @@ class _Starts:
         return {"start_merged_into": np.concatenate(mg).astype(float), "start_fun": np.concatenate(f),
                 "start_u": np.vstack(u), "start_status": np.concatenate(st).astype(float)}
 
-    def run(self, t: Tracker, U: np.ndarray, lm: LMOptions):
+    def run(self, t: Tracker, U: np.ndarray, lm: LMOptions, known: dict):
         offset = sum(len(f) for f in self.f)
-        run = levenberg_marquardt(t, U, lm, extras_every=self.extras)
+        run = levenberg_marquardt(t, U, lm, extras_every=self.extras, known=known)
         self.u.append(run.u.copy()), self.f.append(run.f.copy()), self.status.append(run.status.copy())
         self.merged.append(np.where(run.merged_into >= 0, run.merged_into + offset, -1))
         return run
@@ -159,14 +163,14 @@ def multistart(
     nested = _nested_starts(space, u0, o.vary, rng) if o.vary and u0 is not None else np.zeros((0, d))
     n = o.n_starts or (2 + d if len(nested) else 4 + 2 * d)
     screen = o.screen * d if not len(nested) else o.screen * d // 3  # a nested model mostly starts from its fit
-    design = _screened_design(t, d, max(n * o.rounds, screen), rng)
+    design, known = _screened_design(t, d, max(n * o.rounds, screen), rng, keep=n * o.rounds)
     starts, used = _Starts(), 0
     for round_ in range(o.rounds):
         U = design[used:used + n]
         used += n
         if round_ == 0 and u0 is not None:
             U = np.vstack([u0, nested, U])
-        starts.run(t, U, lm)
+        starts.run(t, U, lm, known)
         if reached_best(starts.fun, o.margin) >= o.min_reached or used + n > len(design):
             break
     f = starts.fun
