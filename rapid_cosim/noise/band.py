@@ -76,23 +76,38 @@ class Triangular:
     to residual rows by the same product: each output summed along its row in one order,
     however many rows come with it (BLAS takes one row by ``gemv`` and several by
     ``gemm``, in other orders, so a set's score depended on its batch). Every entry on
-    and below the diagonal is kept, zeros too, so each row is one run of columns."""
+    and below the diagonal is kept, zeros too, so each row is one run of columns from the
+    first. Made for every noise model a REML fit tries, so only the coefficients are
+    gathered here; scipy's matrix is made where the kernel is not built."""
 
     def __init__(self, W: np.ndarray):
-        m = W.shape[0]
-        rows, cols = np.tril_indices(m)
-        indptr = np.concatenate([[0], np.cumsum(np.arange(1, m + 1))])
-        self.m = m
-        self.W = sparse.csr_matrix((np.ascontiguousarray(W[rows, cols], dtype=float), cols, indptr), shape=(m, m))
-        self.band = Band.of(self.W)
+        self.m = W.shape[0]
+        rows, cols, self._ptr = _lower(self.m)
+        self.band = Band(self.m, self._ptr, np.zeros(self.m, dtype=np.int32), W[rows, cols]) if self.m else None
 
     def apply(self, y: np.ndarray) -> np.ndarray:
         """``y @ W[:n, :n].T`` for rows ``y`` (rows, n), n <= m: the rows padded with zeros
         to ``m`` (the map is triangular, so the first ``n`` outputs are the same sums)."""
         n = y.shape[1]
+        if n == 0 or self.band is None:
+            return np.zeros((y.shape[0], n))
         if n < self.m:
             y = np.concatenate([y, np.zeros((y.shape[0], self.m - n))], axis=1)
-        return np.ascontiguousarray(product(self.W, self.band, y)[:, :n])
+        lib = library()
+        if lib is not None:
+            out = self.band.apply(y, lib)
+        else:
+            W = sparse.csr_matrix((self.band.data, _lower(self.m)[1], self._ptr), shape=(self.m, self.m))
+            out = np.asarray((W @ y.T).T)
+        return np.ascontiguousarray(out[:, :n])
+
+
+@functools.lru_cache(maxsize=32)
+def _lower(m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rows, columns and CSR row pointers of the entries on and below the diagonal
+    of an ``m`` x ``m`` matrix, row by row."""
+    rows, cols = np.tril_indices(m)
+    return rows, cols.astype(np.int32), np.concatenate([[0], np.cumsum(np.arange(1, m + 1))]).astype(np.int64)
 
 
 @functools.lru_cache(maxsize=1)
