@@ -141,13 +141,21 @@ def _steps(J: np.ndarray, r: np.ndarray, u: np.ndarray, free: np.ndarray, lams) 
         return [np.zeros_like(u) for _ in lams]
     A = J[:, move].T @ J[:, move]
     D = np.maximum(np.diag(A), 1e-12 * max(float(np.max(np.diag(A))), 1e-300))
+    systems = np.array([A + lam * np.diag(D) for lam in lams])
+    try:  # one call for the dampings: LAPACK solves each system as it would alone
+        solved = np.linalg.solve(systems, np.broadcast_to(-g[move][:, None], (len(lams), int(move.sum()), 1)))[..., 0]
+    except np.linalg.LinAlgError:
+        solved = None
     out = []
-    for lam in lams:
+    for i, lam in enumerate(lams):
         delta = np.zeros_like(u)
-        try:
-            delta[move] = np.linalg.solve(A + lam * np.diag(D), -g[move])
-        except np.linalg.LinAlgError:
-            delta[move] = -g[move] / (D * (1 + lam))
+        if solved is not None:
+            delta[move] = solved[i]
+        else:
+            try:
+                delta[move] = np.linalg.solve(systems[i], -g[move])
+            except np.linalg.LinAlgError:
+                delta[move] = -g[move] / (D * (1 + lam))
         out.append(delta)
     return out
 
