@@ -363,3 +363,24 @@ def test_every_repair_is_said_by_the_cli_the_archive_json_and_the_report(tmp_pat
     validation_page(archive, tmp_path / "page.html", pdf=False)
     html = (tmp_path / "page.html").read_text()
     assert "id=timebase" in html and "1 repeated stamp(s) dropped" in html and "STAT word" in html
+
+
+def test_a_triangular_map_gives_each_row_the_same_sums_alone_and_in_a_batch(monkeypatch):
+    """The stationary whiteners' first samples (noise.band.Triangular): a run of any
+    length n <= m against BLAS's product to rounding, one row and many bit for bit, and
+    scipy's product (no C compiler) the same numbers as the kernel."""
+    from rapid_cosim.noise import band
+
+    rng = np.random.default_rng(5)
+    W = np.tril(rng.standard_normal((40, 40)))
+    T = band.Triangular(W)
+    for n in (1, 2, 17, 39, 40):
+        y = rng.standard_normal((9, n))
+        out = T.apply(y)
+        assert out.shape == (9, n) and out.flags.c_contiguous
+        assert np.allclose(out, y @ W[:n, :n].T, rtol=0, atol=1e-13)
+        assert np.array_equal(np.vstack([T.apply(y[k:k + 1]) for k in range(9)]), out)
+        monkeypatch.setattr(band, "library", lambda: None)
+        assert np.array_equal(T.apply(y), out)
+        monkeypatch.undo()
+    assert T.apply(np.zeros((3, 0))).shape == (3, 0)

@@ -36,8 +36,10 @@ class RecordingObjective:
 
     def residuals(self, X: np.ndarray) -> tuple[Evaluations, np.ndarray]:
         """Evaluations with residual vectors (least-squares methods). The archive keeps no
-        residual vectors, so these rows are simulated even on a replay; they are
-        deterministic, so a resumed run still ends where the uninterrupted one would."""
+        residual vectors, so these rows are simulated even on a replay (a multistart's
+        whole design among them, which it scores with residual vectors to take its starts
+        from); they are deterministic, so a resumed run still ends where the uninterrupted
+        one would."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         ev, R = self.objective.residuals(X)
         self.simulated += X.shape[0]

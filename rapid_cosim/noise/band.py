@@ -77,29 +77,29 @@ class Triangular:
     however many rows come with it (BLAS takes one row by ``gemv`` and several by
     ``gemm``, in other orders, so a set's score depended on its batch). Every entry on
     and below the diagonal is kept, zeros too, so each row is one run of columns from the
-    first. Made for every noise model a REML fit tries, so only the coefficients are
-    gathered here; scipy's matrix is made where the kernel is not built."""
+    first, and the map of a shorter run (its first ``n`` rows and columns) is a prefix
+    of the coefficients. Made for every noise model a REML fit tries, so only the
+    coefficients are gathered here."""
 
     def __init__(self, W: np.ndarray):
         self.m = W.shape[0]
         rows, cols, self._ptr = _lower(self.m)
-        self.band = Band(self.m, self._ptr, np.zeros(self.m, dtype=np.int32), W[rows, cols]) if self.m else None
+        self._data = np.ascontiguousarray(W[rows, cols], dtype=float)
+        self._bands: dict[int, Band] = {}
 
     def apply(self, y: np.ndarray) -> np.ndarray:
-        """``y @ W[:n, :n].T`` for rows ``y`` (rows, n), n <= m: the rows padded with zeros
-        to ``m`` (the map is triangular, so the first ``n`` outputs are the same sums)."""
+        """``y @ W[:n, :n].T`` for rows ``y`` (rows, n), n <= m."""
         n = y.shape[1]
-        if n == 0 or self.band is None:
-            return np.zeros((y.shape[0], n))
-        if n < self.m:
-            y = np.concatenate([y, np.zeros((y.shape[0], self.m - n))], axis=1)
+        if n == 0:
+            return np.zeros((y.shape[0], 0))
+        band = self._bands.get(n)
+        if band is None:
+            band = self._bands[n] = Band(n, self._ptr[:n + 1], np.zeros(n, dtype=np.int32), self._data[:self._ptr[n]])
         lib = library()
         if lib is not None:
-            out = self.band.apply(y, lib)
-        else:
-            W = sparse.csr_matrix((self.band.data, _lower(self.m)[1], self._ptr), shape=(self.m, self.m))
-            out = np.asarray((W @ y.T).T)
-        return np.ascontiguousarray(out[:, :n])
+            return np.ascontiguousarray(band.apply(y, lib))
+        W = sparse.csr_matrix((band.data, _lower(n)[1], band.ptr), shape=(n, n))
+        return np.ascontiguousarray((W @ np.asarray(y, dtype=float).T).T)
 
 
 @functools.lru_cache(maxsize=32)
@@ -121,15 +121,15 @@ def library() -> ctypes.CDLL | None:
         lib = ctypes.CDLL(str(shared_library("rapid_cosim_band", (SOURCE,), (SOURCE,), ("-ffp-contract=off",),
                                              what="the whitener's band product")))
     except (BuildError, OSError) as e:
-        warnings.warn(f"{str(e).splitlines()[0]}; jittered recordings are whitened by scipy's sparse product "
+        warnings.warn(f"{str(e).splitlines()[0]}; residuals are whitened by scipy's sparse product "
                       "(the same numbers, slower)", stacklevel=2)
         return None
     lib.rc_band_rows.argtypes = [ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P]
     lib.rc_band_row.argtypes = [ctypes.c_int, _P, _P, _P, _P, _P]
     lib.rc_band_rows.restype = lib.rc_band_row.restype = None
     if not _agrees(lib):
-        warnings.warn("the whitener's band product does not give scipy's numbers on this machine; jittered "
-                      "recordings are whitened by scipy's sparse product", stacklevel=2)
+        warnings.warn("the whitener's band product does not give scipy's numbers on this machine; residuals "
+                      "are whitened by scipy's sparse product", stacklevel=2)
         return None
     return lib
 
