@@ -95,6 +95,8 @@ def _evaluate(t: Tracker, P: np.ndarray, known: dict[bytes, tuple] | None = None
     scored = {}
     if todo:
         ev, R = t.evaluate_residuals(P[list(todo.values())])
+        if len(todo) == len(P):  # every row new: as scored, not copied again
+            return np.asarray(ev.fitness, dtype=float), np.asarray(ev.failed, dtype=bool), R
         scored = {k: (ev.fitness[j], ev.failed[j], R[j]) for j, k in enumerate(todo)}
     rows = [scored[k] if k in scored else known[k] for k in keys]
     return (np.array([r[0] for r in rows], dtype=float), np.array([r[1] for r in rows], dtype=bool),
