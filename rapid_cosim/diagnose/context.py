@@ -155,14 +155,14 @@ class Context:
             # a fifth of a round (the payload, a few MB, then travels once per candidate)
             parts = options_engine.make().map(_fit_jobs, payload, [np.array([k]) for k in range(len(jobs))])
             fits = [f for part in parts for f in part]
-        elif self.parallel and len(jobs) == 1 and jobs[0][0].label == NONE:
-            # the base model, the first fit: here, as a worker fits a candidate, not batch
-            # by batch on workers that are still starting (a set's score does not depend on
-            # where it is computed, so the numbers are the same)
-            fits = _fit_jobs((jobs, self, replace(self.run_options, engine=self.options.engine.single())),
-                             np.arange(len(jobs)))
         else:
-            fits = _fit_jobs((jobs, self, self.run_options), np.arange(len(jobs)))
+            run_options = self.run_options
+            if self.parallel and len(jobs) == 1 and jobs[0][0].label == NONE:
+                # the base model, the first fit: here, as a worker fits a candidate, not batch
+                # by batch on workers that are still starting (a set's score does not depend
+                # on where it is computed, so the numbers are the same)
+                run_options = replace(run_options, engine=self.options.engine.single())
+            fits = _fit_jobs((jobs, self, run_options), np.arange(len(jobs)))
         for fit in fits:
             self.fits[fit.spec.label] = fit
             reached = fit.reached_best()

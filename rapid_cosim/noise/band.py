@@ -95,11 +95,9 @@ class Triangular:
         band = self._bands.get(n)
         if band is None:
             band = self._bands[n] = Band(n, self._ptr[:n + 1], np.zeros(n, dtype=np.int32), self._data[:self._ptr[n]])
-        lib = library()
-        if lib is not None:
-            return np.ascontiguousarray(band.apply(y, lib))
-        W = sparse.csr_matrix((band.data, _lower(n)[1], band.ptr), shape=(n, n))
-        return np.ascontiguousarray((W @ np.asarray(y, dtype=float).T).T)
+        # scipy's matrix only where product() needs it (no kernel here): the same numbers
+        W = None if library() is not None else sparse.csr_matrix((band.data, _lower(n)[1], band.ptr), shape=(n, n))
+        return np.ascontiguousarray(product(W, band, np.asarray(y, dtype=float)))
 
 
 @functools.lru_cache(maxsize=32)
