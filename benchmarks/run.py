@@ -31,6 +31,10 @@ reference   the FMI standard's Reference FMUs, both versions and interfaces: tim
 swing       the swing term's cost per simulation (issue 26): one recorded event on the
             TGOV1 bench without the swing term and with it, per runner, single calls and
             batches, the ratio (see swing_cost.py).
+whitening   the whitener's band product on a PMU-style recording, 8 to 300 residual
+            rows: the pairs of lanes every processor takes against this processor's way
+            (AVX-512 where it has them), scipy's CSR product beside them, the numbers
+            checked equal (see whitening_bench.py).
 
 Times are the best of a few repeats (the machine may be shared); ratios compare paths
 measured in the same run.
@@ -272,6 +276,12 @@ def bench_swing() -> None:
     run()
 
 
+def bench_whitening() -> None:
+    from whitening_bench import bench_whitening as run
+
+    run()
+
+
 def bench_fmi_kinds() -> None:
     from fmi_kinds import bench_fmi
 
@@ -286,7 +296,7 @@ def bench_reference_fmus() -> None:
 
 SECTIONS = {"simulation": bench_simulation, "api": bench_api, "input": bench_input, "pf": bench_pf,
             "archive": bench_archive, "fmi": bench_fmi_kinds, "reference": bench_reference_fmus,
-            "swing": bench_swing}
+            "swing": bench_swing, "whitening": bench_whitening}
 
 
 def main(argv: list[str]) -> int:

@@ -11,7 +11,14 @@
    but keeps the sums in registers and runs several of them side by side:
    - one residual row: four rows of W at a time, each its own sum;
    - several: the residual rows transposed (samples, rows), two of them a vector lane
-     pair, up to sixteen sums held at once for each row of W. */
+     pair, up to sixteen sums held at once for each row of W;
+   - several, where the processor has AVX-512 (checked when called): four rows of W at a
+     time over up to 32 residual rows, each sample of the residuals loaded once for the
+     four (rows of W overlap on all but a few samples), in 8-lane vectors, the last one
+     masked. Each sum still takes its terms in the row's order (the row's own first
+     samples, then those the four share, then its last ones), so the numbers are the
+     same: band.py checks both ways against scipy. 2 to 2.7 times quicker on 7 to 300
+     residual rows of a 3,600-sample band of 200 coefficients a row. */
 
 #include <stddef.h>
 #ifdef __SSE2__
@@ -62,8 +69,8 @@ static inline void block_single(const double *w, int len, const double *x, size_
 
 #define CHUNK 128 /* residual rows a pass over W: their samples within a row's reach stay in cache */
 
-/* several residual rows: xT, eT (n, m) row-major */
-EXPORT void rc_band_rows(int m, int n, const long long *ptr, const int *first, const double *a, const double *xT,
+/* several residual rows: xT, eT (n, m) row-major; in pairs of lanes, on any processor */
+EXPORT void rc_band_rows_pairs(int m, int n, const long long *ptr, const int *first, const double *a, const double *xT,
                          double *eT)
 {
     for (int c0 = 0; c0 < m; c0 += CHUNK) {
@@ -80,6 +87,107 @@ EXPORT void rc_band_rows(int m, int n, const long long *ptr, const int *first, c
             if (c < c1) block_single(w, len, x + c, m, o + c);
         }
     }
+}
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#define WIDE 1
+/* rows i..i+3 of W on the NB vectors of 8 residual rows from lane c (the last vector
+   masked by `last`): each row's head (its samples before the four's common run), the
+   common run with each sample loaded once for the four, then each row's tail */
+#define TILE(NB)                                                                                          \
+    __attribute__((target("avx512f"))) static void tile_##NB(const long long *ptr, const int *first,       \
+                                                            const double *a, int i, const double *xT,     \
+                                                            size_t m, int c, __mmask8 last, double *eT)   \
+    {                                                                                                     \
+        __m512d s[4][NB];                                                                                 \
+        const double *w[4];                                                                               \
+        int f[4], e[4], k0 = 0, k1 = 1 << 30;                                                             \
+        __mmask8 mk[NB];                                                                                  \
+        _Pragma("GCC unroll 4") for (int v = 0; v < NB; ++v) mk[v] = v == NB - 1 ? last : (__mmask8)0xFF; \
+        for (int r = 0; r < 4; ++r) {                                                                     \
+            w[r] = a + ptr[i + r];                                                                        \
+            f[r] = first[i + r];                                                                          \
+            e[r] = f[r] + (int)(ptr[i + r + 1] - ptr[i + r]);                                             \
+            if (f[r] > k0) k0 = f[r];                                                                     \
+            if (e[r] < k1) k1 = e[r];                                                                     \
+            _Pragma("GCC unroll 4") for (int v = 0; v < NB; ++v) s[r][v] = _mm512_setzero_pd();           \
+        }                                                                                                 \
+        if (k1 < k0) k1 = k0; /* no common run: each row whole as head and tail */                        \
+        for (int r = 0; r < 4; ++r)                                                                       \
+            for (int k = f[r]; k < (e[r] < k0 ? e[r] : k0); ++k) {                                        \
+                const __m512d aa = _mm512_set1_pd(w[r][k - f[r]]);                                        \
+                const double *xk = xT + (size_t)k * m + c;                                                \
+                _Pragma("GCC unroll 4") for (int v = 0; v < NB; ++v) s[r][v] =                            \
+                    _mm512_add_pd(s[r][v], _mm512_mul_pd(aa, _mm512_maskz_loadu_pd(mk[v], xk + 8 * v)));   \
+            }                                                                                             \
+        for (int k = k0; k < k1; ++k) {                                                                   \
+            const double *xk = xT + (size_t)k * m + c;                                                    \
+            __m512d x[NB];                                                                                \
+            _Pragma("GCC unroll 4") for (int v = 0; v < NB; ++v) x[v] = _mm512_maskz_loadu_pd(mk[v], xk + 8 * v); \
+            _Pragma("GCC unroll 4") for (int r = 0; r < 4; ++r) {                                         \
+                const __m512d aa = _mm512_set1_pd(w[r][k - f[r]]);                                        \
+                _Pragma("GCC unroll 4") for (int v = 0; v < NB; ++v) s[r][v] =                            \
+                    _mm512_add_pd(s[r][v], _mm512_mul_pd(aa, x[v]));                                      \
+            }                                                                                             \
+        }                                                                                                 \
+        for (int r = 0; r < 4; ++r) {                                                                     \
+            for (int k = f[r] > k1 ? f[r] : k1; k < e[r]; ++k) {                                          \
+                const __m512d aa = _mm512_set1_pd(w[r][k - f[r]]);                                        \
+                const double *xk = xT + (size_t)k * m + c;                                                \
+                _Pragma("GCC unroll 4") for (int v = 0; v < NB; ++v) s[r][v] =                            \
+                    _mm512_add_pd(s[r][v], _mm512_mul_pd(aa, _mm512_maskz_loadu_pd(mk[v], xk + 8 * v)));   \
+            }                                                                                             \
+            _Pragma("GCC unroll 4") for (int v = 0; v < NB; ++v)                                          \
+                _mm512_mask_storeu_pd(eT + (size_t)(i + r) * m + c + 8 * v, mk[v], s[r][v]);              \
+        }                                                                                                 \
+    }
+TILE(1)
+TILE(2)
+TILE(3)
+TILE(4)
+
+__attribute__((target("avx512f"))) static void rows_wide(int m, int n, const long long *ptr, const int *first,
+                                                         const double *a, const double *xT, double *eT)
+{
+    int i = 0;
+    for (; i + 4 <= n; i += 4)
+        for (int c = 0; c < m; c += 32) {
+            const int lanes = m - c < 32 ? m - c : 32, nb = (lanes + 7) / 8;
+            const __mmask8 last = (__mmask8)((1u << (lanes - 8 * (nb - 1))) - 1u);
+            if (nb == 1) tile_1(ptr, first, a, i, xT, m, c, last, eT);
+            else if (nb == 2) tile_2(ptr, first, a, i, xT, m, c, last, eT);
+            else if (nb == 3) tile_3(ptr, first, a, i, xT, m, c, last, eT);
+            else tile_4(ptr, first, a, i, xT, m, c, last, eT);
+        }
+    for (; i < n; ++i) /* the last rows of W, one at a time */
+        for (int c = 0; c < m; ++c) block_single(a + ptr[i], (int)(ptr[i + 1] - ptr[i]), xT + (size_t)first[i] * m + c,
+                                                 (size_t)m, eT + (size_t)i * m + c);
+}
+#else
+#define WIDE 0
+#endif
+
+/* whether rc_band_rows takes the AVX-512 way on this processor */
+EXPORT int rc_band_wide(void)
+{
+#if WIDE
+    return __builtin_cpu_supports("avx512f") ? 1 : 0;
+#else
+    return 0;
+#endif
+}
+
+EXPORT void rc_band_rows(int m, int n, const long long *ptr, const int *first, const double *a, const double *xT,
+                         double *eT)
+{
+#if WIDE
+    if (rc_band_wide()) {
+        rows_wide(m, n, ptr, first, a, xT, eT);
+        return;
+    }
+#endif
+    rc_band_rows_pairs(m, n, ptr, first, a, xT, eT);
 }
 
 /* one residual row y (n) -> e (n): four rows of W at a time, over their common length,

@@ -1,6 +1,7 @@
 """The exact whitener's sparse product, computed by ``band.c``: the numbers of scipy's
 CSR product bit for bit, 1.3 to 1.9 times quicker on the batches a fit and the adequacy
-null whiten (1 to 1,000 residual rows). The stationary whiteners' triangular maps use it
+null whiten (1 to 1,000 residual rows), and about twice as quick again where the
+processor has AVX-512 (:func:`wide`; ``make bench``'s ``whitening`` section). The stationary whiteners' triangular maps use it
 too (:class:`Triangular`): it sums each row in one order whatever the rows beside it.
 
 Why it may replace scipy's product: every output element is the same sum in the same
@@ -122,9 +123,10 @@ def library() -> ctypes.CDLL | None:
         warnings.warn(f"{str(e).splitlines()[0]}; residuals are whitened by scipy's sparse product "
                       "(the same numbers, slower)", stacklevel=2)
         return None
-    lib.rc_band_rows.argtypes = [ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P]
+    lib.rc_band_rows.argtypes = lib.rc_band_rows_pairs.argtypes = [ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P]
     lib.rc_band_row.argtypes = [ctypes.c_int, _P, _P, _P, _P, _P]
-    lib.rc_band_rows.restype = lib.rc_band_row.restype = None
+    lib.rc_band_rows.restype = lib.rc_band_rows_pairs.restype = lib.rc_band_row.restype = None
+    lib.rc_band_wide.argtypes, lib.rc_band_wide.restype = [], ctypes.c_int
     if not _agrees(lib):
         warnings.warn("the whitener's band product does not give scipy's numbers on this machine; residuals "
                       "are whitened by scipy's sparse product", stacklevel=2)
@@ -134,8 +136,9 @@ def library() -> ctypes.CDLL | None:
 
 def _agrees(lib: ctypes.CDLL) -> bool:
     """The kernel against scipy's product, bit for bit, on a random band (rows of every
-    length from 1, so the four-row groups end unevenly) for every block width it uses and
-    across its passes of 128 residual rows."""
+    length from 1, so the four-row groups end unevenly, and their heads and tails differ)
+    for every block width it uses and across its passes of 128 residual rows: the way this
+    processor takes (:func:`wide`) and the pairs of lanes every processor can take."""
     rng = np.random.default_rng(20261128)
     n = 203
     lengths = np.minimum(np.arange(n) + 1, rng.integers(30, 60, n))
@@ -147,6 +150,20 @@ def _agrees(lib: ctypes.CDLL) -> bool:
         return False
     for m in (1, 2, 3, 4, 5, 7, 8, 9, 15, 16, 17, 31, 33, 64, 130, 300):
         r = rng.standard_normal((m, n)) * 10.0 ** rng.integers(-6, 3, (m, 1))
-        if not np.array_equal(band.apply(r, lib), np.asarray((W @ r.T).T)):
+        expected = np.asarray((W @ r.T).T)
+        if not np.array_equal(band.apply(r, lib), expected):
             return False
+        if m > 1:
+            xT, eT = np.ascontiguousarray(r.T), np.empty((n, m))
+            lib.rc_band_rows_pairs(m, n, band.ptr.ctypes.data, band.first.ctypes.data, band.data.ctypes.data,
+                                   xT.ctypes.data, eT.ctypes.data)
+            if not np.array_equal(eT.T, expected):
+                return False
     return True
+
+
+def wide() -> bool:
+    """Whether several residual rows are whitened four rows of the band at a time in
+    AVX-512 vectors (this processor has them, and the kernel was built), not in pairs."""
+    lib = library()
+    return lib is not None and bool(lib.rc_band_wide())
