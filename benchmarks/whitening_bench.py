@@ -1,8 +1,8 @@
 """The whitener's band product (``make bench``'s ``whitening`` section, issue 42): the
-pairs of lanes every processor takes against the way this one takes (AVX-512, four
-rows of the band at a time, where it has them), on the whitener of a PMU-style
-recording, for the batches of residual rows the optimisers whiten (8 to 300). Both are
-checked against scipy's CSR product bit for bit; scipy's time is printed beside them.
+pairs of lanes every processor can take against the wider ways this one has (AVX2,
+AVX-512: four rows of the band at a time), on the whitener of a PMU-style recording, for
+the batches of residual rows the optimisers whiten (8 to 300). Each is checked against
+scipy's CSR product bit for bit; scipy's time is printed beside them.
 
 The recording: 120 s at 30 frames/s with 3 ms of jitter and three dropped frames, the
 recorder's noise white plus a slow component, with the derived ROCOF's noise (a
@@ -51,19 +51,18 @@ def bench_whitening() -> None:
         print("whitening: the band kernel is not in use here (no C compiler, or it differs from scipy)")
         return
     lengths = np.diff(b.ptr)
+    ways = band._ways(lib)
     print(f"whitening: the band product of a PMU-style recording's whitener ({b.n} samples, "
-          f"{lengths.mean():.0f} coefficients a row, up to {lengths.max()}); this processor: "
-          f"{'AVX-512, four rows at a time' if band.wide() else 'pairs of lanes'}")
-    print("  residual rows   scipy CSR    pairs of lanes   this processor's way   pairs / this   same numbers")
-    args = (b.ptr.ctypes.data, b.first.ctypes.data, b.data.ctypes.data)
+          f"{lengths.mean():.0f} coefficients a row, up to {lengths.max()}); this processor takes "
+          f"{band.WAYS[ways[-1]]}; time per product, and the pairs' time over each way's")
+    print("  residual rows   scipy CSR   " + "".join(f"{band.WAYS[w]:>16s}" for w in ways) + "   same numbers")
     for m in (8, 32, 64, 128, 300):
         r = np.random.default_rng(m).standard_normal((m, b.n)) * 1e-3
-        xT = np.ascontiguousarray(r.T)
-        pairs, this = np.empty((b.n, m)), np.empty((b.n, m))
         expected = np.asarray((w.W @ r.T).T)
         t_scipy = _best(lambda: w.W @ r.T, 3, 2)
-        t_pairs = _best(lambda: lib.rc_band_rows_pairs(m, b.n, *args, xT.ctypes.data, pairs.ctypes.data))
-        t_this = _best(lambda: lib.rc_band_rows(m, b.n, *args, xT.ctypes.data, this.ctypes.data))
-        same = np.array_equal(pairs.T, expected) and np.array_equal(this.T, expected)
-        print(f"  {m:13d}   {1e3 * t_scipy:7.2f} ms   {1e3 * t_pairs:10.2f} ms   {1e3 * t_this:16.2f} ms   "
-              f"{'x' + format(t_pairs / t_this, '.2f'):>13s}   {'yes' if same else 'NO'}")
+        times, same = {}, True
+        for way in ways:
+            same &= np.array_equal(b.rows_by(lib, way, r), expected)
+            times[way] = _best(lambda: b.rows_by(lib, way, r))
+        cells = "".join(f"{1e3 * times[way]:7.2f} ms x{times[1] / times[way]:4.2f}" for way in ways)
+        print(f"  {m:13d}   {1e3 * t_scipy:6.2f} ms   {cells}   {'yes' if same else 'NO'}")

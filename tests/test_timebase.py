@@ -118,12 +118,10 @@ def test_the_timed_whitening_gives_scipys_sparse_product_bit_for_bit(rows):
     got, expected = w.whiten(r), np.asarray((w.W @ r.T).T)
     assert np.array_equal(got, expected)
     assert got.flags.f_contiguous == expected.flags.f_contiguous and got.flags.c_contiguous == expected.flags.c_contiguous
-    if rows > 1:  # the way every processor can take, whichever this one takes (band.wide())
-        lib, b = band.library(), w._band
-        xT, eT = np.ascontiguousarray(r.T), np.empty((keep.size, rows))
-        lib.rc_band_rows_pairs(rows, b.n, b.ptr.ctypes.data, b.first.ctypes.data, b.data.ctypes.data,
-                               xT.ctypes.data, eT.ctypes.data)
-        assert np.array_equal(eT.T, expected)
+    if rows > 1:  # every way this processor has, not only the one it takes (band.ways())
+        lib = band.library()
+        for way in band._ways(lib):
+            assert np.array_equal(w._band.rows_by(lib, way, r), expected), band.WAYS[way]
 
 
 def test_a_matrix_that_is_not_a_band_is_left_to_scipy():

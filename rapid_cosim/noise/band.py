@@ -1,7 +1,7 @@
 """The exact whitener's sparse product, computed by ``band.c``: the numbers of scipy's
 CSR product bit for bit, 1.3 to 1.9 times quicker on the batches a fit and the adequacy
 null whiten (1 to 1,000 residual rows), and about twice as quick again where the
-processor has AVX-512 (:func:`wide`; ``make bench``'s ``whitening`` section). The stationary whiteners' triangular maps use it
+processor has AVX-512 (:func:`ways`; ``make bench``'s ``whitening`` section). The stationary whiteners' triangular maps use it
 too (:class:`Triangular`): it sums each row in one order whatever the rows beside it.
 
 Why it may replace scipy's product: every output element is the same sum in the same
@@ -61,6 +61,15 @@ class Band:
         xT = np.ascontiguousarray(r.T, dtype=float)
         eT = np.empty_like(xT)
         lib.rc_band_rows(xT.shape[1], self.n, *args, xT.ctypes.data, eT.ctypes.data)
+        return eT.T
+
+    def rows_by(self, lib: ctypes.CDLL, way: int, r: np.ndarray) -> np.ndarray:
+        """:meth:`apply` for several rows by one of the kernel's ways (a bit of
+        :data:`WAYS`), whichever this processor would take."""
+        xT = np.ascontiguousarray(r.T, dtype=float)
+        eT = np.empty_like(xT)
+        lib.rc_band_rows_by(way, xT.shape[1], self.n, self.ptr.ctypes.data, self.first.ctypes.data,
+                            self.data.ctypes.data, xT.ctypes.data, eT.ctypes.data)
         return eT.T
 
 
@@ -123,10 +132,11 @@ def library() -> ctypes.CDLL | None:
         warnings.warn(f"{str(e).splitlines()[0]}; residuals are whitened by scipy's sparse product "
                       "(the same numbers, slower)", stacklevel=2)
         return None
-    lib.rc_band_rows.argtypes = lib.rc_band_rows_pairs.argtypes = [ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P]
+    lib.rc_band_rows.argtypes = [ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P]
+    lib.rc_band_rows_by.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P]
     lib.rc_band_row.argtypes = [ctypes.c_int, _P, _P, _P, _P, _P]
-    lib.rc_band_rows.restype = lib.rc_band_rows_pairs.restype = lib.rc_band_row.restype = None
-    lib.rc_band_wide.argtypes, lib.rc_band_wide.restype = [], ctypes.c_int
+    lib.rc_band_rows.restype = lib.rc_band_rows_by.restype = lib.rc_band_row.restype = None
+    lib.rc_band_ways.argtypes, lib.rc_band_ways.restype = [], ctypes.c_int
     if not _agrees(lib):
         warnings.warn("the whitener's band product does not give scipy's numbers on this machine; residuals "
                       "are whitened by scipy's sparse product", stacklevel=2)
@@ -137,8 +147,8 @@ def library() -> ctypes.CDLL | None:
 def _agrees(lib: ctypes.CDLL) -> bool:
     """The kernel against scipy's product, bit for bit, on a random band (rows of every
     length from 1, so the four-row groups end unevenly, and their heads and tails differ)
-    for every block width it uses and across its passes of 128 residual rows: the way this
-    processor takes (:func:`wide`) and the pairs of lanes every processor can take."""
+    for every block width it uses and across its passes of 128 residual rows, by every way
+    this processor has (:data:`WAYS`), the one it takes included."""
     rng = np.random.default_rng(20261128)
     n = 203
     lengths = np.minimum(np.arange(n) + 1, rng.integers(30, 60, n))
@@ -153,17 +163,21 @@ def _agrees(lib: ctypes.CDLL) -> bool:
         expected = np.asarray((W @ r.T).T)
         if not np.array_equal(band.apply(r, lib), expected):
             return False
-        if m > 1:
-            xT, eT = np.ascontiguousarray(r.T), np.empty((n, m))
-            lib.rc_band_rows_pairs(m, n, band.ptr.ctypes.data, band.first.ctypes.data, band.data.ctypes.data,
-                                   xT.ctypes.data, eT.ctypes.data)
-            if not np.array_equal(eT.T, expected):
-                return False
+        if m > 1 and not all(np.array_equal(band.rows_by(lib, way, r), expected) for way in _ways(lib)):
+            return False
     return True
 
 
-def wide() -> bool:
-    """Whether several residual rows are whitened four rows of the band at a time in
-    AVX-512 vectors (this processor has them, and the kernel was built), not in pairs."""
+WAYS = {1: "pairs of lanes", 2: "AVX2", 4: "AVX-512"}  # rc_band_ways's bits, widest last
+
+
+def _ways(lib: ctypes.CDLL) -> list[int]:
+    return [bit for bit in WAYS if lib.rc_band_ways() & bit]
+
+
+def ways() -> list[str]:
+    """The ways this processor can whiten several residual rows (the kernel takes the
+    last): pairs of lanes on any processor; four rows of the band at a time in AVX2 or
+    AVX-512 vectors where it has them. Empty where the kernel is not used."""
     lib = library()
-    return lib is not None and bool(lib.rc_band_wide())
+    return [WAYS[bit] for bit in _ways(lib)] if lib is not None else []
