@@ -72,8 +72,8 @@ static inline void block_single(const double *w, int len, const double *x, size_
 #define CHUNK 128 /* residual rows a pass over W: their samples within a row's reach stay in cache */
 
 /* several residual rows: xT, eT (n, m) row-major; in pairs of lanes, on any processor */
-static void rc_band_rows_pairs(int m, int n, const long long *ptr, const int *first, const double *a, const double *xT,
-                         double *eT)
+static void rc_band_rows_pairs(int m, int n, const long long *ptr, const int *first, const double *a,
+                               const double *xT, double *eT)
 {
     for (int c0 = 0; c0 < m; c0 += CHUNK) {
         const int c1 = c0 + CHUNK < m ? c0 + CHUNK : m;
