@@ -12,7 +12,7 @@
    - one residual row: four rows of W at a time, each its own sum;
    - several: the residual rows transposed (samples, rows), two of them a vector lane
      pair, up to sixteen sums held at once for each row of W;
-   - several, where the processor has AVX-512 or AVX2 (checked when called; built with
+   - several, where the processor has AVX-512 or AVX2 (checked at the first call; built with
      target attributes, so the library runs on any x86-64): four rows of W at a time over
      up to 32 (AVX-512) or 8 (AVX2) residual rows, each sample of the residuals loaded
      once for the four (rows of W overlap on all but a few samples), in vectors of 8 or 4
@@ -207,19 +207,25 @@ ROWS(y, 2, if (nb == 1) tile_y1(ARGS); else tile_y2(ARGS);)
 /* the ways this processor can take: 1 pairs of lanes (every processor), 2 AVX2, 4 AVX-512 */
 EXPORT int rc_band_ways(void)
 {
-    int ways = 1;
+    static int ways = 0;
+    if (!ways) {
+        int w = 1;
 #if WIDE
-    __builtin_cpu_init();
-    if (__builtin_cpu_supports("avx2")) ways |= 2;
-    if (__builtin_cpu_supports("avx512f")) ways |= 4;
+        __builtin_cpu_init();
+        if (__builtin_cpu_supports("avx2")) w |= 2;
+        if (__builtin_cpu_supports("avx512f")) w |= 4;
 #endif
+        ways = w;
+    }
     return ways;
 }
 
-/* several residual rows by one way (one of rc_band_ways's bits; the pairs otherwise) */
+/* several residual rows by one way (one of rc_band_ways's bits; the pairs for any other,
+   or for one this processor has not) */
 EXPORT void rc_band_rows_by(int way, int m, int n, const long long *ptr, const int *first, const double *a,
                             const double *xT, double *eT)
 {
+    if (!(way & rc_band_ways())) way = 1;
 #if WIDE
     if (way == 4) {
         rows_z(m, n, ptr, first, a, xT, eT);
@@ -237,12 +243,8 @@ EXPORT void rc_band_rows_by(int way, int m, int n, const long long *ptr, const i
 EXPORT void rc_band_rows(int m, int n, const long long *ptr, const int *first, const double *a, const double *xT,
                          double *eT)
 {
-    static int best = 0;
-    if (!best) {
-        const int ways = rc_band_ways();
-        best = ways & 4 ? 4 : ways & 2 ? 2 : 1;
-    }
-    rc_band_rows_by(best, m, n, ptr, first, a, xT, eT);
+    const int ways = rc_band_ways();
+    rc_band_rows_by(ways & 4 ? 4 : ways & 2 ? 2 : 1, m, n, ptr, first, a, xT, eT);
 }
 
 /* one residual row y (n) -> e (n): four rows of W at a time, over their common length,
