@@ -51,30 +51,33 @@ class Band:
     def apply(self, r: np.ndarray, lib: ctypes.CDLL) -> np.ndarray:
         """``(W @ r.T).T`` for residual rows ``r`` (rows, n), laid out as that is (the
         transpose of a C-ordered (n, rows) array): the same numbers, the same memory order."""
-        if r.ndim != 2 or r.shape[1] != self.n:
-            raise ValueError(f"dimension mismatch: residual rows of {r.shape[-1]} samples against a whitener of "
-                             f"{self.n}")
-        args = (self.ptr.ctypes.data, self.first.ctypes.data, self.data.ctypes.data)
+        self._check(r)
         if r.shape[0] == 1:
             y, e = np.ascontiguousarray(r[0], dtype=float), np.empty(self.n)
-            lib.rc_band_row(self.n, *args, y.ctypes.data, e.ctypes.data)
+            lib.rc_band_row(self.n, *self._args(), y.ctypes.data, e.ctypes.data)
             return e[None, :]
-        xT = np.ascontiguousarray(r.T, dtype=float)
-        eT = np.empty_like(xT)
-        lib.rc_band_rows(xT.shape[1], self.n, *args, xT.ctypes.data, eT.ctypes.data)
-        return eT.T
+        return self._rows(lib.rc_band_rows, r)
 
     def rows_by(self, lib: ctypes.CDLL, way: int, r: np.ndarray) -> np.ndarray:
         """:meth:`apply` for several rows by the kernel's way ``way`` (a bit of
         :data:`WAYS`), not necessarily the one this processor takes (one it has not is
         taken by the pairs), so that each way can be checked."""
+        self._check(r)
+        return self._rows(functools.partial(lib.rc_band_rows_by, way), r)
+
+    def _check(self, r: np.ndarray) -> None:
         if r.ndim != 2 or r.shape[1] != self.n:
             raise ValueError(f"dimension mismatch: residual rows of {r.shape[-1]} samples against a whitener of "
                              f"{self.n}")
+
+    def _args(self) -> tuple:
+        return self.ptr.ctypes.data, self.first.ctypes.data, self.data.ctypes.data
+
+    def _rows(self, kernel, r: np.ndarray) -> np.ndarray:
+        """Several rows through ``kernel`` (rc_band_rows's arguments), on their transpose."""
         xT = np.ascontiguousarray(r.T, dtype=float)
         eT = np.empty_like(xT)
-        lib.rc_band_rows_by(way, xT.shape[1], self.n, self.ptr.ctypes.data, self.first.ctypes.data,
-                            self.data.ctypes.data, xT.ctypes.data, eT.ctypes.data)
+        kernel(xT.shape[1], self.n, *self._args(), xT.ctypes.data, eT.ctypes.data)
         return eT.T
 
 
