@@ -1,20 +1,24 @@
 """What fewer multistart starts would change (issue 42), read from a finished fleet's
-archives alone, without simulating again.
+archives, simulating only the Jacobians of the standard errors.
 
 Issue 42 asks for a one-event fleet unit in 5 s on one worker and for unchanged answers.
 A unit runs about 27 fits (the explanation's candidates, the standard records), so 5 s is
 about one Levenberg-Marquardt start per fit at today's cost of a simulation. Each fit's
-archive keeps its waterfall: every start's final fitness, in the order the starts were
-run (a nested model's own starts first, then the screened design's best points, best
-first). So for each fit this asks: had only its first ``k`` starts run, would the best of
-them be its best (within the multistart's margin, 1e-4 relative)? And, for each unit,
-whether the fit that missed is the one its answer rests on: the recommended record's, or
-the candidate its explanation names.
+archive keeps its waterfall: every start's end point and final fitness, in the order the
+starts were run (a nested model's optimum and its own small design first, then the
+screened design's best points, best first). So for each fit this asks: had only its
+first ``k`` starts run, would the best of them be its best (within the multistart's
+margin, 1e-4 relative)? Then, for each identified unit, whether the fit that missed is
+one its answer rests on (the recommended record's, or the candidate its explanation's
+verdict names: an effect, or none), and how far the recommended record's estimate would move: the largest move of
+one parameter in its standard error (the Fisher information at the fit's best point, as
+``rapid-cosim identify`` reports it), which issue 42 wants under 0.1.
 
-An estimate, on the generous side for fewer starts in one way and not in another: a
-start that merged into a later one is taken at that one's end point; and a fit whose
-first round reached its best with too few starts ran more rounds, which a cut to ``k``
-starts might also run.
+An estimate, in both directions: a start that merged into a later one is taken at that
+one's end point; a fit whose first starts reached its best too few times ran more rounds,
+which a cut to ``k`` starts might run too; and a rival's fit that misses its best can
+change which record is recommended, which this does not count. The simulations are
+estimated as each fit's screen and its starts' equal shares of the rest.
 
     python benchmarks/starts_study.py [results/bench-fleet/fleet/results]
 """
@@ -22,11 +26,10 @@ starts might also run.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
 import warnings
-from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -36,56 +39,105 @@ KS = (1, 2, 3, 4, 6, 8, 12)
 MARGIN = 1e-4  # MSOptions.margin
 
 
-def waterfalls(results: Path) -> dict[Path, tuple[np.ndarray, int, int]]:
-    """Each multistart archive's final fitness per start, in the order they were run,
-    with the simulations of its screen (the design scored before the starts) and of the
-    whole fit."""
-    from rapid_cosim.archive.reader import RunArchive
+@dataclass
+class Waterfall:
+    """One multistart fit as its archive keeps it."""
 
-    out = {}
+    fun: np.ndarray  # each start's final fitness, in run order
+    u: np.ndarray  # each start's end point, unit coordinates
+    x: np.ndarray  # the fit's best point
+    screen: int  # simulations of the design scored before the starts
+    total: int  # simulations of the whole fit
+
+    def first_k_best(self, k: int) -> int | None:
+        """The start the first ``k`` end at (their best), or None where that is the fit's best."""
+        ok = np.isfinite(self.fun)
+        if not ok.any() or k >= self.fun.size:
+            return None
+        best = self.fun[ok].min()
+        head = np.where(np.isfinite(self.fun[:k]), self.fun[:k], np.inf)
+        i = int(np.argmin(head))
+        return None if head[i] <= best + MARGIN * abs(best) else i
+
+    def simulations(self, k: int) -> float:
+        return self.screen + (self.total - self.screen) * min(k, self.fun.size) / self.fun.size
+
+
+def waterfalls(results: Path) -> tuple[dict[Path, Waterfall], int]:
+    """Every multistart archive under ``results`` (by path relative to it), and the
+    number of archives that could not be read."""
+    from rapid_cosim.archive.reader import RunArchive
+    from rapid_cosim.errors import ArchiveError
+
+    out, unreadable = {}, 0
     for f in sorted(results.rglob("*.h5")):
         try:
             with RunArchive(f) as a:
-                iterations = a.iterations()
-        except Exception:  # noqa: BLE001 - not a run archive (a report's cache)
+                iterations, result = a.iterations(), a.result()
+        except ArchiveError:
+            if f.name != "diagnosis.h5":  # a diagnosis record, not a run
+                unreadable += 1
             continue
         steps = [it for it in iterations if it.extras and "start_fun" in it.extras]
+        if not steps or result is None:
+            continue
         # an iteration's n_sims counts the run's simulations so far
         screen = max((it.n_sims for it in iterations if it.extras and "screen" in it.extras), default=0)
-        if steps:
-            out[f.relative_to(results)] = (np.asarray(steps[-1].extras["start_fun"], dtype=float), screen,
-                                           iterations[-1].n_sims)
-    return out
+        extras = steps[-1].extras
+        out[f.relative_to(results)] = Waterfall(np.asarray(extras["start_fun"], dtype=float),
+                                                np.asarray(extras["start_u"], dtype=float),
+                                                np.asarray(result.x, dtype=float), screen, iterations[-1].n_sims)
+    return out, unreadable
 
 
-def simulations(fall: tuple[np.ndarray, int, int], k: int) -> float:
-    """The fit's simulations had it run ``k`` starts: its screen, and its starts' share of
-    the rest (the starts run in lockstep, so each takes about as many)."""
-    fun, screen, total = fall
-    return screen + (total - screen) * min(k, fun.size) / fun.size
+@dataclass
+class Unit:
+    folder: Path  # the unit's own files
+    record: str  # the recommended record's fit
+    effect: str | None  # the candidate archive its explanation's verdict rests on (an effect, or none)
 
 
-def first_k_best(fun: np.ndarray, k: int) -> bool:
-    """Whether the first ``k`` starts reach the best of all of them."""
-    ok = np.isfinite(fun)
-    if not ok.any() or k >= fun.size:
-        return True
-    best = fun[ok].min()
-    head = fun[:k][np.isfinite(fun[:k])]
-    return bool(head.size) and head.min() <= best + MARGIN * abs(best)
-
-
-def answers(results: Path) -> dict[str, tuple[str, str]]:
-    """Per identified unit: its recommended record and its explanation's named effect."""
+def identified(results: Path) -> dict[str, Unit]:
+    fleet = json.loads((results / "fleet.json").read_text())
     out = {}
-    with open(results / "fleet.csv", newline="") as f:
-        for row in csv.DictReader(f):
-            if not row["recommended"]:
-                continue
-            diagnosis = results / "units" / row["unit"] / "explanation" / "diagnosis.json"
-            effect = json.loads(diagnosis.read_text()).get("effect", "") if diagnosis.exists() else ""
-            out[row["unit"]] = (row["recommended"], effect)
+    for u in fleet["units"]:
+        if not u.get("recommended"):
+            continue
+        diagnosis = results / "units" / u["unit"] / "explanation" / "diagnosis.json"
+        effect = None
+        if diagnosis.exists():
+            d = json.loads(diagnosis.read_text())
+            # an ambiguous or unexplained verdict rests on no one fit
+            archive = d.get("archives", {}).get("+".join(d.get("effects") or []) or d.get("effect", ""))
+            effect = Path(archive).name if archive else None
+        out[u["unit"]] = Unit(Path(u["folder"]), u["recommended"]["fit"], effect)
     return out
+
+
+def move_in_se(unit: Unit, fall: Waterfall, start: int) -> tuple[float, str]:
+    """How far the record's estimate moves from its best to the end of ``start``: the
+    largest move of one parameter in its standard error at the best point."""
+    from rapid_cosim.calibration import inputs_from_experiments
+    from rapid_cosim.diagnose.selection import noise_floors
+    from rapid_cosim.diagnose.workflow import split_holdout
+    from rapid_cosim.identify.check import check_unit
+    from rapid_cosim.identify.workflow import delivery_candidates
+    from rapid_cosim.noise import campaign_noise
+    from rapid_cosim.structures.identifiability import identifiability
+    from rapid_cosim.structures.structure import on_structure
+
+    check = check_unit(unit.folder)
+    training, heldout = split_holdout(check.experiments, check.unit.holdout)
+    fitted = campaign_noise([*training, *heldout])
+    structure = next(s for s in delivery_candidates(check.structures) if s.name == unit.record)
+    inputs = inputs_from_experiments(on_structure(structure, training, fitted))
+    ident = identifiability(inputs, fall.x, noise_floors([*training, *heldout], fitted))
+    se = np.abs(fall.x) * np.asarray(ident.relative_se)
+    x = inputs.problem.space.from_unit(np.clip(fall.u[start], 0.0, 1.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        moves = np.where(se > 0, np.abs(x - fall.x) / se, np.where(x == fall.x, 0.0, np.inf))
+    k = int(np.argmax(moves))
+    return float(moves[k]), inputs.problem.space.names[k]
 
 
 def main() -> int:
@@ -96,27 +148,41 @@ def main() -> int:
     sys.path.insert(0, str(ROOT))
     warnings.simplefilter("ignore")
     results = Path(args.results)
-    if not (results / "fleet.csv").exists():
-        raise SystemExit(f"{results}: no fleet.csv; run make bench-fleet first, or name a fleet's results folder")
-    falls = waterfalls(results)
-    units = answers(results)
-    starts = Counter(fall[0].size for fall in falls.values())
-    total = sum(fall[2] for fall in falls.values())
-    print(f"{len(falls)} multistart fits in {results} ({len(units)} units identified), {total:,} simulations; "
-          f"starts per fit: median {int(np.median([f[0].size for f in falls.values()]))}, "
-          f"{min(starts)} to {max(starts)}")
-    print("first k starts | simulations (estimated) | fits at their best | units whose recommended record's fit "
-          "is not | units whose named effect's fit is not")
+    if not (results / "fleet.json").exists():
+        raise SystemExit(f"{results}: no fleet.json; run make bench-fleet first, or name a fleet's results folder")
+    falls, unreadable = waterfalls(results)
+    if not falls:
+        raise SystemExit(f"{results}: no multistart archives")
+    units = identified(results)
+    named = sum(u.effect is not None for u in units.values())
+    total = sum(f.total for f in falls.values())
+    sizes = [f.fun.size for f in falls.values()]
+    print(f"{len(falls)} multistart fits in {results}{f' ({unreadable} unreadable, left out)' if unreadable else ''}: "
+          f"{total:,} simulations, {int(np.median(sizes))} starts a fit (median; {min(sizes)} to {max(sizes)}); "
+          f"{len(units)} units identified, {named} of them with a verdict resting on one fit (an effect, or none)")
+    print(f"first k starts | the fits' simulations (estimated) | fits at their best | units whose recommended "
+          f"record's fit is not (of {len(units)}): its estimate moves, in SE | units whose verdict's fit is not "
+          f"(of {named})")
+    moved: dict[tuple[str, int], tuple[float, str]] = {}
     for k in KS:
-        missed = [p for p, fall in falls.items() if not first_k_best(fall[0], k)]
-        sims = sum(simulations(fall, k) for fall in falls.values())
-        record = sorted({p.parts[1] for p in missed if p.parts[0] == "units" and p.parts[1] in units
-                         and p.parts[2:] == ("records", f"{units[p.parts[1]][0]}.h5")})
-        effect = sorted({p.parts[1] for p in missed if p.parts[0] == "units" and p.parts[1] in units
-                         and p.parts[2:] == ("explanation", "candidates", f"{units[p.parts[1]][1]}.h5")})
-        print(f"{k:14d} | {sims / total:5.0%} | {len(falls) - len(missed):5d} of {len(falls)} ({100 * (1 - len(missed) / len(falls)):.1f} %) | "
-              f"{len(record):2d} {' '.join(record[:6])}{' ...' if len(record) > 6 else ''} | "
-              f"{len(effect):2d} {' '.join(effect[:6])}{' ...' if len(effect) > 6 else ''}")
+        missed = {p: i for p, f in falls.items() if (i := f.first_k_best(k)) is not None}
+        record, effect = [], []
+        for p, i in missed.items():
+            name = p.parts[1] if len(p.parts) > 2 and p.parts[0] == "units" else None
+            if name not in units:
+                continue
+            if p.parts[2:] == ("records", f"{units[name].record}.h5"):
+                key = (name, i)
+                if key not in moved:  # the same end point for several k: one Jacobian
+                    moved[key] = move_in_se(units[name], falls[p], i)
+                record.append((name, *moved[key]))
+            elif p.parts[2:] == ("explanation", "candidates", units[name].effect):
+                effect.append(name)
+        sims = sum(f.simulations(k) for f in falls.values()) / total
+        moves = ", ".join(f"{n} {m:.2g} ({q.removeprefix('gov.')})" for n, m, q in sorted(record))
+        over = sum(m > 0.1 for _, m, _ in record)
+        print(f"{k:14d} | {sims:4.0%} | {len(falls) - len(missed)} ({1 - len(missed) / len(falls):.1%}) | "
+              f"{len(record)}, {over} of them over 0.1 SE: {moves or '-'} | {len(effect)} {' '.join(sorted(effect))}")
     return 0
 
 

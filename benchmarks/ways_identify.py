@@ -1,9 +1,10 @@
 """Whole identifications under each way of the whitener's band product (issue 42): the
-processor's own choice, then every way it has forced in its place (AVX2, the pairs of
-lanes every processor takes), each unit in one process, fresh folders. Every archive
-(each evaluation's parameters and fitness, each fit's result) and the delivered ``.dyr``
-must be the same bit for bit: what a machine without AVX-512 (or without AVX2) would
-compute, run end to end on this one.
+processor's own choice, then every other way it has forced in its place (AVX2, the pairs
+of lanes every processor takes), each unit in one process, fresh folders. Every run
+archive (each iteration as a resume compares it, each result) and the delivered ``.dyr``
+must be the same bit for bit: the band kernel's ways give the same numbers end to end.
+Only the band kernel's way is forced: numpy's and the BLAS's own dispatch still take
+this processor's widest instructions.
 
     python benchmarks/ways_identify.py [--units electrical,steam] [--work /tmp/ways]
 """
@@ -37,7 +38,8 @@ if way:
     if not lib.rc_band_ways() & way:
         sys.exit(f"this processor has no way {way}")
     lib.rc_band_rows = functools.partial(lib.rc_band_rows_by, way)
-rc.identify(Path(sys.argv[1]), workdir=Path(sys.argv[2]), engine=rc.EngineSpec(n_jobs=1), log=lambda *a: None)
+rc.identify(Path(sys.argv[1]), workdir=Path(sys.argv[2]), engine=rc.EngineSpec(n_jobs=1), report=False,
+            log=lambda *a: None)
 """
 
 
@@ -49,25 +51,43 @@ def identify_by(unit: Path, folder: Path, way: int) -> float:
     return time.perf_counter() - t0
 
 
-def same_archives(a: Path, b: Path) -> tuple[int, list[str]]:
-    """The number of run archives under ``a`` and those that differ from ``b``'s."""
-    import h5py
+def differences(a: Path, b: Path) -> tuple[int, list[str]]:
+    """The number of run archives under ``a`` and ``b``, and how those differ: every
+    iteration compared as a resume compares it (:func:`~rapid_cosim.calibration.replay.same_iteration`),
+    then the result; an archive in one folder only is a difference too."""
+    from rapid_cosim.archive.reader import RunArchive
+    from rapid_cosim.calibration.replay import same_iteration
+    from rapid_cosim.errors import ArchiveError
 
-    differ, n = [], 0
-    for f in sorted(a.rglob("*.h5")):
-        g = b / f.relative_to(a)
-        with h5py.File(f) as ha:
-            if "evaluations" not in ha:
-                continue
-            n += 1
-            if not g.exists():
-                differ.append(f"{f.relative_to(a)} (missing)")
-                continue
-            with h5py.File(g) as hb:
-                if not all(np.array_equal(ha[k][:], hb[k][:])
-                           for k in ("evaluations/x", "evaluations/fitness", "result/x")):
-                    differ.append(str(f.relative_to(a)))
-    return n, differ
+    names = {p.relative_to(a) for p in a.rglob("*.h5")} | {p.relative_to(b) for p in b.rglob("*.h5")}
+    runs, differ = 0, []
+    for name in sorted(names):
+        if not (a / name).exists() or not (b / name).exists():
+            differ.append(f"{name} (in one folder only)")
+            continue
+        try:
+            x = RunArchive(a / name)
+        except ArchiveError:
+            continue  # not a run's archive (a diagnosis record)
+        with x, RunArchive(b / name) as y:
+            xs, ys = x.iterations(), y.iterations()
+            runs += 1
+            why = "iterations" if len(xs) != len(ys) else next(
+                (f"iteration {i.index}: {w}" for i, j in zip(xs, ys) if (w := same_iteration(i, j))), None)
+            rx, ry = x.result(), y.result()
+            if why is None and (rx is None) != (ry is None):
+                why = "one finished"
+            elif why is None and rx is not None and not (np.array_equal(rx.x, ry.x) and rx.fun == ry.fun):
+                why = "result"
+            if why:
+                differ.append(f"{name} ({why})")
+    return runs, differ
+
+
+def same_file(a: Path, b: Path) -> str:
+    if not a.exists() or not b.exists():
+        return "missing" if a.exists() != b.exists() else "in neither"
+    return "the same" if filecmp.cmp(a, b, shallow=False) else "DIFFERS"
 
 
 def main() -> int:
@@ -83,6 +103,9 @@ def main() -> int:
         print("the band kernel is not used on this machine: nothing to compare")
         return 1
     ways = [bit for bit in band.WAYS if lib.rc_band_ways() & bit]
+    if len(ways) < 2:
+        print(f"this processor has one way ({band.WAYS[ways[0]]}): nothing to compare it with")
+        return 0
     ways = [ways[-1]] + ways[-2::-1]  # the processor's own choice first, then the narrower ways
     work = Path(args.work).resolve()
     bad = 0
@@ -97,12 +120,11 @@ def main() -> int:
                 base = folder
                 print(f"{name}: {band.WAYS[way]} (this processor's choice) {seconds:.1f} s")
                 continue
-            n, differ = same_archives(base, folder)
-            dyr = filecmp.cmp(base / "unit.dyr", folder / "unit.dyr", shallow=False)
-            bad += len(differ) + (not dyr)
-            print(f"{name}: {band.WAYS[way]} forced {seconds:.1f} s; archives the same {n - len(differ)} of {n}"
-                  f"{' (differ: ' + ', '.join(differ) + ')' if differ else ''}; unit.dyr "
-                  f"{'the same' if dyr else 'DIFFERS'}")
+            runs, differ = differences(base, folder)
+            dyr = same_file(base / "unit.dyr", folder / "unit.dyr")
+            bad += len(differ) + (dyr != "the same")
+            print(f"{name}: {band.WAYS[way]} forced {seconds:.1f} s; run archives the same {runs - len(differ)} of "
+                  f"{runs}{' (differ: ' + ', '.join(differ) + ')' if differ else ''}; unit.dyr {dyr}")
     return 1 if bad else 0
 
 
