@@ -1,5 +1,5 @@
 """What fewer multistart starts would change (issue 42), read from a finished fleet's
-archives, simulating only the Jacobians of the standard errors.
+archives, simulating only what the standard errors need.
 
 Issue 42 asks for a one-event fleet unit in 5 s on one worker and for unchanged answers.
 A unit runs about 27 fits (the explanation's candidates, the standard records), so 5 s is
@@ -63,13 +63,13 @@ class Waterfall:
         return self.screen + (self.total - self.screen) * min(k, self.fun.size) / self.fun.size
 
 
-def waterfalls(results: Path) -> tuple[dict[Path, Waterfall], int]:
-    """Every multistart archive under ``results`` (by path relative to it), and the
-    number of archives that could not be read."""
+def waterfalls(results: Path) -> tuple[dict[Path, Waterfall], int, int]:
+    """Every finished multistart archive under ``results`` (by path relative to it), and
+    the numbers of archives that could not be read and of runs that did not finish."""
     from rapid_cosim.archive.reader import RunArchive
     from rapid_cosim.errors import ArchiveError
 
-    out, unreadable = {}, 0
+    out, unreadable, unfinished = {}, 0, 0
     for f in sorted(results.rglob("*.h5")):
         try:
             with RunArchive(f) as a:
@@ -79,7 +79,10 @@ def waterfalls(results: Path) -> tuple[dict[Path, Waterfall], int]:
                 unreadable += 1
             continue
         steps = [it for it in iterations if it.extras and "start_fun" in it.extras]
-        if not steps or result is None:
+        if not steps:
+            continue
+        if result is None:
+            unfinished += 1
             continue
         # an iteration's n_sims counts the run's simulations so far
         screen = max((it.n_sims for it in iterations if it.extras and "screen" in it.extras), default=0)
@@ -87,7 +90,7 @@ def waterfalls(results: Path) -> tuple[dict[Path, Waterfall], int]:
         out[f.relative_to(results)] = Waterfall(np.asarray(extras["start_fun"], dtype=float),
                                                 np.asarray(extras["start_u"], dtype=float),
                                                 np.asarray(result.x, dtype=float), screen, iterations[-1].n_sims)
-    return out, unreadable
+    return out, unreadable, unfinished
 
 
 @dataclass
@@ -107,7 +110,7 @@ def identified(results: Path) -> dict[str, Unit]:
         effect = None
         if diagnosis.exists():
             d = json.loads(diagnosis.read_text())
-            # an ambiguous or unexplained verdict rests on no one fit
+            # an ambiguous or unexplained verdict names no fit
             archive = d.get("archives", {}).get("+".join(d.get("effects") or []) or d.get("effect", ""))
             effect = Path(archive).name if archive else None
         out[u["unit"]] = Unit(Path(u["folder"]), u["recommended"]["fit"], effect)
@@ -127,12 +130,18 @@ def move_in_se(unit: Unit, fall: Waterfall, start: int) -> tuple[float, str]:
     from rapid_cosim.structures.structure import on_structure
 
     check = check_unit(unit.folder)
+    if not check.ok:
+        raise SystemExit(f"{unit.folder}: the unit's files no longer check out ({check.findings[0]}); the standard "
+                         "errors need the unit the fleet identified")
     training, heldout = split_holdout(check.experiments, check.unit.holdout)
     fitted = campaign_noise([*training, *heldout])
-    structure = next(s for s in delivery_candidates(check.structures) if s.name == unit.record)
+    structure = next((s for s in delivery_candidates(check.structures) if s.name == unit.record), None)
+    if structure is None:
+        raise SystemExit(f"{unit.folder}: no structure {unit.record} in the unit's files")
     inputs = inputs_from_experiments(on_structure(structure, training, fitted))
     ident = identifiability(inputs, fall.x, noise_floors([*training, *heldout], fitted))
-    se = np.abs(fall.x) * np.asarray(ident.relative_se)
+    # relative to the value, or absolute where the value is 0 (identifiability's scale)
+    se = np.where(fall.x != 0, np.abs(fall.x), 1.0) * np.asarray(ident.relative_se)
     x = inputs.problem.space.from_unit(np.clip(fall.u[start], 0.0, 1.0))
     with np.errstate(divide="ignore", invalid="ignore"):
         moves = np.where(se > 0, np.abs(x - fall.x) / se, np.where(x == fall.x, 0.0, np.inf))
@@ -150,16 +159,17 @@ def main() -> int:
     results = Path(args.results)
     if not (results / "fleet.json").exists():
         raise SystemExit(f"{results}: no fleet.json; run make bench-fleet first, or name a fleet's results folder")
-    falls, unreadable = waterfalls(results)
+    falls, unreadable, unfinished = waterfalls(results)
     if not falls:
         raise SystemExit(f"{results}: no multistart archives")
     units = identified(results)
     named = sum(u.effect is not None for u in units.values())
     total = sum(f.total for f in falls.values())
     sizes = [f.fun.size for f in falls.values()]
-    print(f"{len(falls)} multistart fits in {results}{f' ({unreadable} unreadable, left out)' if unreadable else ''}: "
+    left = ", ".join(f"{n} {what}" for n, what in ((unreadable, "unreadable"), (unfinished, "unfinished")) if n)
+    print(f"{len(falls)} multistart fits in {results}{f' ({left}: left out)' if left else ''}: "
           f"{total:,} simulations, {int(np.median(sizes))} starts a fit (median; {min(sizes)} to {max(sizes)}); "
-          f"{len(units)} units identified, {named} of them with a verdict resting on one fit (an effect, or none)")
+          f"{len(units)} units identified, {named} of them with a verdict naming one fit (an effect, a pair, or none)")
     print(f"first k starts | the fits' simulations (estimated) | fits at their best | units whose recommended "
           f"record's fit is not (of {len(units)}): its estimate moves, in SE | units whose verdict's fit is not "
           f"(of {named})")
