@@ -117,9 +117,28 @@ def identified(results: Path) -> dict[str, Unit]:
     return out
 
 
-def move_in_se(unit: Unit, fall: Waterfall, start: int) -> tuple[float, str]:
-    """How far the record's estimate moves from its best to the end of ``start``: the
-    largest move of one parameter in its standard error at the best point."""
+@dataclass
+class Errors:
+    """A recommended record's standard errors at its best point, with its search space."""
+
+    space: object  # the fit's SearchSpace
+    x: np.ndarray  # the best point
+    se: np.ndarray  # each parameter's standard error there (absolute)
+
+    def move(self, u: np.ndarray) -> tuple[float, str]:
+        """The largest move of one parameter, in its standard error, from the best point to
+        ``u`` (unit coordinates), and that parameter's name."""
+        x = self.space.from_unit(np.clip(u, 0.0, 1.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            moves = np.where(self.se > 0, np.abs(x - self.x) / self.se, np.where(x == self.x, 0.0, np.inf))
+        k = int(np.argmax(moves))
+        return float(moves[k]), self.space.names[k]
+
+
+def standard_errors(unit: Unit, fall: Waterfall) -> Errors:
+    """The record's standard errors at its best point, from the Fisher information as
+    ``rapid-cosim identify`` reports it: the unit's tests, noise and structure as the fleet
+    identified them."""
     from rapid_cosim.calibration import inputs_from_experiments
     from rapid_cosim.diagnose.selection import noise_floors
     from rapid_cosim.diagnose.workflow import split_holdout
@@ -142,11 +161,7 @@ def move_in_se(unit: Unit, fall: Waterfall, start: int) -> tuple[float, str]:
     ident = identifiability(inputs, fall.x, noise_floors([*training, *heldout], fitted))
     # relative to the value, or absolute where the value is 0 (identifiability's scale)
     se = np.where(fall.x != 0, np.abs(fall.x), 1.0) * np.asarray(ident.relative_se)
-    x = inputs.problem.space.from_unit(np.clip(fall.u[start], 0.0, 1.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        moves = np.where(se > 0, np.abs(x - fall.x) / se, np.where(x == fall.x, 0.0, np.inf))
-    k = int(np.argmax(moves))
-    return float(moves[k]), inputs.problem.space.names[k]
+    return Errors(inputs.problem.space, fall.x, se)
 
 
 def main() -> int:
@@ -173,7 +188,7 @@ def main() -> int:
     print(f"first k starts | the fits' simulations (estimated) | fits at their best | units whose recommended "
           f"record's fit is not (of {len(units)}): its estimate moves, in SE | units whose verdict's fit is not "
           f"(of {named})")
-    moved: dict[tuple[str, int], tuple[float, str]] = {}
+    errors: dict[str, Errors] = {}  # per unit: its record's errors are the same whichever start missed
     for k in KS:
         missed = {p: i for p, f in falls.items() if (i := f.first_k_best(k)) is not None}
         record, effect = [], []
@@ -182,10 +197,9 @@ def main() -> int:
             if name not in units:
                 continue
             if p.parts[2:] == ("records", f"{units[name].record}.h5"):
-                key = (name, i)
-                if key not in moved:  # the same end point for several k: one Jacobian
-                    moved[key] = move_in_se(units[name], falls[p], i)
-                record.append((name, *moved[key]))
+                if name not in errors:
+                    errors[name] = standard_errors(units[name], falls[p])
+                record.append((name, *errors[name].move(falls[p].u[i])))
             elif p.parts[2:] == ("explanation", "candidates", units[name].effect):
                 effect.append(name)
         sims = sum(f.simulations(k) for f in falls.values()) / total

@@ -58,7 +58,6 @@ def differences(a: Path, b: Path) -> tuple[int, list[str]]:
     simulations, stop reason). An archive in one folder only, or unreadable in either, is
     a difference too."""
     from rapid_cosim.archive.reader import RunArchive
-    from rapid_cosim.calibration.replay import same_iteration
     from rapid_cosim.errors import ArchiveError
 
     names = {p.relative_to(a) for p in a.rglob("*.h5")} | {p.relative_to(b) for p in b.rglob("*.h5")}
@@ -72,7 +71,7 @@ def differences(a: Path, b: Path) -> tuple[int, list[str]]:
             continue
         try:
             with RunArchive(a / name) as x, RunArchive(b / name) as y:
-                why = _why(x.iterations(), y.iterations(), x.result(), y.result(), same_iteration)
+                why = _why(x.iterations(), y.iterations(), x.result(), y.result())
         except ArchiveError as e:
             why = f"unreadable: {str(e).splitlines()[0]}"
         if why:
@@ -80,8 +79,10 @@ def differences(a: Path, b: Path) -> tuple[int, list[str]]:
     return runs, differ
 
 
-def _why(xs, ys, rx, ry, same_iteration) -> str | None:
+def _why(xs, ys, rx, ry) -> str | None:
     """Why two runs' iterations and results differ, or None where they do not."""
+    from rapid_cosim.calibration.replay import same_iteration
+
     if len(xs) != len(ys):
         return f"{len(xs)} and {len(ys)} iterations"
     for i, j in zip(xs, ys):
