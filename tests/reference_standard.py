@@ -1,11 +1,12 @@
-"""Independent reference for the standard governors (TGOV1, IEEEG1, GGOV1, HYGOV): their
+"""Independent reference for the standard governors (TGOV1, IEEEG1, GGOV1, HYGOV, GAST): their
 block diagrams in IEEE PES-TR1 (2013) and the PSS/E model library written out as numpy
 right-hand sides and integrated with scipy between the source's switching times.
 
 Limits use the smooth forms the models' documentation states (the non-windup gate and
 the rate limits rounded over eps, GGOV1's low-value gate as a soft minimum through
-scipy's logsumexp); everything else is the textbook diagram. The input
-is the staged test's speed deviation dw = w_ref - w = -df / f_nom.
+scipy's logsumexp, GAST's the same way); everything else is the textbook diagram, the
+speed deadbands (TGOV1D, IEEEG1D, HYGOVD: the no-step form) exact clamps. The input is
+the staged test's speed deviation dw = w_ref - w = -df / f_nom.
 """
 
 from __future__ import annotations
@@ -16,13 +17,16 @@ from scipy.special import logsumexp
 
 SOURCE = {"src.df": -0.2, "src.f_nom": 50.0, "src.t_step": 10.0, "src.t_return": 1e9}
 DEFAULTS = {
-    "TGOV1": {"R": 0.05, "T1": 0.5, "VMAX": 1.0, "VMIN": 0.0, "T2": 2.5, "T3": 7.5, "Dt": 0.0, "p_ref": 0.6,
-              "eps_v": 1e-4, "K_lim": 100.0},
+    "TGOV1": {"R": 0.05, "T1": 0.5, "VMAX": 1.0, "VMIN": 0.0, "T2": 2.5, "T3": 7.5, "Dt": 0.0, "db": 0.0,
+              "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
     "HYGOV": {"R": 0.05, "r": 0.3, "Tr": 5.0, "Tf": 0.05, "Tg": 0.5, "VELM": 0.2, "GMAX": 1.0, "GMIN": 0.0,
-              "TW": 1.0, "At": 1.2, "Dturb": 0.5, "qNL": 0.08, "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
+              "TW": 1.0, "At": 1.2, "Dturb": 0.5, "qNL": 0.08, "db": 0.0, "p_ref": 0.6, "eps_v": 1e-4,
+              "K_lim": 100.0},
     "IEEEG1": {"K": 20.0, "T1": 0.001, "T2": 0.0, "T3": 0.1, "Uo": 1.0, "Uc": -1.0, "PMAX": 1.0, "PMIN": 0.0,
                "T4": 0.3, "K1": 0.2, "T5": 7.0, "K3": 0.3, "K3_rest": 0.0, "T6": 0.6, "K5": 0.5, "T7": 0.05,
-               "K7": 0.0, "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
+               "K7": 0.0, "db": 0.0, "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
+    "GAST": {"R": 0.05, "T1": 0.4, "T2": 0.1, "T3": 3.0, "AT": 1.0, "KT": 2.0, "VMAX": 1.0, "VMIN": 0.0, "Dt": 0.0,
+             "p_ref": 0.6, "eps_v": 1e-4, "K_lim": 100.0},
     "GGOV1": {"R": 0.04, "Rselect": 1.0, "Tpelec": 1.0, "maxerr": 0.05, "minerr": -0.05, "Kpgov": 10.0,
               "Kigov": 2.0, "Kdgov": 0.0, "Tdgov": 1.0, "Vmax": 1.0, "Vmin": 0.15, "Tact": 0.5, "Kturb": 1.5,
               "Wfnl": 0.2, "Tb": 0.5, "Tc": 0.0, "Flag": 1.0, "Tfload": 3.0, "Kpload": 2.0, "Kiload": 0.67,
@@ -45,6 +49,11 @@ def non_windup(d, x, lo, hi, p):
             + (sp(-d - k * (x - lo), e) - sp(-k * (x - lo), e)))
 
 
+def deadband(dw, db):
+    """The no-step deadband: dw less its clamp to [-db, db] (0 inside the band)."""
+    return dw - np.clip(dw, -db, db)
+
+
 def rate_limit(v, lo, hi, eps):
     """v clamped to [lo, hi] (lo < 0 < hi), rounded over eps, exact at v = 0."""
     return v - (sp(v - hi, eps) - sp(-hi, eps)) + (sp(lo - v, eps) - sp(lo, eps))
@@ -62,6 +71,7 @@ class Standard:
     # ------------------------------------------------------------------ TGOV1
     def _tgov1(self, dw, x):
         p = self.p
+        dw = deadband(dw, p["db"])
         x1, x2 = x
         d = (p["p_ref"] + dw / p["R"] - x1) / p["T1"]
         dx = [non_windup(d, x1, p["VMIN"], p["VMAX"], p), (x1 - x2) / p["T3"]]
@@ -71,6 +81,7 @@ class Standard:
     # ------------------------------------------------------------------ HYGOV
     def _hygov(self, dw, x):
         p = self.p
+        dw = deadband(dw, p["db"])
         e, xi, g, q = x
         q0 = p["p_ref"] / p["At"] + p["qNL"]
         c = xi + e / p["r"]
@@ -88,6 +99,7 @@ class Standard:
 
     def _ieeeg1(self, dw, x):
         p = self.p
+        dw = deadband(dw, p["db"])
         xl, gv, x4, x5, x6, x7 = x
         k3 = self._ieeeg1_k3()
         gv0 = p["p_ref"] / (p["K1"] + k3 + p["K5"] + p["K7"])
@@ -131,16 +143,26 @@ class Standard:
               (u_t - xt) / p["Tb"]]
         return dx, pm
 
+    # ------------------------------------------------------------------ GAST
+    def _gast(self, dw, x):
+        p = self.p
+        x1, x2, x3 = x
+        demand = p["p_ref"] + dw / p["R"]
+        limit = p["AT"] + p["KT"] * (p["AT"] - x3)
+        gate = -p["eps_v"] * logsumexp([-demand / p["eps_v"], -limit / p["eps_v"]])  # the soft low-value gate
+        dx = [non_windup((gate - x1) / p["T1"], x1, p["VMIN"], p["VMAX"], p), (x1 - x2) / p["T2"], (x2 - x3) / p["T3"]]
+        return dx, x2 + p["Dt"] * dw
+
     def _f(self, t, x):
         return {"TGOV1": self._tgov1, "HYGOV": self._hygov, "IEEEG1": self._ieeeg1,
-                "GGOV1": self._ggov1}[self.model](self.dw(t), x)
+                "GGOV1": self._ggov1, "GAST": self._gast}[self.model](self.dw(t), x)
 
     def start(self):
         """The steady state at the dispatch, from the diagrams (dw = 0)."""
         p = self.p
-        if self.model == "TGOV1":
+        if self.model in ("TGOV1", "GAST"):
             x1 = min(max(p["p_ref"], p["VMIN"]), p["VMAX"])
-            return np.array([x1, x1])
+            return np.array([x1, x1] if self.model == "TGOV1" else [x1, x1, x1])
         if self.model == "HYGOV":
             q0 = p["p_ref"] / p["At"] + p["qNL"]
             return np.array([0.0, q0, q0, q0])

@@ -53,6 +53,7 @@ def test_the_values_the_page_states_are_the_parsers():
     """Allowed values and defaults written in the schema (their modules read their keys
     from it, so it cannot import them) are the parsers' own."""
     from rapid_cosim.identify.unit import MVA_RANGE
+    from rapid_cosim.structures.standard import KINDS
     from rapid_cosim.validation.tolerances import DEFAULT_BANDS, TERM_RANGES
 
     assert schema.UNITS == tuple(signals.UNITS) and schema.CONVERSIONS == signals.CONVERSIONS
@@ -64,7 +65,9 @@ def test_the_values_the_page_states_are_the_parsers():
     assert "0.25" in schema.GAPS.keys[0].allowed and recording.SHORT_GAP == 0.25
     assert "mach.H` {:g} to {:g} s".format(*electrical.H_RANGE) in schema.FIXED.open.allowed
     assert "mach.D` {:g} to {:g} pu".format(*electrical.D_RANGE) in schema.FIXED.open.allowed
-    assert UNIT_FILE.section("unit").keys[1].allowed == "{:g} to {:g}".format(*MVA_RANGE)
+    unit_keys = {k.name: k for k in UNIT_FILE.section("unit").keys}
+    assert unit_keys["mva"].allowed == "{:g} to {:g}".format(*MVA_RANGE)
+    assert unit_keys["kind"].allowed == tuple(KINDS)
     for key in TOLERANCE_FILE.section("validation").keys:
         assert tomllib.loads(f"x = {key.default.strip('`')}")["x"] == DEFAULT_BANDS[key.name]
     for key in TOLERANCE_FILE.section("validation.<metric>").keys:
@@ -221,7 +224,9 @@ def test_a_structure_file_refuses_what_the_page_does_not_list_naming_itself(fold
     s = Structure.load(source)
     raw = tomllib.loads(source.read_text())
     assert (s.name, s.bench, s.input_bench) == tuple(raw["structure"][k.name] for k in structure.keys)
-    assert s.carries == "rate_limit"
+    assert s.carries == {"gov.Uo": "rate_limit", "gov.Uc": "rate_limit", "gov.db": "deadband"}
+    assert s.effects == ("rate_limit", "deadband") and [v.name for v in s.optional_variants()] == [
+        "IEEEG1+rate_limit", "IEEEG1+rate_limit(Uo)", "IEEEG1+rate_limit(Uc)", "IEEEG1+deadband"]
     for where, edit in (("structure", lambda r: r["structure"].__setitem__(UNKNOWN, 1)),
                         (UNKNOWN, lambda r: r.__setitem__(UNKNOWN, {"a": 1})),
                         ("estimate", lambda r: r["estimate"][next(iter(r["estimate"]))].__setitem__(UNKNOWN, 1)),

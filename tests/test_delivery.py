@@ -17,7 +17,7 @@ import re
 import numpy as np
 import pytest
 
-from rapid_cosim.errors import DeliveryError
+from rapid_cosim.errors import DeliveryError, ParameterError
 from rapid_cosim.exchange import read_record
 from rapid_cosim.simulator import Simulator
 from rapid_cosim.compiler.source import ModelSource
@@ -60,7 +60,17 @@ CASES = {
                         "gov.At": 1.2, "gov.qNL": 0.08, "gov.Dturb": 0.3, "gov.r": 0.3, "gov.Tr": 5.0},
               {"gov.R": {"min": 0.02, "max": 0.12}, "gov.TW": {"min": 0.1, "max": 4.0}},
               {"gov.R": 0.05, "gov.TW": 1.2}),
+    "GAST": ("GAST", {"gov.VMAX": 1.0, "gov.VMIN": 0.0, "gov.AT": 1.0, "gov.KT": 2.0, "gov.T3": 3.0, "gov.T2": 0.1},
+             {"gov.R": {"min": 0.02, "max": 0.12}, "gov.T1": {"min": 0.2, "max": 3.0}}, {"gov.R": 0.05, "gov.T1": 0.5}),
+    **{f"{m} with its deadband estimated ({m}D)": (
+        m, {"TGOV1": {"gov.T2": 2.0, "gov.T3": 6.0}, "IEEEG1": IEEEG1_SINGLE_REHEAT,
+            "HYGOV": {"gov.Dturb": 0.3, "gov.TW": 1.2}}[m],
+        {("gov.K" if m == "IEEEG1" else "gov.R"): {"min": 8.0, "max": 50.0} if m == "IEEEG1" else {"min": 0.02, "max": 0.12},
+         "gov.db": {"min": 0.0, "max": 0.002, "start": 0.0005}},
+        {("gov.K" if m == "IEEEG1" else "gov.R"): 20.0 if m == "IEEEG1" else 0.05, "gov.db": 0.0008})
+       for m in ("TGOV1", "IEEEG1", "HYGOV")},
 }
+DEADBAND_LAYOUTS = ("TGOV1D", "IEEEG1D", "HYGOVD")  # no PSLF layout: a .dyd is refused, the .dyr carries it
 
 
 def _calibrated(fmus, folder, case: str):
@@ -83,7 +93,7 @@ def _as_read(record, exp) -> dict[str, float]:
     the record states (IEEEG1's K3 as stated); nothing else of the fit."""
     params = {k: v for k, v in exp.fixed.items() if not k.startswith("gov.") or k == "gov.p_ref"}
     params.update({f"gov.{k}": v for k, v in record.values.items() if k != "K3_rest"})
-    if record.model == "IEEEG1":
+    if record.block == "IEEEG1":
         params["gov.K3_rest"] = 0.0
     return params
 
@@ -98,6 +108,12 @@ def test_the_record_read_back_simulates_what_was_fitted(fmus, tmp_path, case):
     fitted = fit.inputs.problem.parameters_for(fit.x, 0)
     y_fit = sim.simulate(fitted, output_times=t, outputs=["pm"])["pm"]
     for kind, options in (("dyr", {}), ("dyd", {"mva": 250.0})):
+        if kind == "dyd" and "deadband" in case:
+            with pytest.raises(ParameterError, match=r"with a deadband .* has no PSLF layout here: .*the \.dyr's "
+                                                     r"(TGOV1D|IEEEG1D|HYGOVD) record carries it"):
+                rc.export(fit.archive, tmp_path / f"unit.{kind}", bus=3, machine_id="1", **options)
+            assert not (tmp_path / "unit.dyd").exists()
+            continue
         delivered = rc.export(fit.archive, tmp_path / f"unit.{kind}", bus=3, machine_id="1", **options)
         assert delivered.reproduction.worst <= TOLERANCE_PU
         record = read_record(tmp_path / f"unit.{kind}")
@@ -105,6 +121,8 @@ def test_the_record_read_back_simulates_what_was_fitted(fmus, tmp_path, case):
         assert np.max(np.abs(y_record - y_fit)) <= TOLERANCE_PU, kind
         for name, value in fit.parameters.items():  # every estimate reached the file as it was
             assert record.values[name.removeprefix("gov.")] == value, name
+        if "deadband" in case:
+            assert record.model in DEADBAND_LAYOUTS and record.block == CASES[case][0] and record.values["db"] > 0
         if record.model == "IEEEG1" and fitted["gov.K3_rest"] == 1.0:
             rest = 1.0 - fitted["gov.K1"] - fitted["gov.K5"] - fitted["gov.K7"]
             assert record.values["K3"] == pytest.approx(rest, abs=1e-15)

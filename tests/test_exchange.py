@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rapid_cosim.errors import ParameterError, RecordError
-from rapid_cosim.exchange import MODELS, ExchangeWarning, pslf_dyd, psse_dyr, read_record
+from rapid_cosim.exchange import MODELS, ExchangeWarning, model_named, pslf_dyd, psse_dyr, read_record
 from rapid_cosim.exchange.tables import record_numbers
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -119,7 +119,7 @@ def test_free_format_records_among_other_models():
             "  1 'IEEEG1'  '1 ' 0 0 2.5D1 0.0 0.0 0.2 0.05 -0.08 1.0 0.0\n"
             "      0.3 0.25 0.0 7.0 0.75 0.0 0.6 0.0 0.0 0.05 0.0 0.0 / unit 1, from the OEM\n")
     records, others = psse_dyr.parse_records(text)
-    assert others == ["GENROU (line 1)"]
+    assert list(map(str, others)) == ["GENROU (line 1)"] and (others[0].bus, others[0].machine_id) == (1, "1")
     (r,) = records
     assert (r.model, r.bus, r.machine_id, r.line) == ("IEEEG1", 1, "1", 2)
     assert r.values["K"] == 25.0 and r.values["T1"] == 0.001 and r.values["K1"] == 0.25
@@ -167,7 +167,8 @@ def test_bad_records_are_named_by_file_line_field_value_and_allowed_range(tmp_pa
     assert read_record(tmp_path / "turbine.dyr", mva=45.0).extra["Trate"] == 45.0
 
     (tmp_path / "machine.dyr").write_text("1 'GENROU' 1 8 0.03 0.4 0.05 6.5 0 1.8 1.7 0.3 0.55 0.25 0.06 0 0 /\n")
-    with pytest.raises(RecordError, match="no TGOV1, IEEEG1, GGOV1, HYGOV record; it holds GENROU"):
+    with pytest.raises(RecordError, match="no TGOV1, TGOV1D, IEEEG1, IEEEG1D, GGOV1, HYGOV, HYGOVD, GAST record; "
+                                          "it holds GENROU"):
         read_record(tmp_path / "machine.dyr")
     (tmp_path / "two.dyr").write_text("1 'TGOV1' 1 0.05 0.5 1 0 2.5 7.5 0 /\n2 'TGOV1' 1 0.05 0.5 1 0 2.5 7.5 0 /\n")
     with pytest.raises(RecordError, match="several"):
@@ -192,8 +193,8 @@ def test_bad_dyd_records():
 def test_writing_checks_names_and_warns_for_a_dropped_sharpness_away_from_its_default():
     with pytest.raises(ParameterError, match="TGOV1 has no parameter K1"):
         psse_dyr.format_record("TGOV1", {"K1": 0.3}, bus=1)
-    with pytest.raises(ParameterError, match="no record table for model 'GAST'"):
-        psse_dyr.format_record("GAST", {}, bus=1)
+    with pytest.raises(ParameterError, match="no record table for model 'WSIEG1'"):
+        psse_dyr.format_record("WSIEG1", {}, bus=1)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _, dropped = psse_dyr.format_record("TGOV1", {"p_ref": 0.83, "eps_v": 1e-4}, bus=1)  # no warning
@@ -235,7 +236,7 @@ def _andes_outputs(andes, model: str) -> dict[str, str]:
     return {k: v for k, v in spec["outputs"].items() if k != "syn"}
 
 
-@pytest.mark.parametrize("model", ["TGOV1", "IEEEG1", "GGOV1", "HYGOV"])
+@pytest.mark.parametrize("model", ["TGOV1", "IEEEG1", "GGOV1", "HYGOV", "GAST"])
 def test_andes_reads_every_exported_dyr_value_and_runs_the_case(model, tmp_path):
     values = calibrated_values(model)
     text, _ = psse_dyr.format_record(model, values, bus=GENERATOR_1[0], machine_id=GENERATOR_1[1])
@@ -368,3 +369,61 @@ def test_a_config_takes_its_documented_constants_from_a_record(tgov1_run, tmp_pa
     (tmp_path / "unit.dyr").write_text("1 'TGOV1' 1 0.05 0.5 one 0.0 2.5 7.5 0.0 /\n")
     with pytest.raises(ConfigError, match=r"\[fixed.documented\]: .*unit.dyr:1: field VMAX = 'one'"):
         load_experiment(config.parent / "documented.toml")
+
+
+def test_a_deadband_goes_out_in_the_d_layout_and_reads_back_as_its_block(tmp_path):
+    """TGOV1, IEEEG1 and HYGOV with a deadband are written as TGOV1D, IEEEG1D, HYGOVD (the
+    plain fields, then dbH = db, dbL = -db, Trate 0), read back as their block with the
+    same db; without one they keep their plain layout. An asymmetric band is refused with
+    the value dbL should have."""
+    for model in ("TGOV1", "IEEEG1", "HYGOV"):
+        plain, _ = psse_dyr.format_record(model, {}, bus=4)
+        assert f"'{model}'" in plain
+        text, _ = psse_dyr.format_record(model, {"db": 0.0006}, bus=4)
+        assert f"'{model}D'" in text and text.split()[-4:] == ["0.0006", "-0.0006", "0.0", "/"]
+        (record,), _ = psse_dyr.parse_records(text)
+        assert (record.model, record.block, record.values["db"], record.extra) == (f"{model}D", model, 0.0006,
+                                                                                   {"Trate": 0.0})
+        assert psse_dyr.format_record(model, record.values, bus=4, extra=record.extra)[0] == text
+        (flat,), _ = psse_dyr.parse_records(plain)
+        assert "db" not in flat.values and model_named(model).played(flat.values, {"gov.db": 0.001})["gov.db"] == 0.0
+    asymmetric = "1 'TGOV1D' 1 0.05 0.5 1 0 2.5 7.5 0 0.0006 -0.0004 0 /\n"
+    e = _error(psse_dyr.parse_records, asymmetric)
+    assert (e.field, e.value, e.allowed) == ("dbL", "-0.0004", "-0.0006") and "asymmetric band" in str(e)
+    e = _error(psse_dyr.parse_records, "1 'TGOV1D' 1 0.05 0.5 1 0 2.5 7.5 0 0.02 -0.02 0 /\n")
+    assert (e.field, e.allowed) == ("dbH", "0 to 0.01")
+
+
+def test_gast_round_trips_in_both_formats(tmp_path):
+    values = {"R": 0.04, "T1": 0.5, "T2": 0.15, "T3": 2.5, "AT": 0.95, "KT": 2.5, "VMAX": 1.1, "VMIN": -0.05,
+              "Dt": 0.1}
+    text, _ = psse_dyr.format_record("GAST", values, bus=9, machine_id="G1")
+    (record,), _ = psse_dyr.parse_records(text)
+    assert record.values == values and record.model == record.block == "GAST"
+    dyd, _ = pslf_dyd.format_record("GAST", values, bus=9, machine_id="G1", mva=120.0)
+    assert dyd.startswith("gast 9") and '"dturb" 0.1' in dyd
+    (back,), _ = pslf_dyd.parse_records(dyd)
+    assert back.values == values and back.mva == 120.0
+
+
+def test_a_machine_whose_governor_is_of_another_model_is_told_apart(tmp_path):
+    """A planning case's .dyr: a supported record for one machine, a WSIEG1 for another,
+    and the machines and exciters beside them. The WSIEG1 machine's record is named as not
+    supported (a fleet lists it); a machine with no governor at all is a plain error."""
+    from rapid_cosim.exchange import UnsupportedRecord
+
+    case = tmp_path / "case.dyr"
+    case.write_text("1 'GENROU' 1 8 0.03 0.4 0.05 6.5 0 1.8 1.7 0.3 0.55 0.25 0.06 0 0 /\n"
+                    "1 'TGOV1' 1 0.05 0.5 1 0 2.5 7.5 0 /\n"
+                    "2 'GENROU' 1 8 0.03 0.4 0.05 6.5 0 1.8 1.7 0.3 0.55 0.25 0.06 0 0 /\n"
+                    "2 'ESST1A' 1 1 1 0 0.02 0.2 /\n"
+                    "2 'WSIEG1' 1 0 0 20 0 0 0.1 0.1 -0.1 1 0 0.3 0.3 0 7 0.7 0 0.5 0 0 0.05 0 0 0 0 0 /\n"
+                    "3 'GENROU' 1 8 0.03 0.4 0.05 6.5 0 1.8 1.7 0.3 0.55 0.25 0.06 0 0 /\n")
+    assert read_record(case, bus=1, machine_id="1").model == "TGOV1"
+    with pytest.raises(UnsupportedRecord, match=r"case\.dyr:5: the record on file for bus 2 id 1 is WSIEG1: not "
+                                                r"supported \(allowed: TGOV1, TGOV1D, .*GAST\)") as e:
+        read_record(case, bus=2, machine_id="1")
+    assert e.value.model == "WSIEG1"
+    with pytest.raises(RecordError, match="none of its governor records match bus=3") as e:
+        read_record(case, bus=3, machine_id="1")
+    assert not isinstance(e.value, UnsupportedRecord)

@@ -20,10 +20,19 @@ measurements behind them; :func:`departures` applies them):
 - **TGOV1** is PSS/E's since ANDES's pull request #207 (2021: the reference before the
   gain); its valve is a non-windup lag, its damping Dt on the speed deviation, as PSS/E's.
   Nothing is converted.
-- HYGOV (ANDES's gate integrator lacks PSS/E's 1/(r Tr) gain) and GGOV1 (ANDES 2.0 has
-  none: its parser builds a TGOV1 from the R field alone) are not put back: no trusted
-  simulator here runs them (tests/test_block_diagrams.py checks them against their own
-  block diagrams instead).
+- **GAST** is PSS/E's (a low-value gate of the droop's demand and the temperature limit,
+  a non-windup fuel valve, the fuel system's lag, the temperature's lag): read from the
+  ``.dyr`` by ANDES's parser, nothing converted.
+- **TGOV1D** (TGOV1 with a deadband, PowerWorld's and ORNL GridKit's layout: TGOV1's
+  fields, then dbH, dbL and Trate) has no entry in ANDES's ``.dyr`` reader, though ANDES
+  has the block: TGOV1DB, TGOV1 with ANDES's DeadBand1 (the no-step form) on the speed
+  deviation. So its numbers are read here by PowerWorld's field list
+  (:data:`POWERWORLD_LAYOUTS`, not this project's reader) and given to a TGOV1DB on
+  generator 1; dbH is ANDES's dbU, dbL its dbL, in pu of speed on both sides.
+- HYGOV (ANDES's gate integrator lacks PSS/E's 1/(r Tr) gain; its HYGOVDB too) and GGOV1
+  (ANDES 2.0 has none: its parser builds a TGOV1 from the R field alone) are not put back:
+  no trusted simulator here runs them (tests/test_block_diagrams.py checks them against
+  their own block diagrams instead).
 """
 
 from __future__ import annotations
@@ -38,6 +47,8 @@ import numpy as np
 SB, SN, F_NOM = 100.0, 900.0, 60.0  # the case's system base, generator 1's MVA base, the grid's frequency
 GENERATOR = (1, "1")  # generator 1: bus 1, machine 1
 STEP = 0.005  # ANDES's time step (s)
+# layouts ANDES's .dyr reader lacks, by PowerWorld's field list: (ANDES's block, its fields)
+POWERWORLD_LAYOUTS = {"TGOV1D": ("TGOV1DB", ("R", "T1", "VMAX", "VMIN", "T2", "T3", "Dt", "dbH", "dbL", "Trate"))}
 
 
 @dataclass(frozen=True)
@@ -82,6 +93,32 @@ def andes_record(model: str, values: dict[str, float]) -> str:
                                                                else str(int(given[f])) for f in fields[2:]) + " /\n"
 
 
+def powerworld_record(model: str, values: dict[str, float]) -> str:
+    """A plant's record in a PowerWorld layout ANDES's reader lacks (TGOV1D), composed from
+    PowerWorld's field list, not this project's writer."""
+    _, fields = POWERWORLD_LAYOUTS[model]
+    return (f"{GENERATOR[0]} '{model}' {GENERATOR[1]} " + " ".join(repr(float(values.get(f, 0.0))) for f in fields)
+            + " /\n")
+
+
+def powerworld_block(record: str) -> tuple[str, dict[str, float]] | None:
+    """ANDES's block and parameters for a record in a layout of :data:`POWERWORLD_LAYOUTS`
+    (None for any other record): its numbers read by PowerWorld's field list."""
+    tokens = re.findall(r"'[^']*'|\S+", record.split("/")[0])
+    model = tokens[1].strip("'\"").strip().upper()
+    if model not in POWERWORLD_LAYOUTS:
+        return None
+    block, fields = POWERWORLD_LAYOUTS[model]
+    numbers = [float(x.replace("D", "E")) for x in tokens[3:]]
+    if len(numbers) != len(fields):
+        raise ValueError(f"{model} takes {len(fields)} values ({' '.join(fields)}), the record has {len(numbers)}")
+    given = dict(zip(fields, numbers))
+    if given.pop("Trate") != 0.0:
+        raise ValueError(f"{model} on a turbine rating other than the machine base is not converted here")
+    given["dbU"] = given.pop("dbH")
+    return block, given
+
+
 def departures(ss) -> dict[str, dict[str, float]]:
     """Convert, in ANDES's model of generator 1's governor, what ANDES reads differently
     from PSS/E (module docstring); returns the conversions made (parameter -> (read, given))."""
@@ -108,13 +145,16 @@ def run_record(record: str, event: GridEvent) -> dict[str, np.ndarray]:
     import andes
 
     andes.config_logger(stream_level=40)
+    block = powerworld_block(record)
     with tempfile.TemporaryDirectory(prefix="rapid_cosim_andes_") as tmp:
         dyr = Path(tmp) / "kundur_unit.dyr"
-        dyr.write_text(kundur_dyr(record))
+        dyr.write_text(kundur_dyr("" if block else record))
         ss = andes.load(andes.get_case("kundur/kundur.raw"), addfile=str(dyr), setup=False, no_output=True,
                         default_config=True)
         if ss is None:
             raise RuntimeError("ANDES did not load the case with the record")
+        if block:  # a layout ANDES's reader lacks: its block added on generator 1 (module docstring)
+            ss.add(block[0], {"idx": "TG_record", "syn": _generator_1(ss), **block[1]})
         ss.add("PQ", {"idx": "PQ_ev", "bus": event.bus, "p0": event.mw / SB, "q0": 0.0,
                       "u": 1 if event.load < 0 else 0})
         ss.add("Toggle", {"idx": "TG_ev", "model": "PQ", "dev": "PQ_ev", "t": event.t_event})
@@ -130,7 +170,7 @@ def run_record(record: str, event: GridEvent) -> dict[str, np.ndarray]:
     if ss.exit_code != 0:
         raise RuntimeError(f"ANDES did not finish the event (exit code {ss.exit_code})")
     machine = _generator_1(ss)
-    governor = next(m for m in (ss.TGOV1, ss.IEEEG1) if m.n and machine in list(m.syn.v))
+    governor = next(m for m in (ss.TGOV1, ss.IEEEG1, ss.GAST, ss.TGOV1DB) if m.n and machine in list(m.syn.v))
     k = list(governor.syn.v).index(machine)
     ts = ss.dae.ts
     t, keep = np.unique(ts.t, return_index=True)  # an event time may be written twice

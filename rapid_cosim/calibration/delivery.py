@@ -139,7 +139,7 @@ def archived_reproduction(path, record: Record) -> Reproduction:
     from: what a caller that did not write it checks (the fleet, of identify's files)."""
     inputs, _, x = finished_run(path)
     model, _ = standard_model(inputs, source=str(path))
-    if record.model != model.name:
+    if record.block != model.name:
         raise DeliveryError(f"{record.file}: a {record.model} record, where the run {path} fitted {model.name}")
     return reproduction(inputs, x, model, record)
 

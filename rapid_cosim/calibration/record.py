@@ -54,7 +54,7 @@ def standard_model(inputs: RunInputs, *, source: str) -> tuple[Model, dict[str, 
               if n.startswith("gov.") and p.settable}
 
     def carries(m: Model) -> bool:  # every parameter of the block, an operating point possibly bound (GGOV1's Pmwset)
-        return set(m.record_params) <= set(starts) <= set(m.params)
+        return set(m.required_params) <= set(starts) <= set(m.params)
 
     model = next((m for m in MODELS.values() if carries(m)), None)
     if model is None:
@@ -92,7 +92,7 @@ def standard_record(inputs: RunInputs, parameters: Mapping[str, float], x, *, so
                 raise ConfigError(f"{source}: {name.split('@')[0]} is estimated per experiment; a record holds "
                                   "one value")
             values[name[4:]], origin[name[4:]] = float(v), ESTIMATED
-    missing = sorted(wanted - set(values))
+    missing = sorted(set(model.required_params) - set(values))
     if missing:
         raise ConfigError(f"{source}: no value for {', '.join(missing)} of {model.name} (the bench gives none)")
     resolved = model.resolve(dict(values)) if model.resolve else values

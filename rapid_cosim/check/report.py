@@ -107,8 +107,8 @@ def _unit_lines(checked, report: CheckReport) -> None:
     report.lines.append(f"explanation: TG Type I and the effect catalogue ({len(CATALOGUE)} effects: "
                         f"{', '.join(CATALOGUE)}), then pairs with the best")
     for s in checked.structures:
-        optional = (f"; with {', '.join(k.removeprefix('gov.') for k in s.optional)} free too "
-                    f"({s.carries or 'optional'})" if s.optional else "")
+        optional = "".join(f"; with {', '.join(k.removeprefix('gov.') for k in s.parts(e))} free too ({e})"
+                           for e in s.effects)
         report.lines.append(f"structure {s.name}: estimates {', '.join(k.removeprefix('gov.') for k in s.estimate)}"
                             f"{optional}")
 

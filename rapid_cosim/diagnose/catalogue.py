@@ -34,7 +34,7 @@ from typing import Mapping, Sequence
 BASE_BENCH = "iGrGen.TestBenches.StagedTest"
 INPUT_BENCH = "iGrGen.TestBenches.FrequencyInput"
 # The standard structures of iGrGen.Governors, each with the same two benches.
-STANDARD = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV")
+STANDARD = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV", "GAST")
 # The benches the effects are composed into: a staged step from a source block, or a
 # recorded frequency deviation (Hz) fed through the input f_dev; into TG Type I, or into a
 # standard structure, where only frequency-path and output effects apply (the valve-side
@@ -281,8 +281,10 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
     def feed(block: str) -> None:
         connects.append(f"connect({path}, {block});" if path else f"{block}.signal = -f_dev / f_nom;")
 
-    if "deadband" in effects:
-        lines.append(f"  Effects.Deadband db{_modifiers(values, 'db')};")
+    if "deadband" in effects:  # its band in Hz on the test's own frequency base
+        own = _modifiers({k: v for k, v in values.items() if k != "db.f_nom"}, "db")
+        base = "src.f_nom" if is_staged(base) else "f_nom"
+        lines.append(f"  Effects.Deadband db(f_nom = {base}{', ' + own[1:-1] if own else ''});")
         feed("db.u")
         path = "db.y"
     if "delay" in effects:

@@ -1,7 +1,7 @@
 """Records in the grid simulators' formats: PSS/E ``.dyr`` (:mod:`.psse_dyr`) and PSLF
-``.dyd`` (:mod:`.pslf_dyd`) of the standard governors TGOV1, IEEEG1, GGOV1 and HYGOV, both
-mapped to iGrGen parameters by one table per model (:mod:`.tables`, where every
-conversion is documented). Plain functions over dicts of parameter values: nothing here
+``.dyd`` (:mod:`.pslf_dyd`) of the standard governors TGOV1, IEEEG1, GGOV1, HYGOV and GAST
+and the deadband layouts TGOV1D, IEEEG1D, HYGOVD, both mapped to iGrGen parameters by one
+table per layout (:mod:`.layouts`; what a table is and every conversion: :mod:`.tables`). Plain functions over dicts of parameter values: nothing here
 knows of experiments, estimators or archives (as andes' ``io`` package).
 
 The inertia constant H and damping D that an electrical-power event estimates (the
@@ -20,7 +20,8 @@ from pathlib import Path
 
 from ..errors import ParameterError
 from . import pslf_dyd, psse_dyr
-from .tables import MODELS, ExchangeWarning, Record, Written, model_named
+from .layouts import LAYOUTS, MODELS, SUPPORTED, layout, model_named
+from .tables import ExchangeWarning, Other, Record, UnsupportedRecord, Written
 
 FORMATS = {"dyr": psse_dyr, "dyd": pslf_dyd}
 
@@ -62,5 +63,6 @@ def machine_note(values: dict[str, float], kind: str) -> str | None:
             "record, on the machine's MVA base")
 
 
-__all__ = ["MACHINE_FIELDS", "machine_note", "FORMATS", "MODELS", "ExchangeWarning", "Record", "Written", "format_of", "model_named", "pslf_dyd",
-           "psse_dyr", "read_record"]
+__all__ = ["MACHINE_FIELDS", "machine_note", "FORMATS", "LAYOUTS", "MODELS", "SUPPORTED", "ExchangeWarning", "Other",
+           "Record", "UnsupportedRecord", "Written", "format_of", "layout", "model_named", "pslf_dyd", "psse_dyr",
+           "read_record"]

@@ -1,4 +1,4 @@
-"""PSLF ``.dyd`` records of tgov1, ieeeg1, ggov1 and hygov: write one, read them back.
+"""PSLF ``.dyd`` records of tgov1, ieeeg1, ggov1, hygov and gast: write one, read them back.
 
 A ``.dyd`` record names its machine by bus number, bus name, base kV and unit id, then
 the model's base and data after a colon::
@@ -13,7 +13,10 @@ MVA base, the base of the pu values (unchanged from iGrGen, see :mod:`.tables`),
 be given when writing. Fields that PSLF has and PSS/E has not (ieeeg1's and hygov's
 deadbands ``db1``/``eps``/``db2`` and gate-power curves ``gv``/``pgv``) are not written, so
 PSLF takes its defaults (none); a record that gives them is rejected as a field the iGrGen
-model has not. PSS/E-only fields (IEEEG1's ``JBUS``/``M``, GGOV1's ``Trate``) have no PSLF
+model has not. A fit with a speed deadband (TGOV1, IEEEG1, HYGOV's ``db``) has no ``.dyd``
+layout here: PSLF's tgov1 has no deadband, and its ieeeg1 and hygov ``db1`` is in Hz with a
+hysteresis ``eps``, a form this package does not model; such a record is refused with
+that reason, and its ``.dyr`` (TGOV1D, IEEEG1D, HYGOVD) carries the deadband. PSS/E-only fields (IEEEG1's ``JBUS``/``M``, GGOV1's ``Trate``) have no PSLF
 keyword: ``mva=`` is the base.
 
 Sources and their limits: the keyword names and positional orders follow PSLF as public
@@ -33,8 +36,10 @@ from pathlib import Path
 from typing import Mapping
 
 from ..errors import ParameterError, RecordError
-from .tables import (MODELS, Model, Record, Written, choose, model_named, number_text, record_numbers,
-                     values_from_numbers)
+from .layouts import LAYOUTS, layout
+from .tables import Model, Other, Record, Written, choose, number_text, record_numbers, values_from_numbers
+
+PSLF_LAYOUTS = {name: m for name, m in LAYOUTS.items() if m.pslf}
 
 _TOKEN = re.compile(r"\"[^\"]*\"|'[^']*'|[^\s]+")
 PAIRS_PER_LINE = 6
@@ -45,7 +50,12 @@ def format_record(model: str, values: Mapping[str, float], *, bus: int, machine_
                   extra: Mapping[str, float] | None = None) -> tuple[str, dict[str, float]]:
     """The record text of iGrGen ``values`` (names without the bench's ``gov.``) and the
     dropped values (see :func:`.tables.record_numbers`)."""
-    table = model_named(model)
+    table = layout(model, values)
+    if not table.pslf:
+        theirs = ("has no deadband" if table.block == "TGOV1" else
+                  "has db1 in Hz with a hysteresis eps, another form of deadband")
+        raise ParameterError(f"{table.block} with a deadband (db = {values.get('db', 0):g} pu) has no PSLF layout "
+                             f"here: PSLF's {table.block.lower()} {theirs}; the .dyr's {table.name} record carries it")
     if mva is None or not mva > 0:
         raise ParameterError(f"a .dyd record needs the machine's MVA base (mva > 0), got {mva!r}")
     _power_controller(table, values.get("Kimw", 0.0), None, 0)
@@ -65,12 +75,12 @@ def write_record(path: str | Path, model: str, values: Mapping[str, float], *, b
     text, dropped = format_record(model, values, bus=bus, machine_id=machine_id, mva=mva, bus_name=bus_name, kv=kv,
                                   extra=extra)
     Path(path).write_text(text)
-    return Written(model_named(model).name, text, str(path), dropped)
+    return Written(layout(model, values).name, text, str(path), dropped)
 
 
-def parse_records(text: str, file: str = "<text>") -> tuple[list[Record], list[str]]:
-    """Every tgov1/ieeeg1/ggov1/hygov record of ``text``, and the other models' names
-    with their lines."""
+def parse_records(text: str, file: str = "<text>") -> tuple[list[Record], list[Other]]:
+    """Every tgov1/ieeeg1/ggov1/hygov/gast record of ``text``, and the other models'
+    records (their names, lines, bus and id)."""
     records, others = [], []
     for line, body in _logical_lines(text):
         head, colon, data = body.partition(":")
@@ -79,10 +89,11 @@ def parse_records(text: str, file: str = "<text>") -> tuple[list[Record], list[s
             if len(tokens) == 1:  # a section header: models, lodrep, end
                 continue
             raise RecordError("a record needs 'model bus \"name\" kv \"id\" : data'", file, line)
-        if not tokens or tokens[0].upper() not in MODELS:
-            others.append(f"{tokens[0] if tokens else '?'} (line {line})")
+        if not tokens or tokens[0].upper() not in PSLF_LAYOUTS:
+            others.append(Other(tokens[0] if tokens else "?", _int_or_none(tokens[1]) if len(tokens) > 1 else None,
+                                tokens[4].strip("\"'").strip() if len(tokens) > 4 else None, line))
             continue
-        table = MODELS[tokens[0].upper()]
+        table = PSLF_LAYOUTS[tokens[0].upper()]
         if len(tokens) < 5:
             raise RecordError(f"{table.pslf_name} needs bus, \"name\", kv and \"id\" before ':', got "
                               f"{' '.join(tokens[1:])!r}", file, line)
@@ -92,7 +103,7 @@ def parse_records(text: str, file: str = "<text>") -> tuple[list[Record], list[s
         values, extra = values_from_numbers(table, fields, file, line, mva)
         _power_controller(table, values.get("Kimw", 0.0), file, line)
         records.append(Record(table.name, values, bus, tokens[4].strip("\"'").strip(), mva, extra, file, line,
-                              tokens[2].strip("\"'").strip(), kv))
+                              tokens[2].strip("\"'").strip(), kv, family=table.block))
     return records, others
 
 
@@ -104,7 +115,7 @@ def read_record(path: str | Path, *, bus: int | None = None, machine_id: str | N
     except OSError as e:
         raise RecordError(f"cannot read the file: {e.strerror}", str(path)) from None
     records, others = parse_records(text, str(path))
-    return choose(records, others, str(path), bus, machine_id)
+    return choose(records, others, str(path), bus, machine_id, ", ".join(m.pslf_name for m in PSLF_LAYOUTS.values()))
 
 
 def _fields(table: Model, tokens: list[str], file: str, line: int) -> tuple[float | None, dict[str, tuple[str, str]]]:
@@ -175,6 +186,13 @@ def _logical_lines(text: str):
         parts = []
     if parts:
         yield start, " ".join(parts)
+
+
+def _int_or_none(text: str) -> int | None:
+    try:
+        return int(text)
+    except ValueError:
+        return None
 
 
 def _number(text: str, name: str, file: str, line: int, kind):

@@ -1,4 +1,5 @@
-"""PSS/E ``.dyr`` records of TGOV1, IEEEG1, GGOV1 and HYGOV: write one, read them back.
+"""PSS/E ``.dyr`` records of TGOV1, IEEEG1, GGOV1, HYGOV and GAST, and the deadband layouts
+TGOV1D, IEEEG1D and HYGOVD: write one, read them back.
 
 A ``.dyr`` record is free-format text ended by ``/``::
 
@@ -13,6 +14,10 @@ with the ICONs (integers) before the CONs, each in the order of the PSS/E Model 
   Wfnl Tb Tc Teng Tfload Kpload Kiload Ldref Dm Ropen Rclose Kimw Aset Ka Ta Trate db Tsa
   Tsb Rup Rdown
 * HYGOV: R r Tr Tf Tg VELM GMAX GMIN TW At Dturb qNL
+* GAST: R T1 T2 T3 AT KT VMAX VMIN Dturb
+* TGOV1D, IEEEG1D, HYGOVD (PowerWorld, ORNL GridKit): the plain model's fields, then dbH
+  dbL Trate. A block with a deadband is written in its D layout; without one, in the plain
+  layout, so a record without a deadband reads as it always did.
 
 Values are pu on the machine's MVA base, as in iGrGen, so they are written unchanged; the
 record carries no base (PSS/E takes MBASE from the ``.raw`` generator record, andes converts
@@ -34,7 +39,8 @@ from pathlib import Path
 from typing import Mapping
 
 from ..errors import RecordError
-from .tables import MODELS, Record, Written, choose, model_named, number_text, record_numbers, values_from_numbers
+from .layouts import LAYOUTS, SUPPORTED, layout
+from .tables import Other, Record, Written, choose, number_text, record_numbers, values_from_numbers
 
 _TOKEN = re.compile(r"'[^']*'|\"[^\"]*\"|[^\s,]+")
 PER_LINE = 5
@@ -43,8 +49,9 @@ PER_LINE = 5
 def format_record(model: str, values: Mapping[str, float], *, bus: int, machine_id: str = "1",
                   extra: Mapping[str, float] | None = None) -> tuple[str, dict[str, float]]:
     """The record text of iGrGen ``values`` (parameter names without the bench's ``gov.``)
-    and the dropped values (see :func:`.tables.record_numbers`)."""
-    table = model_named(model)
+    and the dropped values (see :func:`.tables.record_numbers`), in the layout that carries
+    them (TGOV1 with a deadband: TGOV1D)."""
+    table = layout(model, values)
     numbers, dropped = record_numbers(table, values, extra)
     head = f"{int(bus)} '{table.name}' {_machine_id(machine_id)}"
     texts = [number_text(v, f.integer) for f, v in numbers if f.psse is not None]
@@ -58,22 +65,22 @@ def write_record(path: str | Path, model: str, values: Mapping[str, float], *, b
     """Write one record to ``path`` (replacing the file)."""
     text, dropped = format_record(model, values, bus=bus, machine_id=machine_id, extra=extra)
     Path(path).write_text(text)
-    return Written(model_named(model).name, text, str(path), dropped)
+    return Written(layout(model, values).name, text, str(path), dropped)
 
 
-def parse_records(text: str, file: str = "<text>", *, mva: float | None = None) -> tuple[list[Record], list[str]]:
-    """Every TGOV1/IEEEG1/GGOV1/HYGOV record of ``text``, and the other models' names
-    with their lines (``"GENROU (line 3)"``). ``mva`` (the machine base, if known) lets a
-    GGOV1 record with ``Trate`` equal to it be read."""
+def parse_records(text: str, file: str = "<text>", *, mva: float | None = None) -> tuple[list[Record], list[Other]]:
+    """Every record of ``text`` in a layout this package reads, and the other models'
+    records (``GENROU (line 3)``, with their bus and id). ``mva`` (the machine base, if
+    known) lets a record with ``Trate`` equal to it be read."""
     records, others = [], []
     for line, tokens in _raw_records(text):
         if len(tokens) < 3:
             raise RecordError(f"a record needs at least IBUS 'MODEL' ID, got {' '.join(tokens)!r}", file, line)
         name = tokens[1].strip("'\"").strip()
-        if name.upper() not in MODELS:
-            others.append(f"{name} (line {line})")
+        if name.upper() not in LAYOUTS:
+            others.append(Other(name, _bus_or_none(tokens[0]), tokens[2].strip("'\"").strip(), line))
             continue
-        table = MODELS[name.upper()]
+        table = LAYOUTS[name.upper()]
         bus = _bus(tokens[0], file, line)
         numbers, own = tokens[3:], table.psse_fields
         if len(numbers) != len(own):
@@ -82,7 +89,8 @@ def parse_records(text: str, file: str = "<text>", *, mva: float | None = None) 
         fields = {f.key: (f.key, number_text(f.default, f.integer)) for f in table.fields}  # PSLF-only: neutral
         fields.update({f.key: (f.psse, t) for f, t in zip(own, numbers)})
         values, extra = values_from_numbers(table, fields, file, line, mva)
-        records.append(Record(table.name, values, bus, tokens[2].strip("'\"").strip(), None, extra, file, line))
+        records.append(Record(table.name, values, bus, tokens[2].strip("'\"").strip(), None, extra, file, line,
+                              family=table.block))
     return records, others
 
 
@@ -96,7 +104,7 @@ def read_record(path: str | Path, *, bus: int | None = None, machine_id: str | N
     except OSError as e:
         raise RecordError(f"cannot read the file: {e.strerror}", str(path)) from None
     records, others = parse_records(text, str(path), mva=mva)
-    return choose(records, others, str(path), bus, machine_id)
+    return choose(records, others, str(path), bus, machine_id, SUPPORTED)
 
 
 def _raw_records(text: str):
@@ -134,6 +142,13 @@ def _bus(text: str, file: str, line: int) -> int:
         return int(text)
     except ValueError:
         raise RecordError("a bus number must be an integer", file, line, "IBUS", text, "a positive integer") from None
+
+
+def _bus_or_none(text: str) -> int | None:
+    try:
+        return int(text)
+    except ValueError:
+        return None
 
 
 def _machine_id(machine_id: str) -> str:

@@ -1,5 +1,6 @@
-"""One table per standard model: the fields of its PSS/E and PSLF records and the iGrGen
-parameter each one carries, shared by :mod:`.psse_dyr` and :mod:`.pslf_dyd`.
+"""What a record table is: the fields of a PSS/E and PSLF record and the iGrGen parameter
+each one carries, shared by :mod:`.psse_dyr` and :mod:`.pslf_dyd`; the tables of the
+standard models themselves are in :mod:`.layouts`.
 
 Why a table: both formats are positional lists of numbers whose meaning is fixed by the
 simulator's model library, and a wrong position is a silent error. Keeping the mapping in
@@ -9,11 +10,12 @@ by construction.
 
 Conversions (the same for both formats)
 ---------------------------------------
-* **Bases.** All four iGrGen governors are in pu on the machine's MVA base, as the PSS/E
+* **Bases.** The iGrGen governors are in pu on the machine's MVA base, as the PSS/E
   Model Library and PSLF give them: values are written and read **unchanged**. A ``.dyr``
   record carries no base (PSS/E takes the machine's MBASE from the ``.raw`` generator
   record); a ``.dyd`` record states it as ``mva=``. GGOV1's ``Trate`` (PSS/E's turbine rating,
-  MW) is written 0, which PSS/E reads as "the machine base"; a record with another ``Trate``
+  MW; also the deadband layouts' last field) is written 0, which PSS/E reads as "the
+  machine base"; a record with another ``Trate``
   is read only when it equals the machine base given by the caller (the iGrGen model has
   no turbine base to convert to).
 * **Signs.** PSS/E's speed input is ``SPEED = w - 1``; the iGrGen blocks take
@@ -53,6 +55,13 @@ Conversions (the same for both formats)
   reader cannot read.
 * **Flags.** GGOV1's ``Rselect`` and ``Flag`` (PSS/E ICONs) are Integer parameters in
   iGrGen; they are written as integers. ``Rselect = -2`` has no iGrGen counterpart.
+* **Layouts of one block.** A block may be written in more than one layout: TGOV1 with a
+  deadband is the record TGOV1D (TGOV1's fields, then ``dbH``, ``dbL`` and ``Trate``). The
+  plain layout names the parameter it cannot carry with the layout that can
+  (``Dropped.layout``), and a writer takes that layout where the value differs from the
+  plain one's (:func:`layout_for`); a plain record read means the plain value (no
+  deadband). One parameter may fill two fields with a sign (``Field.scale``: ``dbL`` is
+  ``-db``); read back, they must agree (an asymmetric band is refused, not averaged).
 """
 
 from __future__ import annotations
@@ -85,6 +94,7 @@ class Field:
     zero_as: float | None = None  # a record's 0 is this iGrGen value (and is written back as 0)
     keep: bool = False  # no counterpart, any value accepted and kept in Record.extra
     choices: tuple[float, ...] | None = None  # the only values allowed (flags)
+    scale: float = 1.0  # the field states scale x the parameter (dbL = -db)
 
     @property
     def key(self) -> str:
@@ -96,7 +106,8 @@ class Field:
             return " or ".join(f"{c:g}" for c in self.choices)
         if self.param is None and not self.keep:
             return f"{self.default:g} (no iGrGen counterpart)"
-        text = f"{self.lo:g} to {self.hi:g}"
+        lo, hi = sorted((self.lo * self.scale, self.hi * self.scale))
+        text = f"{lo:g} to {hi:g}"
         return f"0 or {text}" if self.zero_as is not None else text
 
 
@@ -107,13 +118,17 @@ class Dropped:
     ``operating``: an operating point, which the grid simulator sets from its power flow
     for each event; it is no part of a record, so a fit may hold it at another value per
     test. ``read_as``: the value a record read back means, where the parameter chooses
-    how other fields are used (IEEEG1's ``K3_rest`` 0: K3 as the record states it)."""
+    how other fields are used (IEEEG1's ``K3_rest`` 0: K3 as the record states it).
+    ``layout``: the layout whose fields carry the parameter (TGOV1's ``db``: TGOV1D); a
+    record of this layout means its ``default``."""
 
     param: str
     default: float | None  # None: nothing to warn against when it is not written
     why: str
     operating: bool = False
     read_as: float | None = None
+    layout: str | None = None
+    newer: bool = False  # added to the block later: a bench built before has none (an older archive's)
 
 
 @dataclass(frozen=True)
@@ -128,6 +143,13 @@ class Model:
     dropped: tuple[Dropped, ...]
     resolve: Callable[[dict], dict] | None = None  # iGrGen values -> those the fields carry (K3 in use)
     derived: str = ""  # what resolve derives, in words
+    family: str = ""  # the iGrGen block this layout writes (TGOV1D: TGOV1); "": the model's own name
+    pslf: bool = True  # PSLF has the layout (a .dyd record of it)
+
+    @property
+    def block(self) -> str:
+        """The iGrGen block (and structure) the layout is a record of."""
+        return self.family or self.name
 
     @property
     def pslf_name(self) -> str:
@@ -146,6 +168,13 @@ class Model:
         operating = {d.param for d in self.dropped if d.operating}
         return tuple(p for p in self.params if p not in operating)
 
+    @property
+    def required_params(self) -> tuple[str, ...]:
+        """The record's parameters every bench of the block has (not those added later,
+        :attr:`Dropped.newer`, which an older archive's bench lacks: the plain value)."""
+        newer = {d.param for d in self.dropped if d.newer}
+        return tuple(p for p in self.record_params if p not in newer)
+
     def read_values(self, values: Mapping[str, float]) -> dict[str, float]:
         """``values`` as a record states them: with the values its reading implies
         (:attr:`Dropped.read_as`)."""
@@ -158,7 +187,8 @@ class Model:
         point, the smooth limits' sharpness, the bench's other blocks). A structure's
         ``K3_rest = 1`` is a way to estimate, never a reason to ignore the K3 a file
         states."""
-        stated = {prefix + k: float(v) for k, v in self.read_values(values).items()}
+        absent = {d.param: d.default for d in self.dropped if d.layout is not None}  # a TGOV1 record: no deadband
+        stated = {prefix + k: float(v) for k, v in {**absent, **self.read_values(values)}.items()}
         covered = {prefix + f.param for f in self.fields if f.param} | set(stated)
         return {**{k: v for k, v in context.items() if k not in covered}, **stated}
 
@@ -170,99 +200,21 @@ class Model:
         return {f.pslf: f for f in self.fields if f.pslf is not None}
 
 
-_OPERATING = "operating point: the grid simulator initialises it from its power flow"
-_SHARP = "sharpness of iGrGen's smooth limits: the grid simulators' limits are exact"
-
-
-def _common(*extra: Dropped) -> tuple[Dropped, ...]:
-    return (Dropped("p_ref", None, _OPERATING, operating=True), Dropped("eps_v", 1e-4, _SHARP), Dropped("K_lim", 100.0, _SHARP),
-            *extra)
-
-
-def _f(psse: str, param: str | None, default: float, lo: float = -math.inf, hi: float = math.inf, **kw) -> Field:
-    return Field(psse, kw.pop("pslf", psse.lower()), param, default, lo, hi, **kw)
-
-
-def _none(psse: str, default: float, pslf: str | None = None) -> Field:
-    """A field without a counterpart that must hold ``default`` for the iGrGen model."""
-    return Field(psse, pslf, None, default)
-
-
-TGOV1 = Model("TGOV1", (
-    _f("R", "R", 0.05, 0.001, 1), _f("T1", "T1", 0.5, 0.001, 100), _f("VMAX", "VMAX", 1.0, 0, 2),
-    _f("VMIN", "VMIN", 0.0, 0, 2), _f("T2", "T2", 2.5, 0, 100), _f("T3", "T3", 7.5, 0.001, 100),
-    _f("Dt", "Dt", 0.0, 0, 10),
-), ("r", "t1", "vmax", "vmin", "t2", "t3", "dt"), _common())
-
-def _ieeeg1_stages(values: dict) -> dict:
-    """With K3_rest = 1 the record carries the K3 in use, 1 - K1 - K5 - K7 (as the model's
-    ``K3s``): the stages sum to one in the .dyr as in the model. A missing K1, K5 or K7 is
-    the model's default, as in the model."""
-    if values.get("K3_rest", 0.0) <= 0.5:
-        return values
-    rest = 1.0 - values.get("K1", 0.2) - values.get("K5", 0.5) - values.get("K7", 0.0)
-    return {**values, "K3": rest}
-
-
-IEEEG1 = Model("IEEEG1", (
-    Field("JBUS", None, None, 0.0, integer=True), Field("M", None, None, 0.0, integer=True),
-    _f("K", "K", 20.0, 1, 100), _f("T1", "T1", 0.001, 0.001, 100, zero_as=0.001), _f("T2", "T2", 0.0, 0, 100),
-    _f("T3", "T3", 0.1, 0.001, 10), _f("Uo", "Uo", 1.0, 1e-4, 10), _f("Uc", "Uc", -1.0, -10, -1e-4),
-    _f("PMAX", "PMAX", 1.0, 0, 2), _f("PMIN", "PMIN", 0.0, 0, 2), _f("T4", "T4", 0.3, 0.001, 100),
-    _f("K1", "K1", 0.2, 0, 1), _none("K2", 0.0, "k2"), _f("T5", "T5", 7.0, 0.001, 100), _f("K3", "K3", 0.3, 0, 1),
-    _none("K4", 0.0, "k4"), _f("T6", "T6", 0.6, 0.001, 100), _f("K5", "K5", 0.5, 0, 1), _none("K6", 0.0, "k6"),
-    _f("T7", "T7", 0.05, 0.001, 100), _f("K7", "K7", 0.0, 0, 1), _none("K8", 0.0, "k8"),
-), ("k", "t1", "t2", "t3", "uo", "uc", "pmax", "pmin", "t4", "k1", "k2", "t5", "k3", "k4", "t6", "k5", "k6", "t7",
-    "k7", "k8"), _common(Dropped("K3_rest", None, "with 1, written into K3 as 1 - K1 - K5 - K7; a record read states "
-                                 "its K3 (0)", read_as=0.0)), _ieeeg1_stages,
-    "K3 = 1 - K1 - K5 - K7, the rest of the shaft (K3_rest = 1)")
-
-GGOV1 = Model("GGOV1", (
-    _f("Rselect", "Rselect", 1.0, -1, 1, integer=True, choices=(-1.0, 0.0, 1.0)),
-    _f("Flag", "Flag", 1.0, 0, 1, integer=True, choices=(0.0, 1.0)),
-    _f("R", "R", 0.04, 0, 1), _f("Tpelec", "Tpelec", 1.0, 0.001, 10), _f("maxerr", "maxerr", 0.05, 0, 1),
-    _f("minerr", "minerr", -0.05, -1, 0), _f("Kpgov", "Kpgov", 10.0, 0, 100), _f("Kigov", "Kigov", 2.0, 0, 100),
-    _f("Kdgov", "Kdgov", 0.0, 0, 100), _f("Tdgov", "Tdgov", 1.0, 0.001, 10), _f("Vmax", "Vmax", 1.0, 0, 2),
-    _f("Vmin", "Vmin", 0.15, 0, 1), _f("Tact", "Tact", 0.5, 0.001, 10), _f("Kturb", "Kturb", 1.5, 0.1, 5),
-    _f("Wfnl", "Wfnl", 0.2, 0, 1), _f("Tb", "Tb", 0.5, 0.001, 100), _f("Tc", "Tc", 0.0, 0, 100),
-    _none("Teng", 0.0, "teng"), _f("Tfload", "Tfload", 3.0, 0.001, 100), _f("Kpload", "Kpload", 2.0, 0, 100),
-    _f("Kiload", "Kiload", 0.67, 0, 100), _f("Ldref", "Ldref", 1.0, 0, 2), _f("Dm", "Dm", 0.0, 0, 1),
-    _f("Ropen", "Ropen", 0.1, 1e-4, 100), _f("Rclose", "Rclose", -0.1, -100, -1e-4), _f("Kimw", "Kimw", 0.0, 0, 1),
-    _f("Aset", "aset", 0.1, -1, 10), _f("Ka", "Ka", 10.0, 0, 100), _f("Ta", "Ta", 0.1, 0.001, 10),
-    Field("Trate", None, None, 0.0, 0.0, math.inf, keep=True), _f("db", "db", 0.0, 0, 0.1),
-    _f("Tsa", "Tsa", 4.0, 0, 100), _f("Tsb", "Tsb", 5.0, 0.001, 100),
-    Field("Rup", "rup", None, 99.0, keep=True), Field("Rdown", "rdown", None, -99.0, keep=True),
-    Field(None, "pmwset", None, 0.0, keep=True),
-), ("r", "rselect", "tpelec", "maxerr", "minerr", "kpgov", "kigov", "kdgov", "tdgov", "vmax", "vmin", "tact",
-    "kturb", "wfnl", "tb", "tc", "flag", "teng", "tfload", "kpload", "kiload", "ldref", "dm", "ropen", "rclose",
-    "kimw", "pmwset", "aset", "ka", "ta", "db", "tsa", "tsb", "rup", "rdown"),
-    _common(Dropped("Pmwset", None, _OPERATING + " (PSS/E sets it to the initial power)", operating=True),
-            Dropped("K_track", 10.0, "tracking gain of iGrGen's smooth anti-windup; PSS/E's gate is exact"),
-            Dropped("DELT", 0.005, "PSS/E's own time step, which iGrGen's acceleration limiter stands in for")))
-
-HYGOV = Model("HYGOV", (
-    _f("R", "R", 0.05, 0.001, 1, pslf="rperm"), _f("r", "r", 0.3, 0.001, 5, pslf="rtemp"),
-    _f("Tr", "Tr", 5.0, 0.001, 100),
-    _f("Tf", "Tf", 0.05, 0.001, 10), _f("Tg", "Tg", 0.5, 0.001, 10), _f("VELM", "VELM", 0.2, 1e-4, 10),
-    _f("GMAX", "GMAX", 1.0, 0, 2), _f("GMIN", "GMIN", 0.0, 0, 2), _f("TW", "TW", 1.0, 0.01, 10),
-    _f("At", "At", 1.2, 0.5, 2), _f("Dturb", "Dturb", 0.5, 0, 5), _f("qNL", "qNL", 0.08, 0, 0.5),
-), ("rperm", "rtemp", "tr", "tf", "tg", "velm", "gmax", "gmin", "tw", "at", "dturb", "qnl"), _common())
-
-MODELS: dict[str, Model] = {m.name: m for m in (TGOV1, IEEEG1, GGOV1, HYGOV)}
-
-
-def model_named(name: str) -> Model:
-    """The table of a model, by PSS/E or PSLF name (any case)."""
-    model = MODELS.get(name.upper())
-    if model is None:
-        raise ParameterError(f"no record table for model {name!r}; the standard models are {', '.join(MODELS)}")
+def layout_for(model: Model, values: Mapping[str, float], layouts: Mapping[str, Model]) -> Model:
+    """The layout that carries ``values``: ``model``, or the layout its dropped parameter
+    names where the value is not the plain one (TGOV1 with a deadband: TGOV1D)."""
+    for d in model.dropped:
+        if d.layout is not None and d.param in values and not math.isclose(float(values[d.param]), d.default,
+                                                                             rel_tol=0, abs_tol=0):
+            return layouts[d.layout]
     return model
 
 
 @dataclass(frozen=True)
 class Record:
     """A governor record read from a file: its iGrGen parameter values (pu on the machine
-    base), where it applies, and the fields that have no iGrGen counterpart (``extra``)."""
+    base), where it applies, and the fields that have no iGrGen counterpart (``extra``).
+    ``model`` is the layout as written (TGOV1D), ``family`` its iGrGen block (TGOV1)."""
 
     model: str
     values: dict[str, float]
@@ -274,6 +226,11 @@ class Record:
     line: int = 0
     bus_name: str | None = None
     kv: float | None = None
+    family: str = ""  # the iGrGen block (and structure) of the layout; "": model
+
+    @property
+    def block(self) -> str:
+        return self.family or self.model
 
 
 @dataclass(frozen=True)
@@ -298,6 +255,10 @@ def record_numbers(model: Model, values: Mapping[str, float],
         raise ParameterError(f"{model.name} has no parameter {', '.join(unknown)}; its parameters: {', '.join(model.params)}")
     extra = dict(extra or {})
     values = model.resolve(dict(values)) if model.resolve else values
+    for d in model.dropped:
+        if d.layout is not None and d.param in values and float(values[d.param]) != d.default:
+            raise ParameterError(f"{model.name} cannot carry {d.param} = {values[d.param]!r} (the {d.layout} "
+                                 f"record does)")
     numbers = []
     for f in model.fields:
         if f.param is not None:
@@ -308,6 +269,7 @@ def record_numbers(model: Model, values: Mapping[str, float],
                                                            if f.param == "K3" and model.resolve else ""))
             if f.zero_as is not None and math.isclose(v, f.zero_as, rel_tol=1e-12):
                 v = 0.0
+            v = f.scale * v + 0.0  # + 0.0: no negative zero in a file
         else:
             v = float(extra.pop(f.key, f.default))
         if not math.isfinite(v):
@@ -315,7 +277,7 @@ def record_numbers(model: Model, values: Mapping[str, float],
         numbers.append((f, v))
     if extra:
         raise ParameterError(f"{model.name} has no record field {', '.join(sorted(extra))} without an iGrGen counterpart")
-    dropped = {d.param: float(values[d.param]) for d in model.dropped if d.param in values}
+    dropped = {d.param: float(values[d.param]) for d in model.dropped if d.param in values and d.layout is None}
     for d in model.dropped:
         if d.default is not None and d.param in dropped and not math.isclose(dropped[d.param], d.default,
                                                                               rel_tol=1e-9):
@@ -352,8 +314,14 @@ def values_from_numbers(model: Model, numbers: Mapping[str, tuple[str, str]], fi
             continue
         if f.zero_as is not None and v == 0:
             v = f.zero_as
+        v = v / f.scale + 0.0
         if not f.lo <= v <= f.hi:
             raise RecordError(f"outside the iGrGen {model.name}'s range", file, line, shown, text, f.allowed())
+        if f.param in values and not math.isclose(values[f.param], v, rel_tol=1e-9, abs_tol=1e-15):
+            first = next(g for g in model.fields if g.param == f.param)
+            raise RecordError(f"{f.key} must be {f.scale / first.scale:g} x {first.key} (the iGrGen {model.block} "
+                              f"has one {f.param}: an asymmetric band is not modelled)", file, line, shown, text,
+                              f"{f.scale * values[f.param]:.6g}")
         values[f.param] = v
     return model.read_values(values), extra
 
@@ -363,14 +331,59 @@ def number_text(value: float, integer: bool = False) -> str:
     return str(int(value)) if integer else repr(float(value))
 
 
-def choose(records: list[Record], others: list[str], file: str, bus: int | None, machine_id: str | None) -> Record:
-    """The one record matching ``bus``/``machine_id`` (shared by both formats)."""
-    chosen = [r for r in records if (bus is None or r.bus == bus) and (machine_id is None or r.machine_id == machine_id)]
+@dataclass(frozen=True)
+class Other:
+    """A record of a model no table reads (a GENROU, a WSIEG1), where it applies."""
+
+    model: str
+    bus: int | None
+    machine_id: str | None
+    line: int
+
+    def __str__(self) -> str:
+        return f"{self.model} (line {self.line})"
+
+
+# Turbine-governor models of the PSS/E and PSLF libraries (and PowerWorld's deadband
+# layouts): a record of one of these at the machine's bus and id is its governor, one that
+# no table reads. Machines, exciters and stabilisers share the bus and id and are not.
+GOVERNOR_MODELS = frozenset(name.upper() for name in (
+    "TGOV1", "TGOV1D", "TGOV1N", "TGOV1NDB", "TGOV2", "TGOV3", "TGOV4", "TGOV5", "IEEEG1", "IEEEG1D", "IEEEG2",
+    "IEEEG3", "IEESGO", "GAST", "GASTD", "GAST2A", "GASTWD", "GASTPTI", "GGOV1", "GGOV1D", "GGOV2", "GGOV3",
+    "HYGOV", "HYGOVD", "HYGOV2", "HYGOV2D", "HYGOV4", "HYGOVM", "HYGOVT", "HYGOVR", "HYG3", "WSIEG1", "WEHGOV",
+    "WESGOV", "WPIDHY", "WSHYDD", "WSHYGP", "DEGOV", "DEGOV1", "DEGOV1D", "CRCMGV", "IVOGO", "PIDGOV", "PIDGOVD",
+    "TURCZT", "URGS3T", "BBGOV1", "H6B", "H6BD", "G2WSCC", "GPWSCC", "W2301", "LM2500", "LM6000", "CCBT1", "CCST3",
+    "TGOV1DB", "HYGOVDB"))
+
+
+class UnsupportedRecord(RecordError):
+    """The machine's governor record is of a model this toolkit does not carry: a fleet
+    lists its unit as not supported rather than stopping."""
+
+    def __init__(self, other: Other, file: str, supported: str):
+        self.model = other.model
+        super().__init__(f"the record on file for bus {other.bus} id {other.machine_id} is {other.model}: not "
+                         "supported", file, other.line, None, None, supported)
+
+
+def choose(records: list[Record], others: list[Other], file: str, bus: int | None, machine_id: str | None,
+           supported: str) -> Record:
+    """The one record matching ``bus``/``machine_id`` (shared by both formats); ``supported``
+    names the layouts read, for the error. Where none matches but a record of another
+    model does, that is said (:class:`UnsupportedRecord`)."""
+    def here(r) -> bool:
+        return (bus is None or r.bus == bus) and (machine_id is None or r.machine_id == machine_id)
+
+    chosen = [r for r in records if here(r)]
     if len(chosen) == 1:
         return chosen[0]
-    models = ", ".join(MODELS)
+    models = supported
+    theirs = [o for o in others if o.model.upper() in GOVERNOR_MODELS and (bus is not None or machine_id is not None)
+              and here(o)]
+    if not chosen and len(theirs) == 1:
+        raise UnsupportedRecord(theirs[0], file, models)
     if not records:
-        found = f"; it holds {', '.join(others)}" if others else "; it holds no record"
+        found = f"; it holds {', '.join(map(str, others))}" if others else "; it holds no record"
         raise RecordError(f"no {models} record{found}", file, None, None, None, models)
     listed = ", ".join(f"{r.model} at bus {r.bus} id {r.machine_id} (line {r.line})" for r in records)
     which = "none" if not chosen else "several"

@@ -249,6 +249,8 @@ UNIT_FILE = FileKind("Unit file", "unit.toml", "A unit folder's file (rapid_cosi
                      "the held-out ones, the structures its record may take. Paths are relative to it.", (
     Section("unit", (
         Key("name", STR, "", "the unit's folder name", "", "the unit's name in the story and the report"),
+        Key("kind", STR, "", "none", ("steam", "gas", "hydro"), "the kind of plant: without `[structures]`, the unit "
+            "gets the shipped standard structures of its kind (steam TGOV1, IEEEG1; gas GAST, GGOV1; hydro HYGOV)"),
         Key("mva", NUM, "MVA", "none", "1 to 5000", "the machine's MVA base; a PSLF `.dyd` record needs it"),
         Key("bus", "integer", "", lit(1), "1 to 999999", "the record's bus in the grid operator's case"),
         Key("machine_id", STR, "", lit("1"), "", "the machine's id at that bus"),
@@ -258,9 +260,12 @@ UNIT_FILE = FileKind("Unit file", "unit.toml", "A unit folder's file (rapid_cosi
         Key("holdout", STRS, "", lit([]), "names of experiments of `configs`", "kept out of the fits, to confirm it"),
     ), "The staged tests and recorded events."),
     Section("structures", (
-        Key("files", STRS, "", "`structures/<name>.toml` of TGOV1, IEEEG1, GGOV1, HYGOV", "existing structure files",
-            "the standard structures the record may take"),
-    ), "The structure files (below)."),
+        Key("files", STRS, "", "none", "existing structure files", "structure files the record may take"),
+        Key("standard", STRS, "", "none", "TGOV1, IEEEG1, GGOV1, HYGOV, GAST, TGTypeI",
+            "shipped standard structures the record may take, by name"),
+    ), "The structure files (below). Without this section: the shipped standard structures of the unit's `kind`; "
+       "with no kind, the unit's own `structures/<name>.toml` of the standard names where it has that folder, "
+       "else every shipped standard structure."),
 ))
 
 STRUCTURE_FILE = FileKind("Structure file", "structures/<name>.toml", "One governor structure (rapid_cosim/"
@@ -276,8 +281,9 @@ STRUCTURE_FILE = FileKind("Structure file", "structures/<name>.toml", "One gover
     Section("optional", (), "Parts freed only where the data call for them (IEEEG1's valve rates).",
             open=Key("<parameter>", TABLE, "", "none", "not also fixed or estimated", "`[optional.<parameter>]`")),
     Section("optional.<parameter>", (
-        Key("carries", STR, "", lit(""), "an effect of the catalogue (`rate_limit`); one per file",
-            "what the optional parts carry"), *ESTIMATE_ENTRY.keys,
+        Key("carries", STR, "", lit("optional"), "an effect of the catalogue (`rate_limit`, `deadband`)",
+            "what the optional part carries: the parts of one effect are freed together and apart, each effect's "
+            "on its own"), *ESTIMATE_ENTRY.keys,
     ), "An `[estimate]` entry and what it carries."),
 ))
 

@@ -47,7 +47,7 @@ def check_entry(entry: UnitEntry, *, source: ModelSource = ModelSource()) -> Ent
         out.findings.append(finding(e))
         return out
     names = [s.name for s in out.unit.structures]
-    if out.record.model not in names and len(out.unit.structures) == len(unit.structures):
+    if out.record.block not in names and len(out.unit.structures) == len(unit.structures):
         out.findings.append(Finding(str(unit.path), "structures.files",
                                     f"the record on file ({entry.record}, line {out.record.line}) is "
                                     f"{out.record.model}, and the unit's structures ({', '.join(names)}) have none: "

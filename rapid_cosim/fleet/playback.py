@@ -124,7 +124,7 @@ def structure_for(model: str, structures: list[Path]) -> Structure:
 def play_back(record: Record, experiments: list, structures: list[Path], tolerances: Tolerances, *,
               source: ModelSource, noise_fits: dict | None = None, seed: int = 0) -> Playback:
     """``record`` (iGrGen values of its model) on ``experiments`` (module docstring)."""
-    structure = structure_for(record.model, structures)
+    structure = structure_for(record.block, structures)
     as_read, values = structure.playing(record.values)
     noise_fits = noise_fits or campaign_noise(experiments)
     inputs = inputs_from_experiments(on_structure(as_read, experiments, noise_fits), source=source)

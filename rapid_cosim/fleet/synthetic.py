@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from ..compiler.source import ModelSource
+from ..structures.standard import standard_file
 
 EVENT = Path("electrical") / "tgov1_on"  # under the experiments folder the caller names
 STRUCTURES = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV", "TGTypeI")
@@ -115,11 +116,11 @@ def draw_unit(k: int, seed: int) -> UnitPlan:
 
 
 def structure_files(plan: UnitPlan, folder: Path, experiments: Path) -> list[Path]:
-    """The four standard structure files (``experiments/structures``), IEEEG1's
-    documenting TG Type I's lead-lag for a TG Type I unit (its record is that IEEEG1)."""
+    """The four classic standard structure files (shipped, :mod:`rapid_cosim.structures.standard`),
+    IEEEG1's documenting TG Type I's lead-lag for a TG Type I unit (its record is that IEEEG1)."""
     out = []
     for name in ("TGOV1", "IEEEG1", "GGOV1", "HYGOV"):
-        text = (experiments / "structures" / f"{name}.toml").read_text()
+        text = standard_file(name).read_text()
         if name == "IEEEG1" and plan.structure == "TGTypeI":
             text = text.replace('"gov.T1" = 0.001', f'"gov.T1" = {TGTYPEI_DOC["Tc"]}').replace(
                 '"gov.T2" = 0.0', f'"gov.T2" = {TGTYPEI_DOC["T3"]}').replace(

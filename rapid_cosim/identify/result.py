@@ -11,18 +11,22 @@ from typing import Sequence
 from ..diagnose.catalogue import NONE, VerdictKind
 
 # What each standard structure can represent of the effect catalogue, as its own
-# parameters (PES-TR1 2013 and the PSS/E Model Library block diagrams), and in words.
-# An optional part (IEEEG1's Uo/Uc) carries its effect only when it was freed.
+# parameters (PES-TR1 2013 and the PSS/E Model Library block diagrams; the deadbands in the
+# D layouts of PowerWorld and ORNL GridKit), and in words. A part its structure file makes
+# optional (IEEEG1's Uo/Uc, the deadbands) carries its effect only when it was freed.
 CARRIES: dict[str, tuple[tuple[str, ...], str]] = {
-    "TGOV1": ((), "TGOV1 has valve position limits only: no rate limits, deadband, delay or load controller"),
-    "IEEEG1": (("rate_limit",), "IEEEG1 has valve rate limits (Uo, Uc) and position limits; no deadband, "
-                                "delay or load controller"),
+    "TGOV1": (("deadband",), "TGOV1 has valve position limits and, written as TGOV1D, a speed deadband; no rate "
+                             "limits, delay or load controller"),
+    "IEEEG1": (("rate_limit", "deadband"), "IEEEG1 has valve rate limits (Uo, Uc), position limits and, written "
+                                           "as IEEEG1D, a speed deadband; no delay or load controller"),
     "GGOV1": (("rate_limit", "deadband", "output_limit"),
               "GGOV1 has valve rate limits, a speed deadband and a load (temperature) limiter; no delay or "
               "separate load controller"),
-    "HYGOV": ((), "HYGOV has one gate velocity limit, the same both ways, and gate position limits"),
+    "HYGOV": (("deadband",), "HYGOV has one gate velocity limit, the same both ways, gate position limits and, "
+                             "written as HYGOVD, a speed deadband"),
+    "GAST": (("output_limit",), "GAST has fuel valve position limits and a temperature (load) limit; no rate "
+                                "limits, deadband, delay or load controller"),
 }
-OPTIONAL_CARRIES = {"IEEEG1": ("rate_limit",)}  # carried only with the optional parts free
 DELIVERED = {"dyr": "PSS/E record (.dyr)", "dyd": "PSLF record (.dyd)", "report": "validation report",
              "pdf": "validation report (PDF)"}
 
@@ -48,11 +52,12 @@ def recording_story(recordings: dict[str, dict]) -> list[str]:
     return lines
 
 
-def cannot_carry(structure: str, effects: list[str], *, freed: bool) -> list[str]:
-    """The explanation's effects that ``structure`` (as fitted) has no part for."""
-    carried = set(CARRIES.get(structure, ((), ""))[0])
-    if not freed:
-        carried -= set(OPTIONAL_CARRIES.get(structure, ()))
+def cannot_carry(structure: str, effects: Sequence[str], *, optional: Sequence[str] = (),
+                 freed: str | None = None) -> list[str]:
+    """The explanation's effects that ``structure`` as fitted has no part for: its
+    parts, less those its file makes optional (``optional``: the effects they carry) but
+    the one the fit freed."""
+    carried = (set(CARRIES.get(structure, ((), ""))[0]) - set(optional)) | ({freed} if freed else set())
     return [e for e in effects if e not in carried]
 
 

@@ -4,6 +4,7 @@ in the grid operator's case::
 
     [unit]
     name = "Unit 1"
+    kind = "steam"          # steam, gas or hydro: the standard structures it gets by default
     mva = 400.0             # the machine's MVA base: a PSLF .dyd record needs it (optional)
     bus = 1                 # where the record goes in the grid operator's case
     machine_id = "1"
@@ -12,8 +13,15 @@ in the grid operator's case::
     configs = ["test1", "test2", "event1"]   # staged tests, recorded events (CSV, COMTRADE, PMU CSV)
     holdout = ["test2"]     # names of experiments kept out of the fits to confirm the verdict
 
-    [structures]            # the standard models a record may take; default: the four standard
-    files = ["structures/TGOV1.toml", "structures/IEEEG1.toml"]   # ones, structures/<name>.toml
+    [structures]            # the structures a record may take (optional, see below)
+    files = ["structures/TGOV1.toml"]   # structure files, relative to this file
+    standard = ["IEEEG1"]               # and/or the shipped standard ones, by name
+
+Without ``[structures]``, a unit gets the shipped standard structures of its kind
+(:mod:`rapid_cosim.structures.standard`: steam TGOV1 and IEEEG1, gas GAST and GGOV1,
+hydro HYGOV); a unit of no stated kind gets its own ``structures/<name>.toml`` of the
+standard names where it has that folder (as units made before the kinds had), else every
+shipped standard structure.
 
 The tests' configs hold the documented constants of TG Type I (the explanation's base);
 each structure file holds its own (given directly or as ``documented = "unit.dyr"``, a
@@ -26,10 +34,10 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..diagnose.catalogue import STANDARD
 from ..data import close_matches
 from ..errors import ConfigError
 from ..experiment.schema import UNIT_FILE
+from ..structures.standard import STANDARD_FILES, kind_files, standard_file
 
 MVA_RANGE = (1.0, 5000.0)
 KEYS = UNIT_FILE.accepted()  # section -> its keys, as docs/config.md lists them
@@ -56,6 +64,7 @@ class Unit:
     holdout: tuple[str, ...]
     structures: tuple[Path, ...]
     path: Path
+    kind: str | None = None  # steam, gas, hydro: the standard structures by default
 
     @classmethod
     def load(cls, path: str | Path) -> "Unit":
@@ -98,17 +107,36 @@ class Unit:
             if not p.is_file():
                 raise ConfigError(f"{c}: no such experiment config ({p})", str(path), "tests.configs")
             found.append(p)
-        default = [folder / "structures" / f"{s}.toml" for s in STANDARD]
-        listed = raw.get("structures", {}).get("files", [])
-        if not isinstance(listed, list) or not all(isinstance(f, str) for f in listed):
-            raise ConfigError(f"files must list structure files, e.g. [\"structures/TGOV1.toml\"], got {listed!r}",
-                              str(path), "structures.files")
-        files = [folder / f for f in listed] or default
-        missing = [str(f) for f in files if not f.is_file()]
-        if missing:
-            raise ConfigError(f"no such structure file: {', '.join(missing)}", str(path), "structures.files")
+        kind = head.get("kind")
+        if kind is not None and not isinstance(kind, str):
+            raise ConfigError(f"kind = {kind!r}: steam, gas or hydro", str(path), "unit.kind")
+        files = _structure_files(raw.get("structures"), folder, kind, str(path))
         holdout = tests.get("holdout", [])
         if not isinstance(holdout, list) or not all(isinstance(h, str) for h in holdout):
             raise ConfigError("holdout must list experiment names", str(path), "tests.holdout")
         return cls(str(head.get("name", folder.name)), mva, bus,
-                   str(head.get("machine_id", "1")), tuple(found), tuple(holdout), tuple(files), path)
+                   str(head.get("machine_id", "1")), tuple(found), tuple(holdout), tuple(files), path, kind)
+
+
+def _structure_files(section: dict | None, folder: Path, kind: str | None, where: str) -> list[Path]:
+    """The unit's structure files: those ``[structures]`` lists (``files`` relative to the
+    unit file, ``standard`` by name), else those of its kind (module docstring)."""
+    if kind is not None:
+        defaults = kind_files(kind, where=where, key="unit.kind")
+    else:
+        own = [folder / "structures" / f"{s}.toml" for s in STANDARD_FILES]
+        defaults = [p for p in own if p.is_file()] or kind_files(None)
+    if section is None:
+        return defaults
+    listed, named = section.get("files", []), section.get("standard", [])
+    for key, value in (("files", listed), ("standard", named)):
+        if not isinstance(value, list) or not all(isinstance(f, str) for f in value):
+            example = '["structures/TGOV1.toml"]' if key == "files" else '["TGOV1", "IEEEG1"]'
+            raise ConfigError(f"{key} must list {'structure files' if key == 'files' else 'standard structures'}, "
+                              f"e.g. {example}, got {value!r}", where, f"structures.{key}")
+    files = [folder / f for f in listed] + [standard_file(n, where=where, key="structures.standard") for n in named]
+    missing = [str(f) for f in files if not f.is_file()]
+    if missing:
+        raise ConfigError(f"no such structure file: {', '.join(missing)} (the shipped standard ones are named by "
+                          f"[structures] standard = [...], or by [unit] kind)", where, "structures.files")
+    return files or defaults

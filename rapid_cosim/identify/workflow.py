@@ -38,6 +38,7 @@ from ..compiler.source import ModelSource
 from ..diagnose.context import METHOD
 from ..diagnose.selection import THRESHOLD
 from ..structures.structure import Structure, on_structure
+from ..structures.identifiability import REL_WEAK as WEAK_SE
 from ..structures.select import Calibrations, StructureFit, StructureVerdict, select_structure
 from ..diagnose.null import KeptReplicates
 from ..diagnose.result import Diagnosis
@@ -155,28 +156,56 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
     freed = min(variants, key=lambda f: f.bic) if variants else None  # the parts the data call for
     use = freed if freed is not None and freed.bic <= plain.bic - THRESHOLD else plain
     effects = list(explanation.named.effects) if explanation is not None else []
-    missing = cannot_carry(structure.name, effects, freed=use is freed)
+    kept_effect = structure.freed_effect(use.name)
+    missing = cannot_carry(structure.name, effects, optional=structure.effects, freed=kept_effect)
     explained = {t.test: t for t in explanation.adequacy.after.tests} if explanation is not None else {}
     per_test = {name: TestFidelity(t.rmse_over_noise, t.variance_ratio, t.p_holm, t.adequate,
                                    explained[name].rmse_over_noise if name in explained else None)
                 for name, t in use.tests.items()}
+    relative_se = {k: v["relative_se"] for k, v in use.identifiability.get("parameters", {}).items()}
     failing = [n for n, t in per_test.items() if not t.adequate]
-    if use.adequate:
-        words = "within the noise on every test"
-    else:
-        words = f"not within the noise on {', '.join(failing)} (pooled variance ratio {use.variance_ratio:.2f})"
-    if missing:
-        words += f"; it cannot carry {', '.join(missing)} ({CARRIES.get(structure.name, ((), 'no part for them'))[1]})"
-    if freed is not None and use is plain:
-        words += f"; freeing {', '.join(structure.optional)} did not win by {THRESHOLD:g} in BIC"
+    clauses = ["within the noise on every test" if use.adequate else
+               f"not within the noise on {', '.join(failing)} (pooled variance ratio {use.variance_ratio:.2f})"]
+    clauses += _carrying(structure, missing, kept_effect, freed is not None and use is plain, use.parameters,
+                         relative_se)
     swaps = [f"{x['a']} and {x['b']}" for x in use.identifiability.get("exchanges", [])]
     if swaps:
-        words += f"; the tests fit {', '.join(swaps)} either way round: which is which is not the data's to say"
+        clauses.append(f"the tests fit {', '.join(swaps)} either way round: which is which is not the data's to say")
     return StandardRecord(model=structure.name, fit=use.name, optional_freed=use is freed,
                           parameters=use.parameters, n_estimated=use.n_estimated, bic=use.bic,
                           adequate=use.adequate, variance_ratio=use.variance_ratio, tests=per_test,
-                          cannot_carry=missing, words=words, archive=use.archive, at_bounds=use.at_bounds,
-                          relative_se={k: v["relative_se"] for k, v in use.identifiability.get("parameters", {}).items()})
+                          cannot_carry=missing, words="; ".join(clauses), archive=use.archive,
+                          at_bounds=use.at_bounds, relative_se=relative_se)
+
+
+def _carrying(structure: Structure, missing: list[str], kept: str | None, passed_over: bool,
+              parameters: dict[str, float], relative_se: dict[str, float]) -> list[str]:
+    """What the kept fit cannot carry of the explanation, in words: a part the structure
+    lacks, or an optional part that did not win (the recordings do not determine it, so
+    the record states none: a droop may then have absorbed a deadband); and an optional
+    part kept that the recordings still leave undetermined."""
+    out = []
+    absent = [e for e in missing if e not in structure.effects]
+    unfreed = [e for e in missing if e in structure.effects]
+    if absent:
+        out.append(f"it cannot carry {', '.join(absent)} "
+                   f"({CARRIES.get(structure.name, ((), 'no part for them'))[1]})")
+    for effect in unfreed:
+        parts = ", ".join(n.removeprefix("gov.") for n in structure.parts(effect))
+        out.append(f"the explanation names {effect}, which {structure.name}'s {parts} would carry, but freeing it "
+                   f"did not win by {THRESHOLD:g} in BIC: the recordings do not determine it, and the record "
+                   f"states none" + ("; its droop may have absorbed the band" if effect == "deadband" else ""))
+    if passed_over and not unfreed:
+        freed = "; ".join(f"{', '.join(n.removeprefix('gov.') for n in structure.parts(e))} ({e})"
+                          for e in structure.effects)
+        out.append(f"freeing {freed} did not win by {THRESHOLD:g} in BIC")
+    if kept is not None:
+        weak = [(n, relative_se[n]) for n in structure.parts(kept) if relative_se.get(n, 0.0) > WEAK_SE]
+        for name, se in weak:
+            out.append(f"its {name.removeprefix('gov.')} = {parameters[name]:.3g} is not determined by the "
+                       f"recordings (relative standard error {100 * se:.0f} %): an event barely beyond it, or "
+                       "none that reaches it")
+    return out
 
 
 def _recommend(records: list[StandardRecord]) -> tuple[str | None, str, str | None, list[str]]:

@@ -30,6 +30,7 @@ from typing import Sequence
 import numpy as np
 
 from ..compiler.source import ModelSource
+from ..diagnose.catalogue import EFFECTS
 from ..errors import ConfigError, Finding
 from ..exchange import model_named
 from ..experiment import EstimateSpec, Experiment, documented, parse_experiment, render_config
@@ -49,32 +50,55 @@ class Structure:
     estimate: dict[str, EstimateSpec]
     path: str
     optional: dict[str, EstimateSpec] = field(default_factory=dict)  # freed only where the data call for them
-    carries: str = ""  # what the optional parts carry (an effect of the catalogue), e.g. "rate_limit"
+    carries: dict[str, str] = field(default_factory=dict)  # optional part -> the effect it carries ("rate_limit")
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        """The effects the optional parts carry, in the file's order (IEEEG1: rate_limit,
+        deadband)."""
+        return tuple(dict.fromkeys(self.carries.get(n, "optional") for n in self.optional))
+
+    def parts(self, effect: str) -> list[str]:
+        """The optional parts that carry ``effect``."""
+        return [n for n in self.optional if self.carries.get(n, "optional") == effect]
 
     def with_optional(self) -> "Structure":
-        """This structure with all its optional parts estimated too (IEEEG1's valve rates)."""
-        return self.optional_variants()[0]
+        """This structure with all its optional parts estimated too."""
+        return replace(self, name=f"{self.name}+{'+'.join(self.effects)}", optional={}, carries={},
+                       estimate={**self.estimate, **self.optional})
 
     def optional_variants(self) -> list["Structure"]:
-        """This structure with each non-empty set of its optional parts estimated too, the
-        whole set first (IEEEG1's valve rates: both, the opening alone, the closing alone),
-        named ``IEEEG1+rate_limit`` and ``IEEEG1+rate_limit(Uo)``. Why each apart: a rate
-        the tests never reach is not determined by them, and a fit that frees it leaves it
-        anywhere it does not bind there, a limit the record would then state for other
-        events (a closing rate of 0.004 pu/s from a load switched on, say); the criterion
-        keeps a part only where the data call for it. Each variant is searched by its own
-        multistart over the whole box: started from its structure's optimum instead, with
-        only its rates searched around it, it settled in worse optima where a rate binds
-        (the field unit's IEEEG1 with both rates 9 apart in BIC, a fleet unit's T3 moved by
-        1.2 standard errors), so the saving was not kept."""
-        names, label = list(self.optional), self.carries or "optional"
+        """This structure with each non-empty set of the optional parts of one effect
+        estimated too, effect by effect, the whole set first (IEEEG1's valve rates: both,
+        the opening alone, the closing alone; then its deadband), named
+        ``IEEEG1+rate_limit``, ``IEEEG1+rate_limit(Uo)`` and ``IEEEG1+deadband``. Why each
+        apart: a rate the tests never reach is not determined by them, and a fit that frees
+        it leaves it anywhere it does not bind there, a limit the record would then state
+        for other events (a closing rate of 0.004 pu/s from a load switched on, say); the
+        criterion keeps a part only where the data call for it. The parts of two effects are
+        not freed together: a unit with both gets the one that wins, and the story says what
+        the record then cannot carry. Each variant is searched by its own multistart over the
+        whole box: started from its structure's optimum instead, with only its rates
+        searched around it, it settled in worse optima where a rate binds (the field unit's
+        IEEEG1 with both rates 9 apart in BIC, a fleet unit's T3 moved by 1.2 standard
+        errors), so the saving was not kept."""
         out = []
-        for k in range(len(names), 0, -1):
-            for chosen in combinations(names, k):
-                tail = "" if k == len(names) else "(" + ",".join(n.removeprefix("gov.") for n in chosen) + ")"
-                out.append(replace(self, name=f"{self.name}+{label}{tail}", optional={},
-                                   estimate={**self.estimate, **{n: self.optional[n] for n in chosen}}))
+        for effect in self.effects:
+            names = self.parts(effect)
+            for k in range(len(names), 0, -1):
+                for chosen in combinations(names, k):
+                    tail = "" if k == len(names) else "(" + ",".join(n.removeprefix("gov.") for n in chosen) + ")"
+                    out.append(replace(self, name=f"{self.name}+{effect}{tail}", optional={}, carries={},
+                                       estimate={**self.estimate, **{n: self.optional[n] for n in chosen}}))
         return out
+
+    def freed_effect(self, fit_name: str) -> str | None:
+        """The effect whose optional parts a fit of this structure freed (its variant's
+        name, :meth:`optional_variants`), None for the plain fit."""
+        head = fit_name.removeprefix(self.name + "+")
+        if head == fit_name:
+            return None
+        return head.split("(")[0]
 
     def playing(self, record: dict[str, float]) -> tuple["Structure", dict[str, float]]:
         """This structure holding a record's values (iGrGen names) as a grid simulator plays
@@ -123,16 +147,13 @@ class Structure:
             fixed = {**added, **values}
             estimate = {n: {**v, "start": starts[n]} if n in starts else v for n, v in estimate.items()}
         optional = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.get("optional", {}).items()}
-        carried = {v.pop("carries", "") for v in optional.values() if isinstance(v, dict)}
-        if len(carried) > 1:
-            raise ConfigError(f"the optional parts carry {sorted(carried)}: one effect per structure file",
-                              str(path), "optional")
+        carries = {k: str(v.pop("carries", "optional")) for k, v in optional.items() if isinstance(v, dict)}
         return cls.from_tables(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate,
-                               str(path), optional, carried.pop() if carried else "")
+                               str(path), optional, carries)
 
     @classmethod
     def from_tables(cls, name: str, bench: str, input_bench: str | None, fixed: dict, estimate: dict, path: str,
-                    optional: dict | None = None, carries: str = "") -> "Structure":
+                    optional: dict | None = None, carries: dict[str, str] | str = "") -> "Structure":
         """A structure from its file's tables as TOML reads them (``{"gov.R": {"min": ...}}``,
         dotted keys too), each checked as a config's are, errors naming ``path``."""
         values, specs = parameter_tables(fixed, estimate, path)
@@ -140,7 +161,13 @@ class Structure:
         clash = sorted(set(free) & (set(specs) | set(values)))
         if clash:
             raise ConfigError(f"{', '.join(clash)}: optional and also fixed or estimated", path, "optional")
-        return cls(name, bench, input_bench, values, specs, path, free, carries)
+        if isinstance(carries, str):  # one effect for every optional part
+            carries = {n: carries or "optional" for n in free}
+        unknown = sorted({e for e in carries.values() if e not in EFFECTS and e != "optional"})
+        if unknown:
+            raise ConfigError(f"carries = {unknown[0]!r}: not an effect of the catalogue; allowed: "
+                              f"{', '.join(EFFECTS)}", path, "optional")
+        return cls(name, bench, input_bench, values, specs, path, free, {n: carries.get(n, "optional") for n in free})
 
     def check(self, *, source: ModelSource = ModelSource()) -> list[Finding]:
         """Every problem of this structure file that a run would meet, each naming this file

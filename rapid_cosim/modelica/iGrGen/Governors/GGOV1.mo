@@ -36,6 +36,7 @@ block GGOV1 "General gas-turbine governor GGOV1 (WECC; IEEE PES-TR1 2013, sec. 3
   parameter Types.PerUnit p_ref(min=0, max=2) = 0.6 "mechanical power at the dispatch (pu)";
   parameter Types.PerUnit eps_v(min=1e-9, max=0.01) = 1e-4 "sharpness: rounding of the limits and of the low-value gate (pu, pu/s)";
   parameter Types.PerUnitRate K_lim(min=1, max=1e4) = 100 "sharpness of the non-windup limit of the limiters' integrators: held within (their speed) / K_lim of the gate's output";
+  parameter Types.PerUnit eps_db(min=1e-9, max=1e-3) = 1e-6 "sharpness: rounding of the deadband's corners (pu of speed)";
   parameter Types.PerUnitRate K_track(min=0.01, max=1e3) = 10 "tracking gain of the governor's integrator while another signal holds the gate (1/s)";
   final parameter Types.PerUnit v0 = p_ref / Kturb + Wfnl "valve position (fuel flow) at the dispatch (pu)";
   final parameter Types.PerUnit ldw = Ldref / Kturb + Wfnl "fuel flow at the load limiter's reference (pu)";
@@ -81,7 +82,7 @@ initial equation
   xt = p_ref;
 equation
   // speed deviation as PSS/E reads it (w - 1), through the no-jump deadband (db = 0: none)
-  spd = -dw.signal + 0.5 * (sqrt((-dw.signal - db) ^ 2 + eps_v ^ 2) - sqrt((-dw.signal + db) ^ 2 + eps_v ^ 2));
+  spd = -dw.signal + 0.5 * (sqrt((-dw.signal - db) ^ 2 + eps_db ^ 2) - sqrt((-dw.signal + db) ^ 2 + eps_db ^ 2));
   pe = pelec.signal;
   der(pef) = (pe - pef) / Tpelec;
   der(xmw) = Kimw * (Pmwset - pef);
@@ -141,6 +142,9 @@ above the gate and one holding the gate is a plain PI; the governor's integrator
 back-calculation (K_track) while another signal holds the gate or the valve is at a
 limit. The acceleration limiter is PSS/E's fsr(t - DELT) + Ka DELT (aset - acceleration)
 with the delay read as a lag DELT: an integrating control of the acceleration.</p>
+<p>The speed deadband db is of the no-step (linear) form, spd - clamp(spd, -db, db),
+rounded over its own eps_db (1e-6 pu of speed; until 2026-11-29 over eps_v, which rounds a
+36 mHz band's corners over a sixth of its width); exactly none where db = 0.</p>
 <p>Smooth forms, as the embedded build has no state events (sharpness eps_v): limits
 rounded as min/max(z) = (z -+ sqrt(z^2 + eps^2)) / 2, the gate as
 -eps log(sum exp(-x / eps)) (exact to exp(-margin / eps) when one input is clearly the
@@ -153,5 +157,5 @@ Dm is held at 0 or above).</p>
 state: steady at the dispatch p_ref (valve and fuel flow v0 = p_ref / Kturb + Wfnl, the
 speed-load reference Pref = R x the feedback's value), which must lie within
 Vmin..Vmax and below the load limit. Units: pu on the machine base, s.</p></html>",
-    revisions="<html><ul><li>2026-11-24: first version.</li><li>2026-11-25: the electrical power is an input, pelec (issue 26).</li><li>2026-11-27: Rselect and Flag are Integer parameters, as PSS/E and OpenIPSL have them and MLS section 3.5 requires of a comparison with == (issue 35).</li><li>2026-11-27: Dm at 0 or above: PSS/E's negative Dm means a speed-dependent fuel limit, which is not modelled, so a record stating one is refused (issue 40).</li></ul></html>"));
+    revisions="<html><ul><li>2026-11-24: first version.</li><li>2026-11-25: the electrical power is an input, pelec (issue 26).</li><li>2026-11-27: Rselect and Flag are Integer parameters, as PSS/E and OpenIPSL have them and MLS section 3.5 requires of a comparison with == (issue 35).</li><li>2026-11-27: Dm at 0 or above: PSS/E's negative Dm means a speed-dependent fuel limit, which is not modelled, so a record stating one is refused (issue 40).</li><li>2026-11-29: the deadband rounded over its own eps_db (issue 53).</li></ul></html>"));
 end GGOV1;

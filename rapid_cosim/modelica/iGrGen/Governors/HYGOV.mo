@@ -12,13 +12,16 @@ block HYGOV "Hydro turbine-governor HYGOV with the water column (PSS/E; IEEE PES
   parameter Types.PerUnit At(min=0.5, max=2) = 1.2 "turbine gain";
   parameter Types.PerUnit Dturb(min=0, max=5) = 0.5 "turbine damping (pu)";
   parameter Types.PerUnit qNL(min=0, max=0.5) = 0.08 "no-load water flow (pu)";
+  parameter Types.PerUnit db(min=0, max=0.01) = 0 "speed deadband, half-width (pu of speed; no-step form): HYGOVD's dbH = -dbL; 0: none";
   parameter Types.PerUnit p_ref(min=0, max=2) = 0.6 "power at the dispatch (pu)";
   parameter Types.PerUnitRate eps_v(min=1e-9, max=1) = 1e-4 "sharpness: rounding of the velocity limit and the gate (pu/s)";
   parameter Types.PerUnitRate K_lim(min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
+  parameter Types.PerUnit eps_db(min=1e-9, max=1e-3) = 1e-6 "sharpness: rounding of the deadband's corners (pu of speed)";
   final parameter Types.PerUnit q0 = p_ref / At + qNL "water flow at the dispatch, head 1 (pu)";
   final parameter Types.PerUnit nref = R * q0 "speed reference that holds the dispatch (pu)";
   Interfaces.RealInput dw "speed deviation w_ref - w (pu): PSS/E's -SPEED";
   Interfaces.RealOutput pm "mechanical power (pu)";
+  Types.PerUnit dwd "speed deviation after the deadband (pu)";
   Types.PerUnit e "filtered speed error (pu)";
   Types.PerUnit xi "integral part of the desired gate (pu)";
   Types.PerUnit c "desired gate opening (pu)";
@@ -33,7 +36,9 @@ initial equation
   g = q0;
   q = q0;
 equation
-  der(e) = (nref + dw.signal - R * c - e) / Tf;
+  // no-step deadband: dw - clamp(dw, -db, db), rounded over eps_db; exactly dw where db = 0
+  dwd = dw.signal + 0.5 * (sqrt((dw.signal - db) ^ 2 + eps_db ^ 2) - sqrt((dw.signal + db) ^ 2 + eps_db ^ 2));
+  der(e) = (nref + dwd - R * c - e) / Tf;
   v = e / (r * Tr);
   // velocity limit |vl| <= VELM, smooth: v - sp(v - VELM) + sp(-VELM - v), corrected to vanish at v = 0
   vl = v - 0.5 * (v - VELM + sqrt((v - VELM) ^ 2 + eps_v ^ 2)) + 0.5 * (-VELM + sqrt(VELM ^ 2 + eps_v ^ 2))
@@ -47,7 +52,7 @@ equation
   der(g) = (c - g) / Tg;
   h = (q / g) ^ 2;
   der(q) = (1 - h) / TW;
-  pm.signal = At * h * (q - qNL) + Dturb * dw.signal * g;
+  pm.signal = At * h * (q - qNL) + Dturb * dwd * g;
   annotation(Documentation(info="<html>
 <p>Source: IEEE PES-TR1 (2013), section 4.1 (HYGOV), and the PSS/E Model Library (HYGOV).
 Speed error (n_ref - dw_PSSE - R c) through the filter 1/(1 + s Tf); the governor's
@@ -58,7 +63,11 @@ orifice), power At h (q - qNL) - Dturb dw_PSSE g. Opening the gate first drops t
 the water-hammer zero (power dips before it rises).</p>
 <p>Limits are smooth (eps_v; the non-windup limit holds a state within its speed / K_lim of the limit, as TGOV1's) as the embedded build has no state events; the
 velocity limit acts on the integral path, as in PSS/E's implementation.</p>
+<p>Deadband (HYGOVD: PowerWorld's HYGOV with dbH, dbL and Trate; ORNL GridKit's HYGOVD):
+the speed deviation passes a symmetric deadband of half-width db before the speed error
+and the turbine damping, of the no-step (linear) form, dw - clamp(dw, -db, db), rounded
+over eps_db as TGOV1's; exactly the plain HYGOV where db = 0.</p>
 <p>Initialisation: steady state at p_ref: q = g = c = p_ref / At + qNL, h = 1, and the
 speed reference n_ref = R q. Units: pu on the machine base, s.</p></html>",
-    revisions="<html><ul><li>2026-11-23: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li></ul></html>"));
+    revisions="<html><ul><li>2026-11-23: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li><li>2026-11-29: the speed deadband db, HYGOVD (issue 53).</li></ul></html>"));
 end HYGOV;

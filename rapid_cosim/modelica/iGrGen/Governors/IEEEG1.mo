@@ -17,13 +17,16 @@ block IEEEG1 "Multi-stage steam turbine-governor IEEEG1 (IEEE 1973; IEEE PES-TR1
   parameter Types.PerUnit K5(min=0, max=1) = 0.5 "fraction of the HP shaft power after the third stage";
   parameter Types.Time T7(min=0.001, max=100) = 0.05 "fourth stage (second reheater) time constant";
   parameter Types.PerUnit K7(min=0, max=1) = 0.0 "fraction of the HP shaft power after the fourth stage";
+  parameter Types.PerUnit db(min=0, max=0.01) = 0 "speed deadband, half-width (pu of speed; no-step form): IEEEG1D's dbH = -dbL; 0: none";
   parameter Types.PerUnit p_ref(min=0, max=2) = 0.6 "power at the dispatch (pu)";
   parameter Types.PerUnitRate eps_v(min=1e-9, max=1) = 1e-4 "sharpness: rounding of the rate limits and the gate (pu/s)";
   parameter Types.PerUnitRate K_lim(min=1, max=1e4) = 100 "sharpness of the non-windup limit: a state at a limit is held within (its speed) / K_lim of it";
+  parameter Types.PerUnit eps_db(min=1e-9, max=1e-3) = 1e-6 "sharpness: rounding of the deadband's corners (pu of speed)";
   final parameter Types.PerUnit K3s = if K3_rest > 0.5 then 1 - K1 - K5 - K7 else K3 "the second stage's fraction in use (pu)";
   final parameter Types.PerUnit gv0 = p_ref / (K1 + K3s + K5 + K7) "valve opening at the dispatch (pu)";
   Interfaces.RealInput dw "speed deviation w_ref - w (pu): PSS/E's -SPEED";
   Interfaces.RealOutput pm "mechanical power of the HP shaft (pu)";
+  Types.PerUnit dwd "speed deviation after the deadband (pu)";
   Types.PerUnit xl "governor lead-lag state (pu)";
   Types.PerUnit ysp "speed signal after K (1 + s T2) / (1 + s T1) (pu)";
   Types.PerUnitRate v "valve speed the positioner asks for (pu/s)";
@@ -41,8 +44,10 @@ initial equation
   x6 = gv0;
   x7 = gv0;
 equation
-  der(xl) = (dw.signal - xl) / T1;
-  ysp = K * (xl + T2 / T1 * (dw.signal - xl));
+  // no-step deadband: dw - clamp(dw, -db, db), rounded over eps_db; exactly dw where db = 0
+  dwd = dw.signal + 0.5 * (sqrt((dw.signal - db) ^ 2 + eps_db ^ 2) - sqrt((dw.signal + db) ^ 2 + eps_db ^ 2));
+  der(xl) = (dwd - xl) / T1;
+  ysp = K * (xl + T2 / T1 * (dwd - xl));
   v = (gv0 + ysp - gv) / T3;
   // rate limits Uc <= vl <= Uo, smooth, corrected to vanish at v = 0
   vl = v - 0.5 * (v - Uo + sqrt((v - Uo) ^ 2 + eps_v ^ 2)) + 0.5 * (-Uo + sqrt(Uo ^ 2 + eps_v ^ 2))
@@ -71,7 +76,11 @@ whose stages sum to one (PES-TR1 sec. 2.2 gives the fractions of one shaft; ANDE
 them to sum to one), so that K alone sets the droop; a unit documented with another split
 keeps K3_rest = 0 and K3 as documented.</p>
 <p>Limits are smooth (eps_v; the non-windup limit holds a state within its speed / K_lim of the limit, as TGOV1's) as the embedded build has no state events.
+Deadband (IEEEG1D: PowerWorld's IEEEG1 with dbH, dbL and Trate; ORNL GridKit's IEEEG1D):
+the speed deviation passes a symmetric deadband of half-width db before the governor's
+lead-lag, of the no-step (linear) form, dw - clamp(dw, -db, db), rounded over eps_db as
+TGOV1's; exactly the plain IEEEG1 where db = 0.
 Initialisation: steady state at p_ref: every stage at p_ref / (K1 + K3 + K5 + K7), K3 as in use.
 Units: pu on the machine base, s.</p></html>",
-    revisions="<html><ul><li>2026-11-23: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li><li>2026-11-26: K3_rest, the stages summing to one.</li></ul></html>"));
+    revisions="<html><ul><li>2026-11-23: first version.</li><li>2026-11-24: units through iGrGen.Types; documentation with source and revisions.</li><li>2026-11-26: K3_rest, the stages summing to one.</li><li>2026-11-29: the speed deadband db, IEEEG1D (issue 53).</li></ul></html>"));
 end IEEEG1;

@@ -1,7 +1,7 @@
 within iGrGen.TestBenches;
 model StagedTestDeadband "Staged test with an intentional deadband on the frequency deviation"
   Sources.FrequencyStep src;
-  Effects.Deadband db;
+  Effects.Deadband db(f_nom = src.f_nom) "its band on the test's frequency base";
   Governors.TGTypeI gov;
   output Types.PerUnit pm "mechanical power (pu)";
 equation
