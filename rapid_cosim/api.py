@@ -31,6 +31,7 @@ from .calibration.runs import Resumed
 from .calibration import resume_run, start_run
 from .compiler.source import ModelSource
 from .errors import ArchiveError, ConfigError, ParameterError, RapidCosimError
+from .exchange import NoLayout
 from .estimators.base import EstimationResult
 from .estimators.uncertainty import Uncertainty
 from .experiment import Experiment, load_experiment
@@ -285,7 +286,7 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
     :class:`~rapid_cosim.identify.Identification`, the files in ``files`` and why any
     was not written in ``notes``."""
     from .identify import Unit, identify as run_identification
-    from .identify.deliver import NO_DYD, record_note
+    from .identify.deliver import NO_DYD, layout_note, record_note
     from .identify.unit import check_mva
     from .report.html import validation_page
     from .report.pdf import print_pdf, unavailable
@@ -305,10 +306,16 @@ def identify(unit: str | Path, *, workdir: str | Path | None = None, seed: int =
         return result
     record = result.record(result.recommended)
     for kind in ("dyr", "dyd") if spec.mva is not None else ("dyr",):  # a .dyd states the MVA base
-        written = export(record.archive, folder / f"unit.{kind}", bus=spec.bus, machine_id=spec.machine_id,
-                         mva=spec.mva)  # refused unless it reproduces its fit (calibration.delivery)
+        try:
+            written = export(record.archive, folder / f"unit.{kind}", bus=spec.bus, machine_id=spec.machine_id,
+                             mva=spec.mva)  # refused unless it reproduces its fit (calibration.delivery)
+        except NoLayout as e:  # a PSLF .dyd of a record with a deadband: the .dyr carries it
+            result.notes[kind] = str(e)
+            continue
         result.files[kind] = str(written.path)
         result.reproduced[kind] = written.reproduction.worst
+        if kind == "dyr" and written.model != record.model:  # a layout of its own (TGOV1D): what the plain one loses
+            result.layout_note = layout_note(record.archive, written.model, written.reproduction.record)
     if spec.mva is None:
         result.notes["dyd"] = NO_DYD
     if not report:

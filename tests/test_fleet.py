@@ -159,6 +159,49 @@ def test_the_cli_exit_status_says_how_many_units_failed(fleet):
     assert "records on file pass" in proc.stdout and "fleet.html" in proc.stdout
 
 
+def test_a_planning_cases_records_are_matched_by_bus_and_id_and_other_families_listed(fleet, tmp_path):
+    """One .dyr holding the case's records (machines, exciters, governors of several
+    families) for every unit: each unit's record is found by its bus and machine id; a
+    unit whose governor is of a model no table reads (WSIEG1) is a row saying so, not
+    checked and not identified, and the fleet goes on; the CSV, the page and the summary
+    count it apart from the failures (issue 53)."""
+    folder, spec, result, _ = fleet
+    case = []
+    for name in ("unit000", "unit005"):
+        shutil.copytree(folder / "units" / name, tmp_path / "units" / name)
+        own = tmp_path / "units" / name / "record.dyr"
+        case.append(own.read_text())
+        bus = own.read_text().split()[0]
+        case.append(f"{bus} 'GENROU' 1 8 0.03 0.4 0.05 6.5 0 1.8 1.7 0.3 0.55 0.25 0.06 0 0 /\n")
+        own.unlink()
+    other = tmp_path / "units" / "unit_wsieg1"
+    shutil.copytree(folder / "units" / "unit000", other)
+    (other / "record.dyr").unlink()
+    _replace(other / "unit.toml", "bus = 100", "bus = 777")
+    case += ["777 'GENROU' 1 8 0.03 0.4 0.05 6.5 0 1.8 1.7 0.3 0.55 0.25 0.06 0 0 /\n",
+             "777 'ESST1A' 1 1 1 0 0.02 0.2 /\n",
+             "777 'WSIEG1' 1 0 0 20 0 0 0.1 0.1 -0.1 1 0 0.3 0.3 0 7 0.7 0 0.5 0 0 0.05 0 0 0 0 0 /\n"]
+    (tmp_path / "case.dyr").write_text("".join(case))
+    (tmp_path / "fleet.toml").write_text('[fleet]\nname = "a planning case"\nunits = ["units/*"]\n'
+                                         'records = "case.dyr"\n')
+    assert "bus = 100" in (folder / "units" / "unit000" / "unit.toml").read_text()
+    checked = run_fleet(tmp_path / "fleet.toml", results=tmp_path / "results", engine=EngineSpec(n_jobs=1),
+                        check_only=True, progress=False, log=lambda *_: None,
+                        source=ModelSource(fmu_dir=Path(__file__).resolve().parents[1] / "fmus"))
+    rows = {u.unit: u for u in checked.units}
+    assert rows["unit000"].route is Route.PASSED and rows["unit005"].route is Route.FAILS
+    assert rows["unit000"].on_file.source.endswith("case.dyr")
+    listed = rows["unit_wsieg1"]
+    assert listed.route is Route.UNSUPPORTED and listed.unsupported == "WSIEG1" and listed.on_file is None
+    assert listed.flags == ["record on file is WSIEG1: not supported"] and not listed.files
+    assert checked.failed == 0 and checked.count(Route.UNSUPPORTED) == 1
+    assert "1 not checked (their records on file of a model not supported)" in checked.summary()
+    table = (tmp_path / "results" / "fleet.csv").read_text().splitlines()
+    assert any(line.startswith("unit_wsieg1,record on file not supported,WSIEG1,") for line in table)
+    page = (tmp_path / "results" / "fleet.html").read_text()
+    assert "record on file is WSIEG1: not supported" in page and "1 not checked" in page
+
+
 def _busiest(workers):
     import psutil
 

@@ -103,6 +103,25 @@ def reproduction(inputs: RunInputs, x, model: Model, record: Record) -> Reproduc
     return Reproduction(record, errors)
 
 
+def plain_departure(path, record: Record) -> dict[str, tuple[float, float]]:
+    """What a simulator that reads only the plain layout loses of ``record`` (a TGOV1D read
+    as a TGOV1: no deadband), on every test of the finished run in ``path``: per test, the
+    largest difference from the fit (pu) and the fit's own excursion (pu), to say it as a
+    share."""
+    inputs, _, x = finished_run(path)
+    model, _ = standard_model(inputs, source=str(path))
+    plain = {**record.values, **{d.param: d.default for d in model.dropped if d.layout is not None}}
+    out = {}
+    for i, exp in enumerate(inputs.experiments):
+        fitted = inputs.problem.parameters_for(x, i)
+        fmu = inputs.fmus[exp.model]
+        a = simulate_experiment(exp, fmu, fitted)
+        b = simulate_experiment(exp, fmu, played_parameters(model, plain, fitted))
+        out[exp.name] = (max(float(np.max(np.abs(a[n] - b[n]), initial=0.0)) for n in exp.outputs),
+                         max(float(np.ptp(a[n])) for n in exp.outputs))
+    return out
+
+
 def deliver_record(inputs: RunInputs, parameters: Mapping[str, float], x, out: str | Path, *, kind: str,
                    bus: int = 1, machine_id: str = "1", mva: float | None = None, bus_name: str = "",
                    kv: float = 0.0, source: str) -> Delivered:

@@ -9,6 +9,7 @@ from typing import Sequence
 
 from ..compiler.source import ModelSource
 from ..errors import Finding, RapidCosimError, finding
+from ..exchange import SUPPORTED
 from ..experiment.schema import explain
 from .cost import PLAYBACK_EXTRA, duration, identify_simulations, method_simulations, seconds_per_simulation
 
@@ -150,6 +151,10 @@ def check_fleet(path: Path, *, source: ModelSource = ModelSource()) -> CheckRepo
             report.lines.append(f"{entry.name}: {len(checked.problems)} problem(s)")
             continue
         tests = checked.unit.experiments
+        if checked.unsupported:
+            report.lines.append(f"{entry.name}: record on file is {checked.unsupported}: not supported (listed, not "
+                                f"checked; the models read: {SUPPORTED})")
+            continue
         record = (f"record on file {checked.record.model} ({Path(checked.record.file).name}, line "
                   f"{checked.record.line})" if checked.record else "no record on file: identified")
         report.lines.append(f"{entry.name}: {len(tests)} test(s), {record}"

@@ -283,8 +283,10 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
 
     if "deadband" in effects:  # its band in Hz on the test's own frequency base
         own = _modifiers({k: v for k, v in values.items() if k != "db.f_nom"}, "db")
-        base = "src.f_nom" if is_staged(base) else "f_nom"
-        lines.append(f"  Effects.Deadband db(f_nom = {base}{', ' + own[1:-1] if own else ''});")
+        if not is_staged(base):  # a name of its own: in db's modifier, f_nom would be db's own
+            lines.append('  final parameter Types.Frequency f_base = f_nom "the deadband\'s frequency base";')
+        f_base = "src.f_nom" if is_staged(base) else "f_base"
+        lines.append(f"  Effects.Deadband db(f_nom = {f_base}{', ' + own[1:-1] if own else ''});")
         feed("db.u")
         path = "db.y"
     if "delay" in effects:

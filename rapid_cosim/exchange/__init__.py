@@ -21,7 +21,7 @@ from pathlib import Path
 from ..errors import ParameterError
 from . import pslf_dyd, psse_dyr
 from .layouts import LAYOUTS, MODELS, SUPPORTED, layout, model_named
-from .tables import ExchangeWarning, Other, Record, UnsupportedRecord, Written
+from .tables import ExchangeWarning, NoLayout, Other, Record, UnsupportedRecord, Written
 
 FORMATS = {"dyr": psse_dyr, "dyd": pslf_dyd}
 
@@ -63,6 +63,6 @@ def machine_note(values: dict[str, float], kind: str) -> str | None:
             "record, on the machine's MVA base")
 
 
-__all__ = ["MACHINE_FIELDS", "machine_note", "FORMATS", "LAYOUTS", "MODELS", "SUPPORTED", "ExchangeWarning", "Other",
+__all__ = ["MACHINE_FIELDS", "machine_note", "FORMATS", "LAYOUTS", "MODELS", "SUPPORTED", "ExchangeWarning", "NoLayout", "Other",
            "Record", "UnsupportedRecord", "Written", "format_of", "layout", "model_named", "pslf_dyd", "psse_dyr",
            "read_record"]

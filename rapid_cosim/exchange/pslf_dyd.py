@@ -37,7 +37,8 @@ from typing import Mapping
 
 from ..errors import ParameterError, RecordError
 from .layouts import LAYOUTS, layout
-from .tables import Model, Other, Record, Written, choose, number_text, record_numbers, values_from_numbers
+from .tables import (Model, NoLayout, Other, Record, Written, choose, number_text, record_numbers,
+                     values_from_numbers)
 
 PSLF_LAYOUTS = {name: m for name, m in LAYOUTS.items() if m.pslf}
 
@@ -54,7 +55,7 @@ def format_record(model: str, values: Mapping[str, float], *, bus: int, machine_
     if not table.pslf:
         theirs = ("has no deadband" if table.block == "TGOV1" else
                   "has db1 in Hz with a hysteresis eps, another form of deadband")
-        raise ParameterError(f"{table.block} with a deadband (db = {values.get('db', 0):g} pu) has no PSLF layout "
+        raise NoLayout(f"{table.block} with a deadband (db = {values.get('db', 0):g} pu) has no PSLF layout "
                              f"here: PSLF's {table.block.lower()} {theirs}; the .dyr's {table.name} record carries it")
     if mva is None or not mva > 0:
         raise ParameterError(f"a .dyd record needs the machine's MVA base (mva > 0), got {mva!r}")

@@ -74,6 +74,11 @@ from typing import Callable, Mapping
 from ..errors import ParameterError, RecordError
 
 
+class NoLayout(ParameterError):
+    """A format has no layout for what a record carries (PSLF for a deadband): the other
+    format's record carries it."""
+
+
 class ExchangeWarning(UserWarning):
     """A value that a record cannot carry was dropped while it differs from its default."""
 

@@ -1,6 +1,8 @@
 """A fleet's unit checked before anything is played back or fitted: the unit as
 ``rapid-cosim identify`` checks it (:func:`rapid_cosim.identify.check.check_unit`), and
-its record on file read for its bus and machine and matched to one of its structures.
+its record on file read for its bus and machine and matched to one of its structures. A
+record on file of a governor model no table reads (a planning case holds many) is noted,
+not a problem: its unit is listed as not supported and the fleet goes on.
 
 The same check runs first in each unit's job (a unit that fails it is a row listing
 every problem, and nothing of it is run) and, for the whole fleet at once, in
@@ -13,7 +15,7 @@ from dataclasses import dataclass, field
 
 from ..compiler.source import ModelSource
 from ..errors import Finding, RapidCosimError, finding
-from ..exchange import Record, read_record
+from ..exchange import Record, UnsupportedRecord, read_record
 from ..identify.check import UnitCheck, check_unit
 from .spec import UnitEntry
 
@@ -26,6 +28,7 @@ class EntryCheck:
     unit: UnitCheck
     record: Record | None = None
     findings: list[Finding] = field(default_factory=list)  # the record's
+    unsupported: str = ""  # the model of a record on file no table reads (its unit is listed, not checked)
 
     @property
     def problems(self) -> list[Finding]:
@@ -43,6 +46,9 @@ def check_entry(entry: UnitEntry, *, source: ModelSource = ModelSource()) -> Ent
         return out
     try:
         out.record = read_record(entry.record, bus=unit.bus, machine_id=unit.machine_id, mva=unit.mva)
+    except UnsupportedRecord as e:  # a governor of another family: listed, not a mistake in the unit
+        out.unsupported = e.model
+        return out
     except RapidCosimError as e:
         out.findings.append(finding(e))
         return out

@@ -4,7 +4,8 @@ one ``fleet.dyr`` (and ``fleet.dyd`` where every new record's unit states its MV
 ready for the operator's case.
 
 A row says which route the unit took (its record on file passes; it fails, where the
-fleet only checks; identified; failed), why the record on file fails (band metrics per
+fleet only checks; identified; its record on file is of a model not supported, so it is
+listed and not checked; failed), why the record on file fails (band metrics per
 recording, the noise tests' reason), its stated false-alarm rate and the bands too noisy
 to judge on its recordings (:mod:`.playback`), its RMSE over the noise, the recommended
 record with its key parameters and what changed from the one on file, the flags
@@ -23,8 +24,9 @@ from ..diagnose.adequacy import ALPHA
 from .result import Route, UnitResult
 from .spec import FleetSpec
 
-ORDER = {Route.FAILED: 0, Route.FAILS: 1, Route.IDENTIFIED: 1, Route.PASSED: 2}
-ROW_CLASS = {Route.FAILED: "failed", Route.FAILS: "fails", Route.IDENTIFIED: "identified", Route.PASSED: "passes"}
+ORDER = {Route.FAILED: 0, Route.FAILS: 1, Route.IDENTIFIED: 1, Route.UNSUPPORTED: 2, Route.PASSED: 3}
+ROW_CLASS = {Route.FAILED: "failed", Route.FAILS: "fails", Route.IDENTIFIED: "identified",
+             Route.UNSUPPORTED: "unsupported", Route.PASSED: "passes"}
 SORTER = """
 document.querySelectorAll('th').forEach((th, k) => th.addEventListener('click', () => {
   const body = th.closest('table').tBodies[0], rows = [...body.rows];
@@ -56,13 +58,18 @@ def write_report(spec: FleetSpec, result, folder: Path) -> dict[str, str]:
         w.writerow(["unit", "route", "record on file", "on file passes", "why it fails", "false-alarm rate",
                     "not judged", "recommended", "key parameters", "changes", "flags", "error", "seconds", "report"])
         for r in rows:
-            w.writerow([r.unit, r.route.value, r.on_file.model if r.on_file else "", _on_file_pass(r),
+            w.writerow([r.unit, r.route.value, _on_file_model(r), _on_file_pass(r),
                         ";".join(_failing(r)), _false_alarm(r), _not_judged(r),
                         r.recommended.fit if r.recommended else "", _key(r), _changes(r), ";".join(r.flags),
                         r.error, f"{r.seconds:.1f}", r.files.get("report", "")])
     files["html"].write_text(_page(spec, result, rows, folder))
     files.update(_records(rows, folder))
     return {k: str(v) for k, v in files.items()}
+
+
+def _on_file_model(r: UnitResult) -> str:
+    """The record on file's model: played back, or named as not supported."""
+    return r.on_file.model if r.on_file is not None else r.unsupported
 
 
 def _on_file_pass(r: UnitResult) -> str:
@@ -132,7 +139,7 @@ def _page(spec: FleetSpec, result, rows: list[UnitResult], folder: Path) -> str:
         flags = [f"error: {r.error}"] if r.route is Route.FAILED else r.flags
         body.append(f"<tr class={ROW_CLASS.get(r.route, 'failed')}><td>{e(r.unit)}</td>"
                     f"<td class=text data-key='{rank(r)[0]}'>{e(r.route.value)}</td>"
-                    f"<td class=text>{e(on.model if on else 'none')}</td>"
+                    f"<td class=text>{e(_on_file_model(r) or 'none')}</td>"
                     f"<td data-key='{_on_file_pass(r)}'>{mark(None if on is None else on.passed)}</td>"
                     f"<td class=text>{e('; '.join(_failing(r)))}</td>"
                     f"<td data-key='{on.false_alarm if on else ''}'>{_false_alarm(r)}</td>"
@@ -144,7 +151,8 @@ def _page(spec: FleetSpec, result, rows: list[UnitResult], folder: Path) -> str:
     body.append("</tbody></table>")
     return ("<!DOCTYPE html>\n<html lang=en>\n<head><meta charset=utf-8>"
             f"<title>rapid-cosim fleet: {e(spec.name)}</title><style>{STYLE} th {{ cursor: pointer; }}"
-            " tr.failed td { background: #fbeaea; } tr.fails td { background: #fdf3e1; }</style></head>\n<body>\n" + "\n".join(body)
+            " tr.failed td { background: #fbeaea; } tr.fails td { background: #fdf3e1; }"
+            " tr.unsupported td { color: #666; }</style></head>\n<body>\n" + "\n".join(body)
             + f"\n<script>{SORTER}</script>\n</body>\n</html>\n")
 
 

@@ -17,6 +17,7 @@ class Route(str, Enum):
     PASSED = "record on file passes"
     FAILS = "record on file fails"  # and, the fleet only checking, not identified
     IDENTIFIED = "identified"
+    UNSUPPORTED = "record on file not supported"  # of a governor model no table reads: listed, not checked
     FAILED = "failed"
 
 
@@ -47,6 +48,7 @@ class UnitResult:
     route: Route
     error: str = ""
     on_file: Playback | None = None  # the record on file's playback
+    unsupported: str = ""  # the model of a record on file no table reads (Route.UNSUPPORTED)
     recommended: Recommendation | None = None
     explanation: str = ""
     unexplained: bool = False  # the explanation found nothing it knows that explains the unit
@@ -89,10 +91,12 @@ class FleetResult:
 
     def summary(self) -> str:
         """The units by route, as the CLI and the page say it."""
-        fails = self.count(Route.FAILS)
+        fails, unsupported = self.count(Route.FAILS), self.count(Route.UNSUPPORTED)
         return (f"{len(self.units)} units: {self.count(Route.PASSED)} records on file pass, "
                 + (f"{fails} fail (checked only, not identified), " if fails else "")
-                + f"{self.count(Route.IDENTIFIED)} identified, {self.failed} failed")
+                + f"{self.count(Route.IDENTIFIED)} identified, "
+                + (f"{unsupported} not checked (their records on file of a model not supported), "
+                   if unsupported else "") + f"{self.failed} failed")
 
     def to_json(self) -> dict:
         return {**asdict(self), "units": [u.to_json() for u in self.units]}

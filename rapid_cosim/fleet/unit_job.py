@@ -39,8 +39,9 @@ from .result import Recommendation, Route, UnitResult
 from .spec import UnitEntry
 
 QUIET_ADVISED_S = 30.0  # of recording before an event (module docstring)
-KEY = {"TGOV1": ("R", "T1", "T3"), "IEEEG1": ("K", "T3", "T4", "T5", "K1", "Uo", "Uc"),
-       "GGOV1": ("R", "Kpgov", "Kigov", "Tb", "Ropen", "Rclose"), "HYGOV": ("R", "r", "Tr", "TW")}
+KEY = {"TGOV1": ("R", "T1", "T3", "db"), "IEEEG1": ("K", "T3", "T4", "T5", "K1", "Uo", "Uc", "db"),
+       "GGOV1": ("R", "Kpgov", "Kigov", "Tb", "Ropen", "Rclose", "db"), "HYGOV": ("R", "r", "Tr", "TW", "db"),
+       "GAST": ("R", "T1", "T2")}
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,10 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
     if not checked.ok:  # every problem of the unit's files, and nothing of it run
         raise CheckFailed(entry.name, checked.problems)
     unit = checked.unit.unit
+    if checked.unsupported:  # listed, not checked: no table reads its record (nor is it re-identified)
+        result.route, result.unsupported = Route.UNSUPPORTED, checked.unsupported
+        result.flags.append(f"record on file is {checked.unsupported}: not supported")
+        return
     tolerances = _tolerances(options)
     experiments = checked.unit.experiments
     noise = campaign_noise(experiments)

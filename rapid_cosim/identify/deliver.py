@@ -17,6 +17,8 @@ import tomllib
 from pathlib import Path
 from typing import Sequence
 
+from ..calibration.delivery import plain_departure
+from ..exchange import Record
 from ..experiment import Experiment, render_config
 from .result import Identification
 
@@ -44,6 +46,18 @@ def write_configs(experiments: Sequence[Experiment], folder: str | Path) -> list
     return paths
 
 
+def layout_note(archive: str | Path, layout: str, record: Record) -> str:
+    """The words for a record in a layout of its own (TGOV1D): who reads it, and what a
+    simulator that reads only the plain model loses, measured on the unit's own tests
+    (:func:`~rapid_cosim.calibration.delivery.plain_departure`)."""
+    departs = plain_departure(archive, record)
+    test, (miss, span) = max(departs.items(), key=lambda kv: kv[1][0])
+    return (f"{layout} ({record.block}'s fields, then its deadband db = {record.values['db']:.3g} pu of speed as "
+            f"dbH = -dbL, then Trate): PowerWorld and ORNL GridKit read this layout; a simulator that reads only "
+            f"{record.block} loses the band: played without it, the record departs from its fit by up to "
+            f"{miss:.3g} pu on {test} ({100 * miss / span:.0f} % of the response there)")
+
+
 def record_note(result: Identification) -> str:
     """Above the report's record: whose record it is, why it was chosen, how close it
     comes per test (RMSE over the recorder's noise level, as the identification judged)."""
@@ -51,4 +65,5 @@ def record_note(result: Identification) -> str:
     fidelity = r.fidelity([*result.training, *result.heldout])
     return (f"The record rapid-cosim identify recommends for {result.unit}: {r.model}"
             + (f" ({r.fit})" if r.fit != r.model else "") + f", {result.reason}; {r.words}. RMSE over the noise "
-            f"per test: {fidelity}" + (f" (held out: {', '.join(result.heldout)})" if result.heldout else "") + ".")
+            f"per test: {fidelity}" + (f" (held out: {', '.join(result.heldout)})" if result.heldout else "") + "."
+            + (f" Written as {result.layout_note}." if result.layout_note else ""))

@@ -89,6 +89,7 @@ class StandardRecord:
     archive: str
     at_bounds: list[str] = field(default_factory=list)
     relative_se: dict[str, float] = field(default_factory=dict)  # each estimate's, from the Fisher information
+    cautions: list[str] = field(default_factory=list)  # the clauses of words after the fit's: what it cannot carry
 
     def fidelity(self, tests: Sequence[str], *, failing: bool = False) -> str:
         """RMSE over the noise per test of ``tests`` it has (``failing``: marked where the
@@ -120,6 +121,7 @@ class Identification:
     diagnosis: str = ""  # the explanation as diagnosis.json, for the report
     heldout_configs: list[str] = field(default_factory=list)  # the held-out tests on the recommended record's bench
     recordings: dict[str, dict] = field(default_factory=dict)  # per test: its stamps, masks, bridges (Recording)
+    layout_note: str = ""  # the record's layout where it is not its block's plain one (TGOV1D), and what that means
 
     def record(self, model: str) -> StandardRecord:
         return next(r for r in self.records if r.model == model)
@@ -193,6 +195,7 @@ class Identification:
             lines.append(f"  RMSE over the noise, training: {r.fidelity(self.training, failing=True)}")
             if self.heldout:
                 lines.append(f"  held out: {r.fidelity(self.heldout, failing=True)}")
+            lines += [f"  note: {c}" for c in r.cautions if c not in self.reason]
         else:
             lines.append(f"recommended record: none ({self.reason})")
         lines += recording_story(self.recordings)
@@ -203,6 +206,8 @@ class Identification:
                 check = ("" if miss is None else " (read back, it simulates its fit "
                          + (f"to {miss:.0e} pu" if miss > 0 else "exactly") + " on every test)")
                 lines.append(f"  {label + ':':<26} {self.files[kind]}{check}")
+                if kind == "dyr" and self.layout_note:
+                    lines.append(f"  {'':<26} as {self.layout_note}")
             elif kind in self.notes:
                 lines.append(f"  {label + ':':<26} none: {self.notes[kind]}")
         lines += [f"  {'identification:':<26} {path}" for path in also]

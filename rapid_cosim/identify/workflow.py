@@ -156,6 +156,7 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
     freed = min(variants, key=lambda f: f.bic) if variants else None  # the parts the data call for
     use = freed if freed is not None and freed.bic <= plain.bic - THRESHOLD else plain
     effects = list(explanation.named.effects) if explanation is not None else []
+    open_ = [e for e in (explanation.named.not_excluded if explanation is not None else []) if e not in effects]
     kept_effect = structure.freed_effect(use.name)
     missing = cannot_carry(structure.name, effects, optional=structure.effects, freed=kept_effect)
     explained = {t.test: t for t in explanation.adequacy.after.tests} if explanation is not None else {}
@@ -167,7 +168,7 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
     clauses = ["within the noise on every test" if use.adequate else
                f"not within the noise on {', '.join(failing)} (pooled variance ratio {use.variance_ratio:.2f})"]
     clauses += _carrying(structure, missing, kept_effect, freed is not None and use is plain, use.parameters,
-                         relative_se)
+                         relative_se, open_)
     swaps = [f"{x['a']} and {x['b']}" for x in use.identifiability.get("exchanges", [])]
     if swaps:
         clauses.append(f"the tests fit {', '.join(swaps)} either way round: which is which is not the data's to say")
@@ -175,16 +176,24 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
                           parameters=use.parameters, n_estimated=use.n_estimated, bic=use.bic,
                           adequate=use.adequate, variance_ratio=use.variance_ratio, tests=per_test,
                           cannot_carry=missing, words="; ".join(clauses), archive=use.archive,
-                          at_bounds=use.at_bounds, relative_se=relative_se)
+                          at_bounds=use.at_bounds, relative_se=relative_se, cautions=clauses[1:])
 
 
 def _carrying(structure: Structure, missing: list[str], kept: str | None, passed_over: bool,
-              parameters: dict[str, float], relative_se: dict[str, float]) -> list[str]:
+              parameters: dict[str, float], relative_se: dict[str, float], open_: list[str]) -> list[str]:
     """What the kept fit cannot carry of the explanation, in words: a part the structure
     lacks, or an optional part that did not win (the recordings do not determine it, so
-    the record states none: a droop may then have absorbed a deadband); and an optional
-    part kept that the recordings still leave undetermined."""
+    the record states none: a droop may then have absorbed a deadband); an effect the
+    explanation does not exclude (``open_``) that an optional part would carry, said the
+    same way; and an optional part kept that the recordings still leave undetermined."""
     out = []
+    said = [e for e in open_ if e in structure.effects and e != kept]
+    for effect in said:
+        parts = ", ".join(n.removeprefix("gov.") for n in structure.parts(effect))
+        out.append(f"the recordings do not exclude a {effect.replace('_', ' ')} of a material size, which "
+                   f"{structure.name}'s {parts} would carry, and do not determine one: the record states none"
+                   + ("; its droop may have absorbed a band (events of two sizes separate them)"
+                      if effect == "deadband" else ""))
     absent = [e for e in missing if e not in structure.effects]
     unfreed = [e for e in missing if e in structure.effects]
     if absent:
@@ -195,7 +204,7 @@ def _carrying(structure: Structure, missing: list[str], kept: str | None, passed
         out.append(f"the explanation names {effect}, which {structure.name}'s {parts} would carry, but freeing it "
                    f"did not win by {THRESHOLD:g} in BIC: the recordings do not determine it, and the record "
                    f"states none" + ("; its droop may have absorbed the band" if effect == "deadband" else ""))
-    if passed_over and not unfreed:
+    if passed_over and not unfreed and not said:
         freed = "; ".join(f"{', '.join(n.removeprefix('gov.') for n in structure.parts(e))} ({e})"
                           for e in structure.effects)
         out.append(f"freeing {freed} did not win by {THRESHOLD:g} in BIC")
