@@ -2,11 +2,13 @@
 (:mod:`rapid_cosim.fleet.synthetic`: the four standard structures and TG Type I on one
 ANDES event's frequency, a quarter with a binding valve rate, half of the records on file
 wrong), run with 1 and with 2 workers on a subset to measure the scaling, and all of them
-with 2 workers; then the same recordings cut to their last 10 s before the event (the
-same noise on what both hold), their records on file checked only (before and after the
-longer quiet span).
+with 2 workers; then the mixed fleet (``--mixed`` units: TGOV1 with 36 and 60 mHz
+deadbands, GAST, IEEEG1, TGOV1; one kind of wrong record leaves the deadband out), with
+the droop and band each deadband unit's new record states against its plant's; then the
+same recordings cut to their last 10 s before the event (the same noise on what both
+hold), their records on file checked only (before and after the longer quiet span).
 
-    python benchmarks/fleet_study.py --units 100 --scaling 10 --work results/bench-fleet
+    python benchmarks/fleet_study.py --units 100 --scaling 10 --mixed 20 --work results/bench-fleet
 
 Prints: the time per unit and in all, the scaling ratio, memory per worker, and against
 each unit's truth: wrong records on file flagged (by the bands, or by the noise tests
@@ -61,14 +63,14 @@ class PeakMemory:
 
 
 def run(folder: Path, units: int | list[int], workers: int, results: Path, *, pre_event: float | None = None,
-        check_only: bool = False) -> tuple[dict, float, float]:
+        check_only: bool = False, mixed: bool = False) -> tuple[dict, float, float]:
     """(the fleet's result, its wall time in s, the largest worker's peak memory in MB);
     ``pre_event``: seconds recorded before the event (default: the synthetic fleet's)."""
     from rapid_cosim.fleet import run_fleet
     from rapid_cosim.fleet.synthetic import PRE_EVENT_S, make_fleet
 
     spec = make_fleet(folder, units, experiments=ROOT / "experiments", seed=1, source=ModelSource(fmu_dir=ROOT / "fmus"),
-                      pre_event=pre_event or PRE_EVENT_S)
+                      pre_event=pre_event or PRE_EVENT_S, mixed=mixed)
     if results.exists():
         shutil.rmtree(results)
     t0 = time.perf_counter()
@@ -124,11 +126,44 @@ def judge(folder: Path, result) -> dict:
     return out
 
 
+def mixed_figures(work: Path, units: int, figures: dict) -> None:
+    """The mixed fleet on 2 workers: the same judgement, and per identified unit of each
+    family its new record's model, droop and band against its plant's."""
+    result, seconds, _ = run(work / "mixed", units, 2, work / "mixed" / "results", mixed=True)
+    j = judge(work / "mixed", result)
+    found = []
+    for u in result.units:
+        truth = json.loads((work / "mixed" / "units" / u.unit / "truth.json").read_text())
+        if u.route.value != "identified" or not u.recommended:
+            continue
+        values, plant = u.recommended.parameters, truth["plant"]
+        droop = (values["R"] / plant["R"] - 1) if "R" in plant and "R" in values else (
+            plant["K"] / values["K"] - 1 if "K" in plant and "K" in values else None)
+        band = values.get("db", 0.0) / plant["db"] - 1 if "db" in plant else None
+        found.append({"unit": u.unit, "plant": truth["structure"], "wrong": truth["wrong"],
+                      "record": u.recommended.fit, "droop_off": droop, "band_off": band, "flags": u.flags})
+    figures["mixed"] = {"units": units, "seconds": seconds, **j, "identified_records": found}
+    print(f"mixed fleet ({units} units: TGOV1 with 36 and 60 mHz deadbands, GAST, IEEEG1, TGOV1), 2 workers, "
+          f"{seconds:.0f} s: wrong records flagged {j['wrong_flagged']}/{j['wrong']}, right ones passed "
+          f"{j['right_passed']}/{j['right']} ({j['right_expected_false_alarms']:.1f} false alarms expected), failed "
+          f"{len(j['failed'])}" + (f"; missed: {'; '.join(j['missed'])}" if j["missed"] else ""))
+    for f in found:
+        print(f"  {f['unit']} ({f['plant']}, record on file wrong by its {f['wrong']}): {f['record']}"
+              + (f", droop {100 * f['droop_off']:+.1f} %" if f["droop_off"] is not None else "")
+              + (f", band {100 * f['band_off']:+.1f} %" if f["band_off"] is not None else "")
+              + (f"; flags: {'; '.join(f['flags'])}" if f["flags"] else ""))
+    for line in j["false_alarms"]:
+        print(f"  flagged although right: {line}")
+    for line in j["failed"]:
+        print(f"  failed: {line}")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--units", type=int, default=100)
     parser.add_argument("--scaling", type=int, default=10, help="units of the 1-worker / 2-worker timing")
     parser.add_argument("--work", type=Path, default=ROOT / "results" / "bench-fleet")
+    parser.add_argument("--mixed", type=int, default=20, help="units of the mixed fleet (deadbands, GAST)")
     args = parser.parse_args(argv)
     work = args.work
     figures = {}
@@ -172,6 +207,8 @@ def main(argv=None) -> int:
     for line in j["new_records_failing"]:
         print(f"  fails a check: {line}")
     print(f"failed units: {len(j['failed'])}" + "".join(f"\n  {f}" for f in j["failed"]))
+    if args.mixed:
+        mixed_figures(work, args.mixed, figures)
     # Before and after: the same recordings cut to ANDES's own 10 s before the event, their
     # records on file checked only (nothing identified).
     short, short_s, _ = run(work / "short", args.units, 2, work / "short" / "results", pre_event=10.0, check_only=True)

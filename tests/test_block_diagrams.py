@@ -1,4 +1,4 @@
-"""HYGOV and GGOV1 records against their own block diagrams, linearised by hand.
+"""HYGOV, HYGOVD, GGOV1 and GAST records against their own block diagrams, linearised by hand.
 
 Why this test exists: the TGOV1 and IEEEG1 records the project writes are replayed in
 an outside grid simulator (ANDES, tests/test_andes_replay.py). For HYGOV and GGOV1 there
@@ -44,6 +44,19 @@ dwf = dv + Flag v0 SPEED:
     error -SPEED is held, so the integrator never returns the power: no steady state, but
     a ramp asymptote dPm -> SPEED (a t + b), a = -Kturb Kigov,
     b = -Kturb (Kpgov + Kigov (Tc - Tb - Tact)) + Flag v0 Kturb - Dm (t from the step).
+
+GAST (demand P_ref - SPEED / R and the temperature limit AT + KT (AT - x3) into a low-value
+gate passing the demand; fuel valve 1/(1 + s T1); fuel flow 1/(1 + s T2) is the power, less
+Dturb SPEED). Linearised, the gate passing the demand:
+  dPm/ddw = (1/R) / ((1 + s T1)(1 + s T2)) + Dturb;   steady: dPm = (1/R + Dturb) ddw.
+GAST is also replayed in ANDES (tests/test_andes_replay.py); this checks the record against
+the diagram itself.
+
+HYGOVD: HYGOV with the speed deadband of half-width db before the speed error and the
+damping, the no-step form: a step ddw beyond the band acts as ddw - db sign(ddw), so the
+response is HYGOV's to the reduced step. The record is written by the project's writer
+(HYGOVD: HYGOV's fields, dbH, dbL, Trate), read back, and played; ANDES's HYGOV (and its
+HYGOVDB) lacks PSS/E's gain, so the diagram is the check.
 
 Tolerances
 ----------
@@ -124,6 +137,12 @@ def hygov_steady(v: dict, p_ref: float) -> float:
     """dPm/ddw at steady state: the gate moves 1/R per unit speed, the head returns to 1."""
     q0 = p_ref / v["At"] + v["qNL"]
     return v["At"] / v["R"] + v["Dturb"] * q0
+
+
+def gast_linear(v: dict) -> tuple[np.ndarray, np.ndarray]:
+    """dPm/ddw of the GAST diagram, the low-value gate passing the demand."""
+    den = mul([v["T1"], 1.0], [v["T2"], 1.0])
+    return _trim(add([1.0 / v["R"]], v["Dt"] * den)), _trim(den)
 
 
 def ggov1_linear(v: dict, p_ref: float) -> tuple[np.ndarray, np.ndarray]:
@@ -300,3 +319,43 @@ def test_ggov1_record_follows_its_linearised_block_diagram(fmus, tmp_path, rsele
     else:
         assert bench[-1] == pytest.approx(a * speed, rel=STEADY_TOL), (
             "steady state: -SPEED / R (Rselect 1), (Kturb (Flag v0 - 1/R) - Dm) SPEED (Rselect -1)")
+
+
+# ---------------------------------------------------------------------- HYGOVD
+def test_hygovd_record_acts_on_the_deviation_beyond_its_band(fmus, tmp_path):
+    from rapid_cosim.exchange import psse_dyr
+
+    db = 1.5e-5  # pu of speed: the 0.002 Hz step (4e-5 pu) leaves it by 2.5e-5
+    values = {"R": 0.05, "r": 0.3, "Tr": 5.0, "Tf": 0.05, "Tg": 0.5, "VELM": 0.2, "GMAX": 1.0, "GMIN": 0.0,
+              "TW": 1.2, "At": 1.2, "Dturb": 0.3, "qNL": 0.08, "db": db}
+    psse_dyr.write_record(tmp_path / "unit.dyr", "HYGOV", values, bus=3)
+    record = read_record(tmp_path / "unit.dyr")
+    assert (record.model, record.block, record.values["db"]) == ("HYGOVD", "HYGOV", db)
+    sim = Simulator(fmus["StagedTestHYGOV"])
+    ddw = -DF / F_NOM
+    num, den = hygov_linear(record.values, P_REF)
+    t, bench, rest = _play(sim, record.values, _window(den))
+    derived = _derived(num, den, t, ddw - db)  # the step less the band
+    _check_dynamics(t, bench, derived, rest)
+    assert bench[-1] == pytest.approx(hygov_steady(record.values, P_REF) * (ddw - db), rel=STEADY_TOL)
+    plain = {k: v for k, v in record.values.items() if k != "db"}
+    _, without, _ = _play(sim, plain, _window(den))
+    assert without[-1] / bench[-1] == pytest.approx(ddw / (ddw - db), rel=STEADY_TOL)  # the band's share
+
+
+# ---------------------------------------------------------------------- GAST
+def test_gast_record_follows_its_linearised_block_diagram(fmus, tmp_path):
+    record = _record(fmus, tmp_path, "GAST", "GAST")
+    v = record.values
+    sim = Simulator(fmus["StagedTestGAST"])
+    eps = sim.parameters["gov.eps_v"].start
+    ddw = -DF / F_NOM
+    move = abs(ddw) / v["R"]
+    _margin("temperature limit", v["AT"] + v["KT"] * (v["AT"] - P_REF - move) - (P_REF + move), eps)
+    _margin("VMAX", v["VMAX"] - P_REF - move, eps)
+    _margin("VMIN", P_REF - move - v["VMIN"], eps)
+    num, den = gast_linear(v)
+    t, bench, rest = _play(sim, v, _window(den))
+    derived = _derived(num, den, t, ddw)
+    _check_dynamics(t, bench, derived, rest)
+    assert bench[-1] == pytest.approx((1.0 / v["R"] + v["Dt"]) * ddw, rel=STEADY_TOL), "steady state (1/R + Dt) ddw"

@@ -144,7 +144,10 @@ def test_a_bad_mva_is_refused_before_any_work(tmp_path, capsys, mva):
 
 @pytest.mark.parametrize("change, message", [
     (dict(mva="mva = -3"), r"unit\.mva.*1 to 5000"),
-    (dict(extra="colour = 'red'"), r"\[unit.colour\]: unknown key 'colour'; allowed: bus, machine_id, mva, name"),
+    (dict(extra="colour = 'red'"), r"\[unit.colour\]: unknown key 'colour'; allowed: bus, kind, machine_id, mva, "
+                                   r"name"),
+    (dict(extra="kind = 'nuclear'"), r"\[unit.kind\]: kind = 'nuclear': the kind of plant is one of steam, gas, "
+                                     r"hydro"),
 ])
 def test_a_bad_unit_file_names_its_field(tmp_path, change, message):
     config = tmp_path / "t1" / "config.toml"
@@ -154,6 +157,27 @@ def test_a_bad_unit_file_names_its_field(tmp_path, change, message):
         Unit.load(_unit(tmp_path, [config], **change))
 
 
+def test_a_unit_without_structures_gets_the_shipped_ones_of_its_kind(tmp_path):
+    """No [structures] and no structures/ folder (a unit made from scratch, or beside an
+    installed wheel): the standard structures shipped in the package, those of its kind;
+    with no kind, every one; [structures] standard names them one by one."""
+    config = tmp_path / "t1" / "config.toml"
+    config.parent.mkdir()
+    config.write_text("")
+    head = '[unit]\nname = "u"\n{kind}\n[tests]\nconfigs = ["t1"]\n{tail}'
+    for kind, names in (("steam", ["TGOV1", "IEEEG1"]), ("gas", ["GAST", "GGOV1"]), ("hydro", ["HYGOV"]),
+                        (None, ["TGOV1", "IEEEG1", "GGOV1", "HYGOV", "GAST"])):
+        (tmp_path / "unit.toml").write_text(head.format(kind=f'kind = "{kind}"' if kind else "", tail=""))
+        unit = Unit.load(tmp_path / "unit.toml")
+        assert [p.stem for p in unit.structures] == names and unit.kind == kind
+        assert all(p.parent.name == "standard" and p.parent.parent.name == "structures" for p in unit.structures)
+    (tmp_path / "unit.toml").write_text(head.format(kind='kind = "gas"', tail='[structures]\nstandard = ["TGOV1"]\n'))
+    assert [p.stem for p in Unit.load(tmp_path / "unit.toml").structures] == ["TGOV1"]
+    (tmp_path / "unit.toml").write_text(head.format(kind="", tail='[structures]\nstandard = ["TGOV9"]\n'))
+    with pytest.raises(ConfigError, match=r"structures.standard.*no standard structure 'TGOV9'; shipped: GAST, GGOV1"):
+        Unit.load(tmp_path / "unit.toml")
+
+
 def test_a_missing_config_is_named(tmp_path):
     path = _unit(tmp_path, [tmp_path / "nowhere" / "config.toml"])
     with pytest.raises(ConfigError, match=r"nowhere: no such experiment config"):
@@ -161,10 +185,17 @@ def test_a_missing_config_is_named(tmp_path):
 
 
 def test_what_a_structure_cannot_carry():
-    assert cannot_carry("TGOV1", ["rate_limit"], freed=False) == ["rate_limit"]
-    assert cannot_carry("IEEEG1", ["rate_limit"], freed=False) == ["rate_limit"]
-    assert cannot_carry("IEEEG1", ["rate_limit"], freed=True) == []
-    assert cannot_carry("GGOV1", ["deadband", "delay"], freed=False) == ["delay"]
+    """A part a structure file makes optional carries its effect only where it was freed."""
+    steam = ("rate_limit", "deadband")  # IEEEG1's optional parts
+    assert cannot_carry("TGOV1", ["rate_limit"], optional=("deadband",)) == ["rate_limit"]
+    assert cannot_carry("TGOV1", ["deadband"], optional=("deadband",)) == ["deadband"]
+    assert cannot_carry("TGOV1", ["deadband"], optional=("deadband",), freed="deadband") == []
+    assert cannot_carry("IEEEG1", ["rate_limit"], optional=steam) == ["rate_limit"]
+    assert cannot_carry("IEEEG1", ["rate_limit"], optional=steam, freed="rate_limit") == []
+    assert cannot_carry("IEEEG1", ["rate_limit", "deadband"], optional=steam, freed="deadband") == ["rate_limit"]
+    assert cannot_carry("GGOV1", ["deadband", "delay"]) == ["delay"]  # a structure file with db estimated
+    assert cannot_carry("GGOV1", ["deadband", "delay"], optional=("deadband",)) == ["deadband", "delay"]
+    assert cannot_carry("GAST", ["output_limit", "deadband"]) == ["deadband"]
 
 
 def test_with_no_record_recommended_an_earlier_runs_files_are_gone_and_the_notes_say_why(tmp_path, monkeypatch):

@@ -33,6 +33,16 @@ What is invented here, and how:
 Each unit is a folder: ``data.csv`` (time, FREQ, P), ``config.toml`` (the event, on TG
 Type I's bench with its documented constants: the explanation's base), ``unit.toml``,
 ``structures/`` (the four standard structure files), ``record.dyr`` and ``truth.json``.
+
+**The mixed fleet** (``make_fleet(..., mixed=True)``, issue 53) is of the families a
+planning case holds, the structure ``k % 5``: TGOV1 with a 36 mHz deadband, TGOV1 with a
+60 mHz one (0.0006 and 0.001 pu of speed at 60 Hz, the no-step form), GAST gas turbines
+(R 4-7 %, fuel valve 0.3-1 s, fuel system 0.05-0.15 s, the PSS/E defaults for the
+temperature limit, which does not bind), IEEEG1 and TGOV1 as above, none with a hidden
+rate. Each unit states its kind (steam, gas) and takes the shipped standard structures of
+it; the deadband units' right records are TGOV1D, and one way a record is wrong is the
+deadband left out (a plain TGOV1 record); a GAST record is wrong by its droop or its fuel
+valve's lag.
 """
 
 from __future__ import annotations
@@ -45,7 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from ..compiler.source import ModelSource
-from ..structures.standard import standard_file
+from ..structures.standard import kind_files, standard_file
 
 EVENT = Path("electrical") / "tgov1_on"  # under the experiments folder the caller names
 STRUCTURES = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV", "TGTypeI")
@@ -69,6 +79,44 @@ class UnitPlan:
     record_right: bool
     wrong: str = ""
     record: dict[str, float] = field(default_factory=dict)
+    kind: str | None = None  # the unit file's kind (the mixed fleet): its structures are the shipped ones of it
+
+
+MIXED = ("TGOV1 db36", "TGOV1 db60", "GAST", "IEEEG1", "TGOV1")
+DEADBANDS = {"TGOV1 db36": 0.0006, "TGOV1 db60": 0.001}  # pu of speed: 36 and 60 mHz at 60 Hz
+
+
+def draw_mixed_unit(k: int, seed: int) -> UnitPlan:
+    """A unit of the mixed fleet (module docstring)."""
+    g = np.random.default_rng([seed, 7919, k])
+    structure = MIXED[k % len(MIXED)]
+    if structure == "GAST":
+        plant, model, kind = {"R": g.uniform(0.04, 0.07), "T1": g.uniform(0.3, 1.0), "T2": g.uniform(0.05, 0.15)}, \
+            "GAST", "gas"
+    elif structure == "IEEEG1":
+        plant, model, kind = {"K": g.uniform(15.0, 25.0), "T3": g.uniform(0.1, 0.8), "T4": g.uniform(0.1, 0.5),
+                              "T5": g.uniform(4.0, 10.0), "K1": g.uniform(0.2, 0.4)}, "IEEEG1", "steam"
+    else:
+        plant, model, kind = {"R": g.uniform(0.04, 0.07), "T1": g.uniform(0.2, 1.5), "T2": g.uniform(0.5, 3.0),
+                              "T3": g.uniform(4.0, 10.0)}, "TGOV1", "steam"
+        if structure in DEADBANDS:
+            plant["db"] = DEADBANDS[structure]
+    right = (k // len(MIXED)) % 2 == 0
+    plan = UnitPlan(f"unit{k:03d}", structure, model, plant, k % 2 == 0, float(g.uniform(100.0, 900.0)),
+                    float(g.uniform(3.0, 8.0)), float(g.uniform(0.55, 0.8)), False, right, kind=kind)
+    plan.record = dict(plant)
+    if not right:
+        ways = ["droop", "lag"] + (["deadband"] if "db" in plant else [])
+        plan.wrong = ways[int(g.integers(len(ways)))]
+        droop = "K" if model == "IEEEG1" else "R"
+        lag = {"TGOV1": "T3", "IEEEG1": "T5", "GAST": "T1"}[model]
+        if plan.wrong == "droop":
+            plan.record[droop] *= 1.3
+        elif plan.wrong == "lag":
+            plan.record[lag] *= 2.0
+        else:
+            plan.record.pop("db")
+    return plan
 
 
 def draw_unit(k: int, seed: int) -> UnitPlan:
@@ -117,7 +165,10 @@ def draw_unit(k: int, seed: int) -> UnitPlan:
 
 def structure_files(plan: UnitPlan, folder: Path, experiments: Path) -> list[Path]:
     """The four classic standard structure files (shipped, :mod:`rapid_cosim.structures.standard`),
-    IEEEG1's documenting TG Type I's lead-lag for a TG Type I unit (its record is that IEEEG1)."""
+    IEEEG1's documenting TG Type I's lead-lag for a TG Type I unit (its record is that IEEEG1);
+    for a unit of a stated kind, the shipped files of its kind, not copied."""
+    if plan.kind is not None:
+        return kind_files(plan.kind)
     out = []
     for name in ("TGOV1", "IEEEG1", "GGOV1", "HYGOV"):
         text = standard_file(name).read_text()
@@ -202,10 +253,12 @@ def write_unit(plan: UnitPlan, folder: Path, seed: int, source: ModelSource, exp
     (folder / "event").mkdir(exist_ok=True)
     shutil.move(str(folder / "data.csv"), folder / "event" / "data.csv")
     (folder / "event" / "config.toml").write_text(render_config(config))
-    (folder / "unit.toml").write_text(f'[unit]\nname = "{plan.name} ({plan.structure})"\nmva = {plan.rating:.3f}\n'
-                                      f'bus = {100 + int(plan.name[4:])}\nmachine_id = "1"\n\n'
-                                      '[tests]\nconfigs = ["event"]\n\n[structures]\nfiles = ['
-                                      + ", ".join(f'"structures/{p.name}"' for p in structures) + "]\n")
+    listed = ("" if plan.kind else "\n[structures]\nfiles = ["
+              + ", ".join(f'"structures/{p.name}"' for p in structures) + "]\n")
+    (folder / "unit.toml").write_text(f'[unit]\nname = "{plan.name} ({plan.structure})"\n'
+                                      + (f'kind = "{plan.kind}"\n' if plan.kind else "")
+                                      + f'mva = {plan.rating:.3f}\nbus = {100 + int(plan.name[4:])}\nmachine_id = "1"\n\n'
+                                      '[tests]\nconfigs = ["event"]\n' + listed)
     FORMATS["dyr"].write_record(folder / "record.dyr", plan.record_model, _record_values(plan, structures),
                                 bus=100 + int(plan.name[4:]), machine_id="1")
     # How far the record on file's own response is from the plant's, noise-free, in the
@@ -245,16 +298,17 @@ def _record_values(plan: UnitPlan, structures: list[Path]) -> dict[str, float]:
 
 
 def make_fleet(folder: str | Path, units: int | list[int], *, experiments: str | Path, seed: int = 1,
-               source: ModelSource = ModelSource(), name: str | None = None, pre_event: float = PRE_EVENT_S) -> Path:
+               source: ModelSource = ModelSource(), name: str | None = None, pre_event: float = PRE_EVENT_S,
+               mixed: bool = False) -> Path:
     """Units ``0 .. units - 1`` (or those of a list) under ``folder/units`` and
     ``folder/fleet.toml``; ``experiments`` is the repository's experiments folder (the
-    event and the standard structure files come from it: the installed package carries
-    neither)."""
+    event comes from it: the installed package does not carry it). ``mixed``: the mixed
+    fleet's units (module docstring)."""
     folder = Path(folder)
     indices = list(range(units)) if isinstance(units, int) else list(units)
     for k in indices:
-        write_unit(draw_unit(k, seed), folder / "units" / f"unit{k:03d}", seed, source, Path(experiments),
-                   pre_event)
+        plan = draw_mixed_unit(k, seed) if mixed else draw_unit(k, seed)
+        write_unit(plan, folder / "units" / f"unit{k:03d}", seed, source, Path(experiments), pre_event)
     title = name or f"synthetic fleet of {len(indices)} units"
     (folder / "fleet.toml").write_text(f'[fleet]\nname = "{title}"\nunits = ["units/*"]\n')
     return folder / "fleet.toml"
