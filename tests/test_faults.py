@@ -207,3 +207,34 @@ def test_a_bad_option_is_refused_before_anything_is_announced_or_made(config, tm
     captured = capsys.readouterr()
     assert message in captured.err and captured.out == ""
     assert not archive.exists() and not list(tmp_path.iterdir())
+
+
+STOPPED_MID_WORK = """
+import time
+import numpy as np
+from rapid_cosim.fitting.engine import Started
+
+def nap(payload, chunk):
+    time.sleep(payload)
+    return chunk
+
+if __name__ == "__main__":
+    started = Started(nap, 600.0, [np.array([k]) for k in range(6)], workers=2)
+    time.sleep(3)  # the workers have taken their first chunks
+    started.close()
+    print("closed", flush=True)
+"""
+
+
+def test_a_started_pool_closed_mid_work_lets_the_process_end(tmp_path):
+    """An identification stopped (an error, Ctrl-C) while its standard records' fits run on
+    their own pool: closing the pool ends its work and the process exits. Cancelling the
+    futures before loky's shutdown, as close() once did, killed loky's manager thread
+    (InvalidStateError) and the process could not exit (found on an identify that had
+    failed and ran on for an hour, issue 53). The bound below only tells a hang from an
+    exit: the workers' chunks would take ten minutes."""
+    script = tmp_path / "stopped.py"
+    script.write_text(STOPPED_MID_WORK)
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0 and "closed" in proc.stdout, proc.stderr
+    assert "InvalidStateError" not in proc.stderr

@@ -17,7 +17,7 @@ from typing import Sequence
 from ..calibration.record import DOCUMENTED, ESTIMATED, standard_record
 from ..errors import RapidCosimError
 from ..estimators.uncertainty import Uncertainty
-from ..exchange import pslf_dyd, psse_dyr
+from ..exchange import NoLayout, layout, pslf_dyd, psse_dyr
 from ..experiment import Experiment
 from ..noise import campaign_noise
 from .archives import ArchivedRun
@@ -109,10 +109,13 @@ def delivered_record(run: ArchivedRun, x, unc: Uncertainty | None, *, bus: int =
     note = (f"PSS/E .dyr and PSLF .dyd records of {rec.model.name}, machine {machine_id} at bus {bus}, as "
             "rapid-cosim export writes them (conversions: rapid_cosim.exchange.tables).")
     if mva is not None:
-        dyd, _ = pslf_dyd.format_record(rec.model.name, rec.values, bus=bus, machine_id=machine_id, mva=mva)
+        try:
+            dyd, _ = pslf_dyd.format_record(rec.model.name, rec.values, bus=bus, machine_id=machine_id, mva=mva)
+        except NoLayout as e:  # a deadband: the .dyr's D layout carries it
+            note += f" No .dyd record: {e}."
     else:
         note += " No .dyd record: it states the machine's MVA base, which the run does not know (give --mva)."
-    return DeliveredRecord(rec.model.name, dyr, dyd, note, tuple(rows))
+    return DeliveredRecord(layout(rec.model.name, rec.values).name, dyr, dyd, note, tuple(rows))
 
 
 def _documented(experiments: Sequence[Experiment]) -> list[ParameterRow]:

@@ -1,0 +1,178 @@
+"""Records before and after a change, compared by what they do (issue 53's rule, issue 54's
+decision): ``make bench-replay`` and ``make bench-fleet`` run at two commits, their
+answers read side by side.
+
+    python benchmarks/records_diff.py --before BEFORE/results --after results
+
+For ``bench-replay`` (``bench-replay/study.json``): per unit, the record delivered before
+and after; where the texts differ, both are taken from the ANDES runs each study cached
+(the same event, closed loop) and their electrical power compared: the RMSE and the largest
+difference over the recorder's noise level, per event. For ``bench-fleet``
+(``bench-fleet/fleet/results/units/*.json``): per unit, the route, the explanation's
+verdict and the recommended fit before and after; where the records differ, both played on
+the unit's event by the unit's own bench (its plant's inputs, the record's values over its
+structure's constants), compared the same way. Prints every difference, and a line per
+bench: how many units have the same record, how many differ by under 0.1 of the noise (RMSE)
+and 0.5 at any sample, and every route or verdict that changed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+RMSE_BAR, PEAK_BAR = 0.1, 0.5  # of the recorder's noise level
+
+
+def _cached(work: Path, record: str, event) -> dict | None:
+    from replay_study import on_generator_1
+
+    record = on_generator_1(record)
+    path = work / "andes" / f"{hashlib.sha256((record + repr(event)).encode()).hexdigest()[:16]}.npz"
+    return dict(np.load(path)) if path.exists() else None
+
+
+def replay_diff(before: Path, after: Path) -> list[str]:
+    import replay_study as rs
+
+    old = {r["unit"]: r for r in json.loads((before / "bench-replay" / "study.json").read_text())}
+    new = {r["unit"]: r for r in json.loads((after / "bench-replay" / "study.json").read_text())}
+    lines, same, close, far = [], 0, 0, []
+    for unit, a in old.items():
+        b = new.get(unit)
+        if b is None:
+            lines.append(f"  {unit}: not in the run after")
+            continue
+        if a["fit"] != b["fit"]:
+            far.append(f"{unit}: {a['fit']} -> {b['fit']}")
+        if a["dyr"] == b["dyr"]:
+            same += 1
+            continue
+        events = _events(unit)
+        worst = (0.0, 0.0)
+        for name, (event, sigma) in events.items():
+            x, y = _cached(before / "bench-replay", a["dyr"], event), _cached(after / "bench-replay", b["dyr"], event)
+            if x is None or y is None:
+                lines.append(f"  {unit} {name}: no cached ANDES run to compare")
+                continue
+            d = np.interp(x["t"], y["t"], y["pe"]) - x["pe"]
+            worst = max(worst, (float(np.sqrt(np.mean(d ** 2)) / sigma), float(np.max(np.abs(d)) / sigma)))
+        ok = worst[0] < RMSE_BAR and worst[1] < PEAK_BAR
+        close += ok
+        (lines.append if ok else far.append)(f"{unit}: record differs, its response by {worst[0]:.3f} (RMSE) and "
+                                             f"{worst[1]:.3f} (largest) noise levels in ANDES")
+    lines.insert(0, f"bench-replay: {len(old)} units before; the same record on {same}, a response within "
+                    f"{RMSE_BAR:g}/{PEAK_BAR:g} of the noise on {close} more; otherwise: {len(far)}"
+                 + "".join(f"\n  {f}" for f in far))
+    del rs
+    return lines
+
+
+def _events(unit: str) -> dict:
+    """A replayed unit's events and noise levels, as replay_study judged them."""
+    import replay_study as rs
+
+    if unit.startswith("steam unit"):
+        steam = rs.steam_generator()
+        configs = [ROOT / "experiments" / "steam" / e for e in steam.EVENTS]
+        sigmas = rs.noise_levels(configs)
+        return {e: (ev, sigmas[e]) for e, (ev, _) in steam.EVENTS.items()}
+    if unit.startswith("electrical unit"):
+        sys.path.insert(0, str(ROOT / "experiments" / "electrical"))
+        import andes_grid
+
+        events = {"tgtypei_on": andes_grid.GridEvent(load=+1), "tgtypei_off_same": andes_grid.GridEvent(load=-1)}
+        sigmas = rs.noise_levels([ROOT / "experiments" / "electrical" / e for e in events])
+        return {e: (ev, sigmas[e]) for e, ev in events.items()}
+    import andes_grid
+    from rapid_cosim.fleet.synthetic import PRE_EVENT_S
+
+    home = ROOT / "results" / "bench-replay" / "fleet" / "units" / unit.split(" ")[0]
+    event = andes_grid.GridEvent(load=+1, t_event=PRE_EVENT_S, duration=60.0 - 10.0 + PRE_EVENT_S)
+    return {"event": (event, rs._unit_sigma(home))}
+
+
+def fleet_diff(before: Path, after: Path) -> list[str]:
+    from rapid_cosim.fleet.result import UnitResult
+
+    def units(root: Path) -> dict:
+        return {p.stem: UnitResult.from_json(json.loads(p.read_text()))
+                for p in sorted((root / "bench-fleet" / "fleet" / "results" / "units").glob("*.json"))}
+
+    old, new = units(before), units(after)
+    lines, changed, same, close, far = [], [], 0, 0, []
+    for name, a in old.items():
+        b = new.get(name)
+        if b is None:
+            lines.append(f"  {name}: not in the run after")
+            continue
+        if (a.route, a.explanation) != (b.route, b.explanation):
+            changed.append(f"{name}: {a.route.value} ({a.explanation or '-'}) -> {b.route.value} ({b.explanation or '-'})")
+        ra, rb = a.recommended, b.recommended
+        if ra is None or rb is None:
+            same += ra is None and rb is None
+            continue
+        if ra.fit != rb.fit:
+            changed.append(f"{name}: recommended {ra.fit} -> {rb.fit}")
+        if ra.parameters == rb.parameters:
+            same += 1
+            continue
+        rmse, peak = _played_apart(after / "bench-fleet" / "fleet" / "units" / name, ra, rb)
+        ok = rmse < RMSE_BAR and peak < PEAK_BAR
+        close += ok
+        if not ok:
+            far.append(f"{name}: {rb.fit}'s response moved by {rmse:.3f} (RMSE) and {peak:.3f} (largest) noise levels")
+    lines.insert(0, f"bench-fleet: {len(old)} units before; routes or verdicts changed: {len(changed)}"
+                 + "".join(f"\n  {c}" for c in changed)
+                 + f"\n  records: the same on {same}, a response within {RMSE_BAR:g}/{PEAK_BAR:g} of the noise on "
+                   f"{close} more; otherwise: {len(far)}" + "".join(f"\n  {f}" for f in far))
+    return lines
+
+
+def _played_apart(home: Path, a, b) -> tuple[float, float]:
+    """Two records of a fleet unit played on its event by its bench: their difference over
+    the unit's noise level (RMSE, largest)."""
+    from rapid_cosim.compiler.source import ModelSource
+    from rapid_cosim.diagnose.selection import noise_floors
+    from rapid_cosim.exchange import model_named
+    from rapid_cosim.experiment import load_experiment
+    from rapid_cosim.fitting.objective import simulate_experiment
+    from rapid_cosim.identify import Unit
+    from rapid_cosim.noise import campaign_noise
+    from rapid_cosim.structures.structure import Structure, on_structure
+
+    unit = Unit.load(home)
+    exp = load_experiment(unit.configs[0])
+    fits = campaign_noise([exp])
+    sigma = float(noise_floors([exp], fits)[exp.name].sigma)
+    structure = next(Structure.load(p) for p in unit.structures if Structure.load(p).name == b.model)
+    on = on_structure(structure, [exp], fits)[0]
+    fmu = ModelSource(fmu_dir=ROOT / "fmus").fmu(on.model)
+    table = model_named(b.model)
+    curves = [simulate_experiment(on, fmu, table.played(r.parameters, {**on.fixed})) for r in (a, b)]
+    out = [n for n in on.outputs if on.weights[n] > 0][0]
+    d = curves[1][out] - curves[0][out]
+    return float(np.sqrt(np.mean(d ** 2)) / sigma), float(np.max(np.abs(d)) / sigma)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--before", type=Path, required=True, help="the earlier commit's results folder")
+    parser.add_argument("--after", type=Path, default=ROOT / "results")
+    parser.add_argument("--parts", default="replay,fleet")
+    args = parser.parse_args(argv)
+    if "replay" in args.parts:
+        print("\n".join(replay_diff(args.before, args.after)))
+    if "fleet" in args.parts:
+        print("\n".join(fleet_diff(args.before, args.after)))
+
+
+if __name__ == "__main__":
+    main()
