@@ -45,12 +45,8 @@ import andes_unit  # noqa: E402
 
 PLANT = {"R": 0.05, "T1": 0.4, "VMAX": 1.0, "VMIN": 0.0, "T2": 1.5, "T3": 6.0, "Dt": 0.0, "dbH": 0.0006,
          "dbL": -0.0006, "Trate": 0.0}  # PowerWorld's TGOV1D fields, machine base, pu of speed
-EVENTS = {  # name -> (the grid event, the recorder's seed)
-    "db_on": (andes_unit.grid_event(+1, 7, 200.0), 61),
-    "db_off": (andes_unit.grid_event(-1, 7, 200.0), 62),
-    "db_on9": (andes_unit.grid_event(+1, 9, 150.0), 63),
-    "db_on100": (andes_unit.grid_event(+1, 7, 100.0), 64),
-}
+EVENTS = {**andes_unit.three_events("db", 61),  # name -> (the grid event, the recorder's seed)
+          "db_on100": (andes_unit.grid_event(+1, 7, 100.0), 64)}
 UNITS = {  # file -> (its events, the one held out, what it shows)
     "unit.toml": (("db_on", "db_on100", "db_off"), "db_off", "events of two sizes: the band determined"),
     "one_size.toml": (("db_on", "db_off", "db_on9"), "db_on9", "events of one size: the band not determined"),

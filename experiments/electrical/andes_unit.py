@@ -29,6 +29,15 @@ def grid_event(load: int, bus: int, mw: float) -> andes_grid.GridEvent:
     return andes_grid.GridEvent(load=load, bus=bus, mw=mw, t_event=T_EVENT, duration=DURATION)
 
 
+def three_events(prefix: str, first_seed: int) -> dict[str, tuple[andes_grid.GridEvent, int]]:
+    """The steam unit's three events (name -> (event, the recorder's seed)): 200 MW switched
+    on at bus 7 (area 1), 200 MW switched off there (another load lowered by as much first),
+    150 MW switched on at bus 9 (area 2, across the tie); seeds from ``first_seed``."""
+    events = (("on", +1, 7, 200.0), ("off", -1, 7, 200.0), ("on9", +1, 9, 150.0))
+    return {f"{prefix}_{name}": (grid_event(load, bus, mw), first_seed + k)
+            for k, (name, load, bus, mw) in enumerate(events)}
+
+
 def recorded(run: dict, seed: int, noise: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Time, frequency (Hz) and P_e (MW) at 30 frames/s, with the recorder's noise."""
     t = np.arange(0.0, DURATION + 1e-9, 1.0 / generate.RATE)

@@ -31,11 +31,7 @@ import andes_unit  # noqa: E402
 
 PLANT = {"R": 0.05, "T1": 0.4, "T2": 0.1, "T3": 3.0, "AT": 1.0, "KT": 2.0, "VMAX": 1.0, "VMIN": 0.0,
          "Dt": 0.0}  # ANDES's names (PSS/E's GAST fields), machine base
-EVENTS = {  # name -> (the grid event, the recorder's seed)
-    "gas_on": (andes_unit.grid_event(+1, 7, 200.0), 71),
-    "gas_off": (andes_unit.grid_event(-1, 7, 200.0), 72),
-    "gas_on9": (andes_unit.grid_event(+1, 9, 150.0), 73),
-}
+EVENTS = andes_unit.three_events("gas", 71)  # name -> (the grid event, the recorder's seed)
 HELD_OUT = "gas_on9"
 
 

@@ -38,11 +38,7 @@ PLANT = {"K": 20.0, "T1": 0.5, "T2": 0.0, "T3": 0.1, "UO": 0.015, "UC": -1.0, "P
          "T4": 0.3, "K1": 0.3, "K2": 0.0, "T5": 8.0, "K3": 0.7, "K4": 0.0, "T6": 0.5, "K5": 0.0, "K6": 0.0,
          "T7": 0.5, "K7": 0.0, "K8": 0.0}  # ANDES's names, machine base
 T_EVENT, DURATION = andes_unit.T_EVENT, andes_unit.DURATION
-EVENTS = {  # name -> (the grid event, the recorder's seed)
-    "steam_on": (andes_unit.grid_event(+1, 7, 200.0), 51),
-    "steam_off": (andes_unit.grid_event(-1, 7, 200.0), 52),
-    "steam_on9": (andes_unit.grid_event(+1, 9, 150.0), 53),
-}
+EVENTS = andes_unit.three_events("steam", 51)  # name -> (the grid event, the recorder's seed)
 HELD_OUT = "steam_on9"
 
 
