@@ -108,7 +108,7 @@ identify-png: fmus  ## the README's picture of make identify's report (docs/iden
 
 STRUCTURES := $(addprefix experiments/structures/,TGTypeI.toml TGOV1.toml IEEEG1.toml GGOV1.toml HYGOV.toml)  # shipped: rapid_cosim/structures/standard
 
-structures: fmus  ## identify's deliverable part alone: which structure (TG Type I and the four standard ones, IEEEG1's rates free where they win) fits tests 1-10 (4, 8 held out), the records, identifiability
+structures: fmus  ## identify's deliverable part alone: which structure (TG Type I and the four standard ones, IEEEG1's rates and the deadbands free where they win) fits tests 1-10 (4, 8 held out), the records, identifiability
 	$(RC) structures $(addprefix experiments/test,1 2 3 5 6 7 9 10 4 8) --holdout test4 --holdout test8 \
 		--structures $(subst $(eval) ,$(comma),$(STRUCTURES)) --results $(RESULTS)/structures --seed $(SEED) --n-jobs $(N_JOBS)
 	@echo "make structures: $$(( $$(date +%s) - $(T0) )) s wall time"
@@ -116,7 +116,7 @@ structures: fmus  ## identify's deliverable part alone: which structure (TG Type
 report-example: fmus  ## the validation report (HTML, PDF) of a synthetic TGOV1 unit, two tests held out; its picture in docs/
 	$(PY) docs/report_example.py --results $(RESULTS)/report-example --picture docs/validation_report.png
 
-bench-structures: fmus  ## identify's structure choice on synthetic campaigns (SEEDS=10 per standard structure): named, exported .dyr's RMSE/noise
+bench-structures: fmus  ## identify's structure choice on synthetic campaigns (SEEDS=10 per standard structure): named, deadbands kept where none is, exported .dyr's RMSE/noise
 	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),10) --n-jobs $(N_JOBS) --json $(RESULTS)/bench-structures/study.json
 
 bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5); then the true model on 200 effect-free campaigns: adequacy p-values, false alarms, interval coverage

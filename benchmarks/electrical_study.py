@@ -309,7 +309,7 @@ def _optional_rates(folder: Path, kind: str, workdir: Path, fmu_dir: Path) -> di
     rates = {"gov.Uo": EstimateSpec("gov.Uo", 0.001, 1.0, "gov.Uo", scale="log"),
              "gov.Uc": EstimateSpec("gov.Uc", -1.0, -0.001, "gov.Uc")}
     plain = replace(plain, fixed={k: v for k, v in plain.fixed.items() if k not in rates}, optional=rates,
-                    carries="rate_limit")
+                    carries={n: "rate_limit" for n in rates})
     v = select_structure([plain, plain.with_optional()], [variant(folder, kind)], workdir=workdir,
                          options=RunOptions(method="ms", seed=1), source=ModelSource(fmu_dir=fmu_dir), log=lambda *_: None)
     best = v.ranking[0]

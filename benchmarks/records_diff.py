@@ -55,7 +55,7 @@ def replay_diff(before: Path, after: Path) -> list[str]:
         if a["dyr"] == b["dyr"]:
             same += 1
             continue
-        events = _events(unit)
+        events = _events(unit, after)
         worst = (0.0, 0.0)
         for name, (event, sigma) in events.items():
             x, y = _cached(before / "bench-replay", a["dyr"], event), _cached(after / "bench-replay", b["dyr"], event)
@@ -75,8 +75,9 @@ def replay_diff(before: Path, after: Path) -> list[str]:
     return lines
 
 
-def _events(unit: str) -> dict:
-    """A replayed unit's events and noise levels, as replay_study judged them."""
+def _events(unit: str, after: Path) -> dict:
+    """A replayed unit's events and noise levels, as replay_study judged them (a fleet
+    unit's folder from the run ``after``)."""
     import replay_study as rs
 
     if unit.startswith("steam unit"):
@@ -94,7 +95,7 @@ def _events(unit: str) -> dict:
     import andes_grid
     from rapid_cosim.fleet.synthetic import PRE_EVENT_S
 
-    home = ROOT / "results" / "bench-replay" / "fleet" / "units" / unit.split(" ")[0]
+    home = after / "bench-replay" / "fleet" / "units" / unit.split(" ")[0]
     event = andes_grid.GridEvent(load=+1, t_event=PRE_EVENT_S, duration=60.0 - 10.0 + PRE_EVENT_S)
     return {"event": (event, rs._unit_sigma(home))}
 

@@ -4,12 +4,13 @@ exports reproduce the tests? (``make bench-structures``)
 For each standard structure (TGOV1, IEEEG1, GGOV1, HYGOV), ``--seeds`` invented plants
 (:mod:`rapid_cosim.identify.study` describes them; half the IEEEG1 ones with
 binding valve rate limits), each put through the field's ten staged tests with realistic
-recorder noise, tests 4 and 8 held out, and through identify's path: every structure and
-IEEEG1 with its optional Uo/Uc fitted by multistart least squares with one fitted noise
-model, the records kept and recommended by identify's rules, the winner exported as a
-.dyr, read back and simulated on every test. Prints one line per campaign, then per
-structure how often it is named, recommended and first by BIC, whether binding Uo/Uc were
-freed, the exported record's RMSE over the noise (worst test of each campaign: max and
+recorder noise, tests 4 and 8 held out, and through identify's path: every structure,
+IEEEG1 with its optional Uo/Uc and each with its optional deadband fitted by multistart
+least squares with one fitted noise model, the records kept and recommended by identify's
+rules, the winner exported as a .dyr, read back and simulated on every test. Prints one
+line per campaign, then per structure how often it is named, recommended and first by
+BIC, whether binding Uo/Uc were freed, how often a deadband was kept free (no plant has
+one), the exported record's RMSE over the noise (worst test of each campaign: max and
 median), each miss with its ranking, and the time.
 """
 
@@ -51,7 +52,8 @@ def main(argv: list[str]) -> int:
     build_models([Structure.load(structures_dir / f"{s}.toml").bench for s in STANDARD], package=package,
                  fmu_dir=fmu_dir, log=lambda *_: None)
     jobs = [(t, s) for s in range(1, args.seeds + 1) for t in truths]  # every structure early in the log
-    print(f"{len(jobs)} campaigns, {len(STANDARD)} structures and IEEEG1 with Uo/Uc fitted on each, "
+    print(f"{len(jobs)} campaigns, {len(STANDARD)} structures, IEEEG1 with Uo/Uc and each with its deadband "
+          "fitted on each, "
           f"{args.n_jobs} in parallel; work folder {work}", flush=True)
     t0 = time.perf_counter()
     cases = []

@@ -396,7 +396,8 @@ def _as_batch(parameters) -> tuple[list[str], np.ndarray] | None:
 def export(archive: str | Path, out: str | Path, *, format: str | None = None, bus: int = 1, machine_id: str = "1",
            mva: float | None = None, bus_name: str = "", kv: float = 0.0):
     """Write the calibration in ``archive`` as the grid simulators' record of its standard
-    governor (TGOV1, IEEEG1, GGOV1 or HYGOV, told by the bench's ``gov.*`` parameters):
+    governor (TGOV1, IEEEG1, GGOV1, HYGOV or GAST, told by the bench's ``gov.*`` parameters;
+    a deadband in the D layout, TGOV1D say, which PSLF has no layout for):
     a PSS/E ``.dyr`` or PSLF ``.dyd`` record (``format``, default by ``out``'s suffix) for
     machine ``machine_id`` at ``bus``. The values are the archive's best estimates over
     its fixed values over the bench's defaults; ``mva``, the machine's MVA base, is
@@ -405,8 +406,8 @@ def export(archive: str | Path, out: str | Path, *, format: str | None = None, b
     run first, and written only if it reproduces the fit
     (:mod:`rapid_cosim.calibration.delivery`; else :class:`~rapid_cosim.errors.DeliveryError`).
     Returns the :class:`~rapid_cosim.calibration.delivery.Delivered` record (``model``,
-    ``text``, ``path``, ``dropped``, ``reproduction``); conversions are those of
-    :mod:`rapid_cosim.exchange.tables`."""
+    ``text``, ``path``, ``dropped``, ``reproduction``); the tables are
+    :mod:`rapid_cosim.exchange.layouts`, the conversions :mod:`rapid_cosim.exchange.tables`."""
     from .calibration.delivery import deliver_record
     from .calibration.record import finished_run
     from .exchange import FORMATS, ExchangeWarning, format_of, machine_note

@@ -387,6 +387,7 @@ def test_a_deadband_goes_out_in_the_d_layout_and_reads_back_as_its_block(tmp_pat
         assert psse_dyr.format_record(model, record.values, bus=4, extra=record.extra)[0] == text
         (flat,), _ = psse_dyr.parse_records(plain)
         assert "db" not in flat.values and model_named(model).played(flat.values, {"gov.db": 0.001})["gov.db"] == 0.0
+        assert "gov.db" not in model_named(model).played(flat.values, {"gov.p_ref": 0.6})  # a bench without one
     asymmetric = "1 'TGOV1D' 1 0.05 0.5 1 0 2.5 7.5 0 0.0006 -0.0004 0 /\n"
     e = _error(psse_dyr.parse_records, asymmetric)
     assert (e.field, e.value, e.allowed) == ("dbL", "-0.0004", "-0.0006") and "asymmetric band" in str(e)
@@ -427,3 +428,25 @@ def test_a_machine_whose_governor_is_of_another_model_is_told_apart(tmp_path):
     with pytest.raises(RecordError, match="none of its governor records match bus=3") as e:
         read_record(case, bus=3, machine_id="1")
     assert not isinstance(e.value, UnsupportedRecord)
+    # another machine's record that cannot be read is that machine's problem, not this one's
+    case.write_text(case.read_text() + "4 'TGOV1D' 1 0.05 0.5 1 0 2.5 7.5 0 0.0006 -0.0006 250 /\n")
+    assert read_record(case, bus=1, machine_id="1").model == "TGOV1"
+    with pytest.raises(RecordError, match=r"case\.dyr:7: field Trate = '250': TGOV1D on a turbine rating"):
+        read_record(case, bus=4, machine_id="1")
+    with pytest.raises(RecordError, match="Trate"):
+        psse_dyr.parse_records(case.read_text(), str(case))  # read whole, a bad record is an error
+
+
+def test_a_documented_band_is_a_constant_of_the_structure_not_a_part_to_free(tmp_path):
+    """A structure file whose constants come from the unit's record: a TGOV1D's band is
+    fixed as documented (and no longer freed); a plain TGOV1 record leaves it optional."""
+    from rapid_cosim.structures.structure import Structure
+
+    text = (STRUCTURES / "TGOV1.toml").read_text().replace("[fixed]\n", '[fixed]\ndocumented = "unit.dyr"\n')
+    (tmp_path / "TGOV1.toml").write_text(text)
+    psse_dyr.write_record(tmp_path / "unit.dyr", "TGOV1", {"R": 0.05, "VMAX": 0.95, "db": 0.0006}, bus=1)
+    s = Structure.load(tmp_path / "TGOV1.toml")
+    assert s.fixed["gov.db"] == 0.0006 and s.fixed["gov.VMAX"] == 1.0 and not s.optional  # stated values win
+    psse_dyr.write_record(tmp_path / "unit.dyr", "TGOV1", {"R": 0.05, "VMAX": 0.95}, bus=1)
+    s = Structure.load(tmp_path / "TGOV1.toml")
+    assert "gov.db" not in s.fixed and set(s.optional) == {"gov.db"} and s.effects == ("deadband",)

@@ -185,16 +185,17 @@ def test_a_missing_config_is_named(tmp_path):
 
 
 def test_what_a_structure_cannot_carry():
-    """A part a structure file makes optional carries its effect only where it was freed."""
-    steam = ("rate_limit", "deadband")  # IEEEG1's optional parts
-    assert cannot_carry("TGOV1", ["rate_limit"], optional=("deadband",)) == ["rate_limit"]
-    assert cannot_carry("TGOV1", ["deadband"], optional=("deadband",)) == ["deadband"]
-    assert cannot_carry("TGOV1", ["deadband"], optional=("deadband",), freed="deadband") == []
-    assert cannot_carry("IEEEG1", ["rate_limit"], optional=steam) == ["rate_limit"]
-    assert cannot_carry("IEEEG1", ["rate_limit"], optional=steam, freed="rate_limit") == []
-    assert cannot_carry("IEEEG1", ["rate_limit", "deadband"], optional=steam, freed="deadband") == ["rate_limit"]
-    assert cannot_carry("GGOV1", ["deadband", "delay"]) == ["delay"]  # a structure file with db estimated
-    assert cannot_carry("GGOV1", ["deadband", "delay"], optional=("deadband",)) == ["deadband", "delay"]
+    """A part carries its effect only where the fit estimates it (freed included) or its
+    structure file holds it away from neutral: a band of 0, rates of +-1 pu/s carry nothing."""
+    assert cannot_carry("TGOV1", ["rate_limit"]) == ["rate_limit"]
+    assert cannot_carry("TGOV1", ["deadband"]) == ["deadband"]  # db at the bench's 0
+    assert cannot_carry("TGOV1", ["deadband"], estimated=["gov.R", "gov.db"]) == []  # TGOV1+deadband
+    assert cannot_carry("TGOV1", ["deadband"], fixed={"gov.db": 0.0006}) == []  # documented
+    assert cannot_carry("IEEEG1", ["rate_limit"], fixed={"gov.Uo": 1.0, "gov.Uc": -1.0}) == ["rate_limit"]
+    assert cannot_carry("IEEEG1", ["rate_limit"], estimated=["gov.Uo"]) == []
+    assert cannot_carry("IEEEG1", ["rate_limit", "deadband"], estimated=["gov.db"]) == ["rate_limit"]
+    assert cannot_carry("GGOV1", ["deadband", "delay"], estimated=["gov.db"]) == ["delay"]
+    assert cannot_carry("GGOV1", ["rate_limit", "deadband"]) == ["deadband"]  # its rates are its own
     assert cannot_carry("GAST", ["output_limit", "deadband"]) == ["deadband"]
 
 

@@ -1,4 +1,4 @@
-"""A steam unit with a frequency deadband, recorded in three grid events (issue 53).
+"""A steam unit with a frequency deadband, recorded in four grid events (issue 53).
 
 The plant: ANDES 2.0's TGOV1DB (TGOV1 with ANDES's no-step deadband DeadBand1 on the speed
 deviation) on generator 1 (900 MVA) of the Kundur two-area grid: R 0.05, T1 0.4 s, T2 1.5 s,
@@ -7,8 +7,8 @@ NERC's primary frequency response guideline asks for). ANDES's ``.dyr`` reader h
 TGOV1DB, so the plant is given as PowerWorld's TGOV1D record, read by PowerWorld's field
 list into ANDES's TGOV1DB (``../electrical/andes_grid.py``). The unit's documentation
 states a steam unit (``kind = "steam"``: the shipped TGOV1 and IEEEG1 structures, each
-with its deadband as an optional part), nothing about a deadband. Four events, recorded by ``../electrical/andes_unit.py``, the first three the steam unit's
-(``../steam``):
+with its deadband as an optional part), nothing about a deadband. Four events, recorded
+by ``../electrical/andes_unit.py``, the first three the steam unit's (``../steam``):
 
 - ``db_on``: 200 MW switched on at bus 7 (area 1);
 - ``db_off``: 200 MW switched off at bus 7 (another load lowered by as much first);
@@ -26,7 +26,7 @@ story says that the recordings do not determine the band. Events of two sizes de
 it; the held-out event of the other sign checks that the band is the same both ways.
 
 Each event is its own draw of the recorder's noise (seeds 61-64). ``make bench-replay``
-adds a fourth event, 50 MW switched on at bus 9, whose frequency leaves the band by about
+adds a fifth event, 50 MW switched on at bus 9, whose frequency leaves the band by about
 a third of its width, for the records' replay only. Run from the repository root::
 
     .venv/bin/python experiments/deadband/generate.py
@@ -51,7 +51,7 @@ UNITS = {  # file -> (its events, the one held out, what it shows)
     "unit.toml": (("db_on", "db_on100", "db_off"), "db_off", "events of two sizes: the band determined"),
     "one_size.toml": (("db_on", "db_off", "db_on9"), "db_on9", "events of one size: the band not determined"),
 }
-SMALL = andes_unit.grid_event(+1, 9, 50.0)  # near the band: make bench-replay's fourth event
+SMALL = andes_unit.grid_event(+1, 9, 50.0)  # near the band: make bench-replay's fifth event
 
 
 def plant_record() -> str:

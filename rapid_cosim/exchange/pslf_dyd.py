@@ -79,33 +79,49 @@ def write_record(path: str | Path, model: str, values: Mapping[str, float], *, b
     return Written(layout(model, values).name, text, str(path), dropped)
 
 
-def parse_records(text: str, file: str = "<text>") -> tuple[list[Record], list[Other]]:
+def parse_records(text: str, file: str = "<text>", *,
+                  errors: list[tuple[Other, RecordError]] | None = None) -> tuple[list[Record], list[Other]]:
     """Every tgov1/ieeeg1/ggov1/hygov/gast record of ``text``, and the other models'
-    records (their names, lines, bus and id)."""
+    records (their names, lines, bus and id). A record that cannot be read raises, or
+    with ``errors`` (a list) is put there with where it applies, and the rest are read."""
     records, others = [], []
     for line, body in _logical_lines(text):
-        head, colon, data = body.partition(":")
-        tokens = _TOKEN.findall(head)
-        if not colon:
-            if len(tokens) == 1:  # a section header: models, lodrep, end
-                continue
-            raise RecordError("a record needs 'model bus \"name\" kv \"id\" : data'", file, line)
-        if not tokens or tokens[0].upper() not in PSLF_LAYOUTS:
-            others.append(Other(tokens[0] if tokens else "?", _int_or_none(tokens[1]) if len(tokens) > 1 else None,
-                                tokens[4].strip("\"'").strip() if len(tokens) > 4 else None, line))
+        try:
+            parsed = _parse_one(line, body, file)
+        except RecordError as e:
+            tokens = _TOKEN.findall(body.partition(":")[0])
+            if errors is None or len(tokens) < 5:
+                raise
+            errors.append((Other(tokens[0], _int_or_none(tokens[1]), tokens[4].strip("\"'").strip(), line), e))
             continue
-        table = PSLF_LAYOUTS[tokens[0].upper()]
-        if len(tokens) < 5:
-            raise RecordError(f"{table.pslf_name} needs bus, \"name\", kv and \"id\" before ':', got "
-                              f"{' '.join(tokens[1:])!r}", file, line)
-        bus = _number(tokens[1], "bus", file, line, int)
-        kv = _number(tokens[3], "kv", file, line, float)
-        mva, fields = _fields(table, _TOKEN.findall(data), file, line)
-        values, extra = values_from_numbers(table, fields, file, line, mva)
-        _power_controller(table, values.get("Kimw", 0.0), file, line)
-        records.append(Record(table.name, values, bus, tokens[4].strip("\"'").strip(), mva, extra, file, line,
-                              tokens[2].strip("\"'").strip(), kv, family=table.block))
+        if parsed is not None:
+            (records if isinstance(parsed, Record) else others).append(parsed)
     return records, others
+
+
+def _parse_one(line: int, body: str, file: str) -> Record | Other | None:
+    """One logical line: a Record of a layout read here, the Other it is, or None (a
+    section header)."""
+    head, colon, data = body.partition(":")
+    tokens = _TOKEN.findall(head)
+    if not colon:
+        if len(tokens) == 1:  # a section header: models, lodrep, end
+            return None
+        raise RecordError("a record needs 'model bus \"name\" kv \"id\" : data'", file, line)
+    if not tokens or tokens[0].upper() not in PSLF_LAYOUTS:
+        return Other(tokens[0] if tokens else "?", _int_or_none(tokens[1]) if len(tokens) > 1 else None,
+                     tokens[4].strip("\"'").strip() if len(tokens) > 4 else None, line)
+    table = PSLF_LAYOUTS[tokens[0].upper()]
+    if len(tokens) < 5:
+        raise RecordError(f"{table.pslf_name} needs bus, \"name\", kv and \"id\" before ':', got "
+                          f"{' '.join(tokens[1:])!r}", file, line)
+    bus = _number(tokens[1], "bus", file, line, int)
+    kv = _number(tokens[3], "kv", file, line, float)
+    mva, fields = _fields(table, _TOKEN.findall(data), file, line)
+    values, extra = values_from_numbers(table, fields, file, line, mva)
+    _power_controller(table, values.get("Kimw", 0.0), file, line)
+    return Record(table.name, values, bus, tokens[4].strip("\"'").strip(), mva, extra, file, line,
+                  tokens[2].strip("\"'").strip(), kv, family=table.block)
 
 
 def read_record(path: str | Path, *, bus: int | None = None, machine_id: str | None = None) -> Record:
@@ -115,8 +131,10 @@ def read_record(path: str | Path, *, bus: int | None = None, machine_id: str | N
         text = path.read_text()
     except OSError as e:
         raise RecordError(f"cannot read the file: {e.strerror}", str(path)) from None
-    records, others = parse_records(text, str(path))
-    return choose(records, others, str(path), bus, machine_id, ", ".join(m.pslf_name for m in PSLF_LAYOUTS.values()))
+    bad: list[tuple[Other, RecordError]] = []
+    records, others = parse_records(text, str(path), errors=bad)
+    return choose(records, others, str(path), bus, machine_id, ", ".join(m.pslf_name for m in PSLF_LAYOUTS.values()),
+                  bad)
 
 
 def _fields(table: Model, tokens: list[str], file: str, line: int) -> tuple[float | None, dict[str, tuple[str, str]]]:

@@ -68,30 +68,45 @@ def write_record(path: str | Path, model: str, values: Mapping[str, float], *, b
     return Written(layout(model, values).name, text, str(path), dropped)
 
 
-def parse_records(text: str, file: str = "<text>", *, mva: float | None = None) -> tuple[list[Record], list[Other]]:
+def parse_records(text: str, file: str = "<text>", *, mva: float | None = None,
+                  errors: list[tuple[Other, RecordError]] | None = None) -> tuple[list[Record], list[Other]]:
     """Every record of ``text`` in a layout this package reads, and the other models'
     records (``GENROU (line 3)``, with their bus and id). ``mva`` (the machine base, if
-    known) lets a record with ``Trate`` equal to it be read."""
+    known) lets a record with ``Trate`` equal to it be read. A record that cannot be read
+    raises, or with ``errors`` (a list) is put there with where it applies, and the rest
+    are read: one machine's bad record in a planning case is that machine's problem."""
     records, others = [], []
     for line, tokens in _raw_records(text):
-        if len(tokens) < 3:
-            raise RecordError(f"a record needs at least IBUS 'MODEL' ID, got {' '.join(tokens)!r}", file, line)
-        name = tokens[1].strip("'\"").strip()
-        if name.upper() not in LAYOUTS:
-            others.append(Other(name, _bus_or_none(tokens[0]), tokens[2].strip("'\"").strip(), line))
+        try:
+            parsed = _parse_one(line, tokens, file, mva)
+        except RecordError as e:
+            if errors is None or len(tokens) < 3:
+                raise
+            errors.append((Other(tokens[1].strip("'\"").strip(), _bus_or_none(tokens[0]),
+                                 tokens[2].strip("'\"").strip(), line), e))
             continue
-        table = LAYOUTS[name.upper()]
-        bus = _bus(tokens[0], file, line)
-        numbers, own = tokens[3:], table.psse_fields
-        if len(numbers) != len(own):
-            raise RecordError(f"{table.name} takes {len(own)} values, the record has {len(numbers)}", file, line,
-                              None, None, " ".join(f.psse for f in own))
-        fields = {f.key: (f.key, number_text(f.default, f.integer)) for f in table.fields}  # PSLF-only: neutral
-        fields.update({f.key: (f.psse, t) for f, t in zip(own, numbers)})
-        values, extra = values_from_numbers(table, fields, file, line, mva)
-        records.append(Record(table.name, values, bus, tokens[2].strip("'\"").strip(), None, extra, file, line,
-                              family=table.block))
+        (records if isinstance(parsed, Record) else others).append(parsed)
     return records, others
+
+
+def _parse_one(line: int, tokens: list[str], file: str, mva: float | None) -> Record | Other:
+    """One record's tokens: a Record of a layout read here, or the Other it is."""
+    if len(tokens) < 3:
+        raise RecordError(f"a record needs at least IBUS 'MODEL' ID, got {' '.join(tokens)!r}", file, line)
+    name = tokens[1].strip("'\"").strip()
+    if name.upper() not in LAYOUTS:
+        return Other(name, _bus_or_none(tokens[0]), tokens[2].strip("'\"").strip(), line)
+    table = LAYOUTS[name.upper()]
+    bus = _bus(tokens[0], file, line)
+    numbers, own = tokens[3:], table.psse_fields
+    if len(numbers) != len(own):
+        raise RecordError(f"{table.name} takes {len(own)} values, the record has {len(numbers)}", file, line,
+                          None, None, " ".join(f.psse for f in own))
+    fields = {f.key: (f.key, number_text(f.default, f.integer)) for f in table.fields}  # PSLF-only: neutral
+    fields.update({f.key: (f.psse, t) for f, t in zip(own, numbers)})
+    values, extra = values_from_numbers(table, fields, file, line, mva)
+    return Record(table.name, values, bus, tokens[2].strip("'\"").strip(), None, extra, file, line,
+                  family=table.block)
 
 
 def read_record(path: str | Path, *, bus: int | None = None, machine_id: str | None = None,
@@ -103,8 +118,9 @@ def read_record(path: str | Path, *, bus: int | None = None, machine_id: str | N
         text = path.read_text()
     except OSError as e:
         raise RecordError(f"cannot read the file: {e.strerror}", str(path)) from None
-    records, others = parse_records(text, str(path), mva=mva)
-    return choose(records, others, str(path), bus, machine_id, SUPPORTED)
+    bad: list[tuple[Other, RecordError]] = []
+    records, others = parse_records(text, str(path), mva=mva, errors=bad)
+    return choose(records, others, str(path), bus, machine_id, SUPPORTED, bad)
 
 
 def _raw_records(text: str):

@@ -192,7 +192,10 @@ class Model:
         point, the smooth limits' sharpness, the bench's other blocks). A structure's
         ``K3_rest = 1`` is a way to estimate, never a reason to ignore the K3 a file
         states."""
-        absent = {d.param: d.default for d in self.dropped if d.layout is not None}  # a TGOV1 record: no deadband
+        # a TGOV1 record states no deadband: where the context holds one, the record's plain
+        # value replaces it (elsewhere the bench's default is that value; a bench built before
+        # the deadband has no such parameter to set)
+        absent = {d.param: d.default for d in self.dropped if d.layout is not None and prefix + d.param in context}
         stated = {prefix + k: float(v) for k, v in {**absent, **self.read_values(values)}.items()}
         covered = {prefix + f.param for f in self.fields if f.param} | set(stated)
         return {**{k: v for k, v in context.items() if k not in covered}, **stated}
@@ -372,12 +375,18 @@ class UnsupportedRecord(RecordError):
 
 
 def choose(records: list[Record], others: list[Other], file: str, bus: int | None, machine_id: str | None,
-           supported: str) -> Record:
+           supported: str, bad: list[tuple[Other, RecordError]] = ()) -> Record:
     """The one record matching ``bus``/``machine_id`` (shared by both formats); ``supported``
     names the layouts read, for the error. Where none matches but a record of another
-    model does, that is said (:class:`UnsupportedRecord`)."""
+    model does, that is said (:class:`UnsupportedRecord`); where the machine's record is
+    one that could not be read (``bad``), its own error is raised, and other machines' bad
+    records are theirs."""
     def here(r) -> bool:
         return (bus is None or r.bus == bus) and (machine_id is None or r.machine_id == machine_id)
+
+    mine = [e for o, e in bad if here(o)]
+    if mine and (bus is not None or machine_id is not None or not records):
+        raise mine[0]
 
     chosen = [r for r in records if here(r)]
     if len(chosen) == 1:

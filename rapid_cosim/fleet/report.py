@@ -1,7 +1,8 @@
 """The fleet's report: one row per unit, the failing ones first, as an HTML page (its
 columns sortable by a click), ``fleet.csv`` and ``fleet.json``; and every new record in
-one ``fleet.dyr`` (and ``fleet.dyd`` where every new record's unit states its MVA base),
-ready for the operator's case.
+one ``fleet.dyr`` (and in ``fleet.dyd`` each that has a PSLF record: its unit states its
+MVA base, and it carries no deadband; the page names the others), ready for the
+operator's case.
 
 A row says which route the unit took (its record on file passes; it fails, where the
 fleet only checks; identified; its record on file is of a model not supported, so it is
@@ -42,7 +43,7 @@ document.querySelectorAll('th').forEach((th, k) => th.addEventListener('click', 
 
 def rank(row: UnitResult) -> tuple:
     """Failing units first: failed, then failing records and identified units (flagged
-    first), then passing."""
+    first), then the units whose record on file is of a model not supported, then passing."""
     return ORDER.get(row.route, 0), 0 if row.flags else 1, row.unit
 
 
@@ -125,7 +126,7 @@ def _page(spec: FleetSpec, result, rows: list[UnitResult], folder: Path) -> str:
             "<em>False-alarm rate</em>: how often a correct record would fail these checks on this unit's "
             f"recordings (the bands' rate under the recorder's noise, and the noise tests' {ALPHA:.0%}); a band "
             "the noise alone fails more than one time in ten is not judged, and named; "
-            f"{_expected(rows)}</p>",
+            f"{_expected(rows)}{_dyr_only(rows)}</p>",
             "<table id=fleet><thead><tr><th>unit</th><th class=text>route</th><th class=text>record on file</th>"
             "<th>on file passes</th><th class=text>why it fails</th><th>false-alarm rate</th>"
             "<th class=text>not judged (the noise alone fails it)</th><th>RMSE/noise on file</th>"
@@ -156,15 +157,28 @@ def _page(spec: FleetSpec, result, rows: list[UnitResult], folder: Path) -> str:
             + f"\n<script>{SORTER}</script>\n</body>\n</html>\n")
 
 
+def _new_records(rows: list[UnitResult]) -> list[UnitResult]:
+    return [r for r in rows if r.route is Route.IDENTIFIED and r.files.get("dyr")]
+
+
 def _records(rows: list[UnitResult], folder: Path) -> dict[str, Path]:
-    """Every new record in one file per format (a .dyd only where every unit states its MVA)."""
-    new = [r for r in rows if r.route is Route.IDENTIFIED and r.files.get("dyr")]
+    """Every new record in one file per format: each in fleet.dyr, and in fleet.dyd each
+    that has a .dyd (one whose unit states no MVA base, or whose record carries a deadband,
+    has none; the page names them)."""
+    new = _new_records(rows)
     out = {}
     if not new:
         return out
     out["dyr"] = folder / "fleet.dyr"
     out["dyr"].write_text("".join((folder / r.files["dyr"]).read_text() for r in new))
-    if all(r.files.get("dyd") for r in new):
+    if any(r.files.get("dyd") for r in new):
         out["dyd"] = folder / "fleet.dyd"
-        out["dyd"].write_text("".join((folder / r.files["dyd"]).read_text() for r in new))
+        out["dyd"].write_text("".join((folder / r.files["dyd"]).read_text() for r in new if r.files.get("dyd")))
     return out
+
+
+def _dyr_only(rows: list[UnitResult]) -> str:
+    """The page's words on the new records that have no .dyd."""
+    only = [r.unit for r in _new_records(rows) if not r.files.get("dyd")]
+    return (f" New records only in fleet.dyr (no PSLF .dyd: no MVA base stated, or a deadband PSLF's layouts do "
+            f"not carry): {', '.join(only)}." if only else "")

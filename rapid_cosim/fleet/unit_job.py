@@ -30,7 +30,7 @@ from ..calibration.delivery import archived_reproduction
 from ..compiler.source import ModelSource
 from ..fitting.engine import EngineSpec, pinned_threads
 from ..errors import CheckFailed, DeliveryError, RapidCosimError
-from ..exchange import read_record
+from ..exchange import model_named, read_record
 from ..noise import campaign_noise, quiet_windows
 from ..validation.tolerances import Tolerances
 from .check import check_entry
@@ -147,8 +147,8 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
     if check.failing:
         result.flags.append("recommended record fails its bands on " + ", ".join(check.failing))
     result.flags.extend(f"recommended record: {why}" for why in check.inconsistent)
-    result.changes = changes(on_file.values if on_file else None, on_file.model if on_file else None,
-                             rec.model, written.values)
+    result.changes = changes(on_file.values if on_file else None,
+                             model_named(on_file.model).block if on_file else None, rec.model, written.values)
 
 
 def short_quiet(experiments: list) -> list[str]:
@@ -163,16 +163,22 @@ def short_quiet(experiments: list) -> list[str]:
 
 
 def changes(old: dict | None, old_model: str | None, model: str, new: dict) -> dict[str, float | str]:
-    """What the new record changes from the one on file: the model, or each key value's
-    relative change."""
+    """What the new record changes from the one on file (both by their iGrGen block: a
+    TGOV1D on file is a TGOV1): the model, or each key value's relative change; a deadband
+    a record does not state is none, so one added or dropped is said in words."""
     if old is None:
         return {"from": "no record on file"}
     if old_model != model:
         return {"model": f"{old_model} -> {model}"}
-    out = {}
+    out: dict[str, float | str] = {}
     for k in KEY.get(model, ()):
-        if k in old and k in new and old[k] != 0 and abs(new[k] / old[k] - 1) > 1e-3:
-            out[k] = new[k] / old[k] - 1
+        a, b = (old.get(k, 0.0), new.get(k, 0.0)) if k == "db" else (old.get(k), new.get(k))
+        if a is None or b is None or a == b:
+            continue
+        if a == 0 or b == 0:
+            out[k] = f"{'none' if a == 0 else f'{a:.4g}'} -> {'none' if b == 0 else f'{b:.4g}'}"
+        elif abs(b / a - 1) > 1e-3:
+            out[k] = b / a - 1
     return out
 
 

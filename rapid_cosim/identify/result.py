@@ -6,14 +6,13 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 from ..diagnose.catalogue import NONE, VerdictKind
 
 # What each standard structure can represent of the effect catalogue, as its own
 # parameters (PES-TR1 2013 and the PSS/E Model Library block diagrams; the deadbands in the
-# D layouts of PowerWorld and ORNL GridKit), and in words. A part its structure file makes
-# optional (IEEEG1's Uo/Uc, the deadbands) carries its effect only when it was freed.
+# D layouts of PowerWorld and ORNL GridKit), and in words.
 CARRIES: dict[str, tuple[tuple[str, ...], str]] = {
     "TGOV1": (("deadband",), "TGOV1 has valve position limits and, written as TGOV1D, a speed deadband; no rate "
                              "limits, delay or load controller"),
@@ -26,6 +25,15 @@ CARRIES: dict[str, tuple[tuple[str, ...], str]] = {
                              "written as HYGOVD, a speed deadband"),
     "GAST": (("output_limit",), "GAST has fuel valve position limits and a temperature (load) limit; no rate "
                                 "limits, deadband, delay or load controller"),
+}
+# A part that is off at its neutral value (a band of 0, a rate of +-1 pu/s that no event
+# reaches) carries nothing: a fit carries the effect only where the part is estimated, freed,
+# or held at another value.
+NEUTRAL: dict[str, dict[str, dict[str, float]]] = {
+    "TGOV1": {"deadband": {"gov.db": 0.0}},
+    "IEEEG1": {"rate_limit": {"gov.Uo": 1.0, "gov.Uc": -1.0}, "deadband": {"gov.db": 0.0}},
+    "GGOV1": {"deadband": {"gov.db": 0.0}},
+    "HYGOV": {"deadband": {"gov.db": 0.0}},
 }
 DELIVERED = {"dyr": "PSS/E record (.dyr)", "dyd": "PSLF record (.dyd)", "report": "validation report",
              "pdf": "validation report (PDF)"}
@@ -52,12 +60,18 @@ def recording_story(recordings: dict[str, dict]) -> list[str]:
     return lines
 
 
-def cannot_carry(structure: str, effects: Sequence[str], *, optional: Sequence[str] = (),
-                 freed: str | None = None) -> list[str]:
-    """The explanation's effects that ``structure`` as fitted has no part for: its
-    parts, less those its file makes optional (``optional``: the effects they carry) but
-    the one the fit freed."""
-    carried = (set(CARRIES.get(structure, ((), ""))[0]) - set(optional)) | ({freed} if freed else set())
+def cannot_carry(structure: str, effects: Sequence[str], *, estimated: Sequence[str] = (),
+                 fixed: Mapping[str, float] | None = None) -> list[str]:
+    """The explanation's effects that ``structure`` as fitted has no part for, or holds
+    off: a part (:data:`NEUTRAL`) neither ``estimated`` (freed included) nor ``fixed`` away
+    from its neutral value (the bench's default is that value) carries nothing."""
+    fixed = dict(fixed or {})
+
+    def off(effect: str) -> bool:
+        parts = NEUTRAL.get(structure, {}).get(effect)
+        return parts is not None and all(n not in estimated and fixed.get(n, v) == v for n, v in parts.items())
+
+    carried = {e for e in CARRIES.get(structure, ((), ""))[0] if not off(e)}
     return [e for e in effects if e not in carried]
 
 
@@ -90,6 +104,7 @@ class StandardRecord:
     at_bounds: list[str] = field(default_factory=list)
     relative_se: dict[str, float] = field(default_factory=dict)  # each estimate's, from the Fisher information
     cautions: list[str] = field(default_factory=list)  # the clauses of words after the fit's: what it cannot carry
+    freed_effect: str | None = None  # the effect whose optional parts the kept fit freed (None: the plain fit)
 
     def fidelity(self, tests: Sequence[str], *, failing: bool = False) -> str:
         """RMSE over the noise per test of ``tests`` it has (``failing``: marked where the
@@ -195,7 +210,8 @@ class Identification:
             lines.append(f"  RMSE over the noise, training: {r.fidelity(self.training, failing=True)}")
             if self.heldout:
                 lines.append(f"  held out: {r.fidelity(self.heldout, failing=True)}")
-            lines += [f"  note: {c}" for c in r.cautions if c not in self.reason]
+            if r.adequate:  # otherwise the reason says them already (its "NOT within the noise (...)")
+                lines += [f"  note: {c}" for c in r.cautions]
         else:
             lines.append(f"recommended record: none ({self.reason})")
         lines += recording_story(self.recordings)

@@ -29,8 +29,8 @@ an offset, jittered stamps, 16-bit quantisation), one recorder for the 10 Hz tes
 another for the 25 Hz ones, as in the field.
 
 Every campaign goes through identify's own deliverable part
-(:func:`rapid_cosim.identify.workflow.deliver`): the four structure files and IEEEG1 with
-its optional Uo/Uc, fitted by identify's method (multistart least squares) with one noise
+(:func:`rapid_cosim.identify.workflow.deliver`): the four structure files, IEEEG1 with
+its optional Uo/Uc and each with its optional deadband, fitted by identify's method (multistart least squares) with one noise
 model fitted from the quiet data; each structure's kept record by identify's rule
 (optional parts only if they win by the threshold in BIC) and its recommendation. The
 winner (the named structure, else the first by BIC) is written as ``rapid-cosim export``
@@ -116,7 +116,8 @@ class StructureCase:
     verdict: StructureVerdict | None = None
     recommended: str | None = None  # by identify's rule: the first by BIC, a simpler one in a tie
     exported: str = ""  # the fit whose record was exported: the named one, else the first by BIC
-    freed: bool = False  # the exported record keeps its optional parts (IEEEG1's Uo/Uc)
+    freed: bool = False  # the exported record keeps IEEEG1's valve rates (Uo/Uc) free
+    banded: bool = False  # the exported record keeps a deadband free (no plant here has one)
     rmse: dict[str, float] = field(default_factory=dict)  # exported record, per test: RMSE / noise
     seconds: float = 0.0
 
@@ -138,6 +139,7 @@ class StructureCase:
                 "verdict": self.verdict.structure if self.verdict else None,
                 "reason": self.verdict.reason if self.verdict else "", "named": self.named, "first": self.first,
                 "recommended": self.recommended, "exported": self.exported, "freed": self.freed,
+                "banded": self.banded,
                 "rmse_over_noise": self.rmse, "worst_rmse_over_noise": self.worst_rmse,
                 "ranking": [(f.name, f.delta, f.adequate) for f in (self.verdict.ranking if self.verdict else [])],
                 "seconds": self.seconds}
@@ -166,7 +168,8 @@ def run_structure_case(truth: str, seed: int, work: Path, *, source: ModelSource
     records = {r.model: r for r in delivery.records}
     winner = case.named if case.named in records else case.first
     record = records[winner]
-    case.exported, case.freed = record.fit, record.optional_freed
+    case.exported = record.fit
+    case.freed, case.banded = record.freed_effect == "rate_limit", record.freed_effect == "deadband"
     case.rmse = exported_fidelity(structures[winner], record.archive, folder / f"{winner}.dyr", [*training, *heldout],
                                   delivery.fitted_noise, source=source)
     case.seconds = time.perf_counter() - start
@@ -235,6 +238,9 @@ def summary_text(cases: list[StructureCase]) -> str:
         worst = [c.worst_rmse for c in mine]
         lines.append(f"{truth:<11} {named:>2}/{n:<2} {named / n:4.0%}   {rec:>2}/{n:<2} {rec / n:4.0%}   "
                      f"{first:>2}/{n:<2} {first / n:4.0%}   {freed:>21}  {max(worst):21.2f}  {np.median(worst):6.2f}")
+    banded = [f"{c.truth} seed {c.seed}" for c in cases if c.banded]
+    lines.append(f"a deadband kept free (no plant has one): {len(banded)} of {len(cases)}"
+                 + (f" ({', '.join(banded)})" if banded else ""))
     shares = [np.mean([c.named == t for c in cases if c.truth == t]) for t in STANDARD
               if any(c.truth == t for c in cases)]
     counts = [sum(c.truth == t for c in cases) for t in STANDARD]

@@ -50,7 +50,7 @@ from ..fitting.engine import EngineSpec
 from ..noise import NoiseFit, campaign_noise
 from .check import check_unit, say
 from .deliver import write_configs
-from .result import CARRIES, Identification, StandardRecord, TestFidelity, cannot_carry
+from .result import CARRIES, NEUTRAL, Identification, StandardRecord, TestFidelity, cannot_carry
 from .unit import Unit
 
 
@@ -157,8 +157,7 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
     use = freed if freed is not None and freed.bic <= plain.bic - THRESHOLD else plain
     effects = list(explanation.named.effects) if explanation is not None else []
     open_ = [e for e in (explanation.named.not_excluded if explanation is not None else []) if e not in effects]
-    kept_effect = structure.freed_effect(use.name)
-    missing = cannot_carry(structure.name, effects, optional=structure.effects, freed=kept_effect)
+    missing = cannot_carry(structure.name, effects, estimated=list(use.parameters), fixed=structure.fixed)
     explained = {t.test: t for t in explanation.adequacy.after.tests} if explanation is not None else {}
     per_test = {name: TestFidelity(t.rmse_over_noise, t.variance_ratio, t.p_holm, t.adequate,
                                    explained[name].rmse_over_noise if name in explained else None)
@@ -167,8 +166,10 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
     failing = [n for n, t in per_test.items() if not t.adequate]
     clauses = ["within the noise on every test" if use.adequate else
                f"not within the noise on {', '.join(failing)} (pooled variance ratio {use.variance_ratio:.2f})"]
-    clauses += _carrying(structure, missing, kept_effect, freed is not None and use is plain, use.parameters,
-                         relative_se, open_)
+    best = {e: min((fits[v.name].bic for v in structure.optional_variants() if v.name in fits
+                    and structure.freed_effect(v.name) == e), default=None) for e in structure.effects}
+    clauses += _carrying(structure, missing, open_, _Kept(structure.freed_effect(use.name), plain.bic, best),
+                         use.parameters, relative_se)
     swaps = [f"{x['a']} and {x['b']}" for x in use.identifiability.get("exchanges", [])]
     if swaps:
         clauses.append(f"the tests fit {', '.join(swaps)} either way round: which is which is not the data's to say")
@@ -176,40 +177,64 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
                           parameters=use.parameters, n_estimated=use.n_estimated, bic=use.bic,
                           adequate=use.adequate, variance_ratio=use.variance_ratio, tests=per_test,
                           cannot_carry=missing, words="; ".join(clauses), archive=use.archive,
-                          at_bounds=use.at_bounds, relative_se=relative_se, cautions=clauses[1:])
+                          at_bounds=use.at_bounds, relative_se=relative_se, cautions=clauses[1:],
+                          freed_effect=structure.freed_effect(use.name))
 
 
-def _carrying(structure: Structure, missing: list[str], kept: str | None, passed_over: bool,
-              parameters: dict[str, float], relative_se: dict[str, float], open_: list[str]) -> list[str]:
-    """What the kept fit cannot carry of the explanation, in words: a part the structure
-    lacks, or an optional part that did not win (the recordings do not determine it, so
-    the record states none: a droop may then have absorbed a deadband); an effect the
-    explanation does not exclude (``open_``) that an optional part would carry, said the
-    same way; and an optional part kept that the recordings still leave undetermined."""
+@dataclass(frozen=True)
+class _Kept:
+    """Which effect's optional parts the kept fit freed (None: the plain fit), the plain
+    fit's BIC, and each effect's best freed fit's (None where it was not fitted)."""
+
+    effect: str | None
+    plain_bic: float
+    best: dict[str, float | None]
+
+    def why_not(self, effect: str) -> str:
+        """Why the optional parts of ``effect`` are not in the record."""
+        bic = self.best.get(effect)
+        if bic is not None and bic <= self.plain_bic - THRESHOLD and self.effect is not None:
+            return (f"freeing them beat the plain fit, but {self.effect}'s parts beat it by more, and the two are "
+                    "not freed together")
+        return f"freeing them did not win by {THRESHOLD:g} in BIC: the recordings do not determine it"
+
+
+def _carrying(structure: Structure, missing: list[str], open_: list[str], kept: _Kept,
+              parameters: dict[str, float], relative_se: dict[str, float]) -> list[str]:
+    """What the kept fit cannot carry, in words: an effect the explanation names that the
+    structure has no part for, or holds off in its file, or whose optional parts were not
+    kept (why: :meth:`_Kept.why_not`; a droop may then have absorbed a deadband); an effect
+    the explanation does not exclude (``open_``) that an optional part would carry; and an
+    optional part kept that the recordings still leave undetermined."""
     out = []
-    said = [e for e in open_ if e in structure.effects and e != kept]
+    said = [e for e in open_ if e in structure.effects and e != kept.effect]
     for effect in said:
         parts = ", ".join(n.removeprefix("gov.") for n in structure.parts(effect))
         out.append(f"the recordings do not exclude a {effect.replace('_', ' ')} of a material size, which "
                    f"{structure.name}'s {parts} would carry, and do not determine one: the record states none"
                    + ("; its droop may have absorbed a band (events of two sizes separate them)"
                       if effect == "deadband" else ""))
-    absent = [e for e in missing if e not in structure.effects]
     unfreed = [e for e in missing if e in structure.effects]
+    held = [e for e in missing if e not in structure.effects and e in CARRIES.get(structure.name, ((), ""))[0]]
+    absent = [e for e in missing if e not in unfreed and e not in held]
     if absent:
         out.append(f"it cannot carry {', '.join(absent)} "
                    f"({CARRIES.get(structure.name, ((), 'no part for them'))[1]})")
+    for effect in held:
+        parts = ", ".join(f"{n.removeprefix('gov.')} = {v:g}" for n, v in NEUTRAL[structure.name][effect].items())
+        out.append(f"the explanation names {effect}, which its structure file holds off ({parts}): free those parts "
+                   f"in [optional] (carries = \"{effect}\") for a record that carries it")
     for effect in unfreed:
         parts = ", ".join(n.removeprefix("gov.") for n in structure.parts(effect))
-        out.append(f"the explanation names {effect}, which {structure.name}'s {parts} would carry, but freeing it "
-                   f"did not win by {THRESHOLD:g} in BIC: the recordings do not determine it, and the record "
-                   f"states none" + ("; its droop may have absorbed the band" if effect == "deadband" else ""))
-    if passed_over and not unfreed and not said:
+        out.append(f"the explanation names {effect}, which {structure.name}'s {parts} would carry, but "
+                   f"{kept.why_not(effect)}, and the record states none"
+                   + ("; its droop may have absorbed the band" if effect == "deadband" else ""))
+    if kept.effect is None and not unfreed and not said and any(b is not None for b in kept.best.values()):
         freed = "; ".join(f"{', '.join(n.removeprefix('gov.') for n in structure.parts(e))} ({e})"
                           for e in structure.effects)
         out.append(f"freeing {freed} did not win by {THRESHOLD:g} in BIC")
-    if kept is not None:
-        weak = [(n, relative_se[n]) for n in structure.parts(kept) if relative_se.get(n, 0.0) > WEAK_SE]
+    if kept.effect is not None:
+        weak = [(n, relative_se[n]) for n in structure.parts(kept.effect) if relative_se.get(n, 0.0) > WEAK_SE]
         for name, se in weak:
             out.append(f"its {name.removeprefix('gov.')} = {parameters[name]:.3g} is not determined by the "
                        f"recordings (relative standard error {100 * se:.0f} %): an event barely beyond it, or "

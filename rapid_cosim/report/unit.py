@@ -106,7 +106,8 @@ def delivered_record(run: ArchivedRun, x, unc: Uncertainty | None, *, bus: int =
             origin = rec.origin[key] + (" (no field in the record)" if key in dropped else "")
             rows.append(ParameterRow(f"gov.{key}", rec.values[key], origin))
     dyd = None
-    note = (f"PSS/E .dyr and PSLF .dyd records of {rec.model.name}, machine {machine_id} at bus {bus}, as "
+    shown = layout(rec.model.name, rec.values).name
+    note = (f"PSS/E .dyr and PSLF .dyd records of {shown}, machine {machine_id} at bus {bus}, as "
             "rapid-cosim export writes them (conversions: rapid_cosim.exchange.tables).")
     if mva is not None:
         try:
@@ -115,7 +116,7 @@ def delivered_record(run: ArchivedRun, x, unc: Uncertainty | None, *, bus: int =
             note += f" No .dyd record: {e}."
     else:
         note += " No .dyd record: it states the machine's MVA base, which the run does not know (give --mva)."
-    return DeliveredRecord(layout(rec.model.name, rec.values).name, dyr, dyd, note, tuple(rows))
+    return DeliveredRecord(shown, dyr, dyd, note, tuple(rows))
 
 
 def _documented(experiments: Sequence[Experiment]) -> list[ParameterRow]:

@@ -6,7 +6,8 @@
     input_bench = "iGrGen.TestBenches.FrequencyInputTGOV1"  # a recorded event's (optional)
 
     [fixed]        # what the plant documentation gives for this structure
-    documented = "unit.dyr"  # optional: its constants from the unit's .dyr/.dyd record
+    documented = "unit.dyr"  # optional: its constants from the unit's .dyr/.dyd record (one
+                             # it states, a TGOV1D's band say, is then no optional part)
     "gov.VMAX" = 1.0
     [estimate]     # what the tests must determine, with bounds
     "gov.R" = { min = 0.02, max = 0.12, label = "R" }
@@ -94,7 +95,8 @@ class Structure:
 
     def freed_effect(self, fit_name: str) -> str | None:
         """The effect whose optional parts a fit of this structure freed (its variant's
-        name, :meth:`optional_variants`), None for the plain fit."""
+        name, :meth:`optional_variants`; not :meth:`with_optional`'s, which frees every
+        effect's), None for the plain fit."""
         head = fit_name.removeprefix(self.name + "+")
         if head == fit_name:
             return None
@@ -139,14 +141,17 @@ class Structure:
             raise ConfigError("estimates nothing: give [estimate] with the parameters the tests must determine",
                               str(path), "estimate")
         fixed, estimate = dict(raw.get("fixed", {})), dict(raw["estimate"])
+        recorded: set[str] = set()  # constants the unit's record gave
         if documented.KEY in fixed:  # a .dyr/.dyd record of the unit, relative to the structure file
             values, specs = parameter_tables(fixed, estimate, str(path))  # flat names; the file's own errors first
             estimate = {n: spec.to_config() for n, spec in specs.items()}
             _, added, starts, _ = documented.record_constants(fixed[documented.KEY], values, estimate, path.parent,
                                                               str(path))
-            fixed = {**added, **values}
+            fixed, recorded = {**added, **values}, set(added)
             estimate = {n: {**v, "start": starts[n]} if n in starts else v for n, v in estimate.items()}
         optional = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.get("optional", {}).items()}
+        # what the unit's record documents is a constant, not a part to free: a TGOV1D's band
+        optional = {k: v for k, v in optional.items() if k not in recorded}
         carries = {k: str(v.pop("carries", "optional")) for k, v in optional.items() if isinstance(v, dict)}
         return cls.from_tables(str(head["name"]), str(head["bench"]), head.get("input_bench"), fixed, estimate,
                                str(path), optional, carries)
