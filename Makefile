@@ -22,7 +22,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay bench-identify profile-identify stories-diff fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-deadband identify-gas identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay bench-identify profile-identify records-diff stories-diff fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-deadband identify-gas identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -148,6 +148,9 @@ profile-identify: fmus  ## where an identification spends its time, by stage and
 
 bench-identify: fmus  ## identifications timed before and after the speed work in one run (per stage, simulations, answers side by side), and 10 fleet units on 2 workers
 	$(PY) benchmarks/identify_bench.py --work $(RESULTS)/bench-identify --json $(RESULTS)/bench-identify/study.json
+
+records-diff: fmus  ## make bench-replay and bench-fleet at BEFORE=cb03e04 and here, their records compared by what they do (responses in noise units), routes and verdicts
+	$(PY) benchmarks/records_diff.py --rev $(or $(BEFORE),cb03e04) --work $(RESULTS)/records-diff
 
 stories-diff: fmus  ## make demo, diagnose, identify and fleet under the code before the speed and house work (b2983af) and HEAD: printed stories and answer files compared, times and paths aside
 	-$(PY) benchmarks/stories_diff.py --work $(RESULTS)/stories-diff

@@ -1,8 +1,14 @@
 """Records before and after a change, compared by what they do (issue 53's rule, issue 54's
 decision): ``make bench-replay`` and ``make bench-fleet`` run at two commits, their
-answers read side by side.
+answers read side by side (``make records-diff``).
 
-    python benchmarks/records_diff.py --before BEFORE/results --after results
+    python benchmarks/records_diff.py --rev cb03e04 [--work results/records-diff]   # runs both, then compares
+    python benchmarks/records_diff.py --before BEFORE/results --after results          # compares runs made
+
+With ``--rev``, that commit is checked out into the work folder (``git worktree``) and its
+own two benches run there (this checkout's environment, its code on ``PYTHONPATH``), then
+this checkout's into ``--work``; a bench whose ``study.json`` is there already is not run
+again.
 
 For ``bench-replay`` (``bench-replay/study.json``): per unit, the record delivered before
 and after; where the texts differ, both are taken from the ANDES runs each study cached
@@ -163,15 +169,48 @@ def _played_apart(home: Path, a, b) -> tuple[float, float]:
     return float(np.sqrt(np.mean(d ** 2)) / sigma), float(np.max(np.abs(d)) / sigma)
 
 
+BENCHES = {"replay": ("bench-replay", "bench-replay/study.json"), "fleet": ("bench-fleet", "bench-fleet/study.json")}
+
+
+def run_benches(tree: Path, results: Path, parts: list[str]) -> None:
+    """The two benches of ``tree``'s Makefile, with this checkout's environment, into
+    ``results`` (each skipped where its study.json is there)."""
+    import subprocess
+
+    from identify_bench import tree_env
+
+    venv = ROOT / ".venv"
+    for part in parts:
+        target, done = BENCHES[part]
+        if (results / done).exists():
+            continue
+        print(f"  {tree.name}: make {target} ...", file=sys.stderr, flush=True)
+        # -o: this checkout's venv is not reinstalled from the tree's pyproject.toml
+        subprocess.run(["make", "--no-print-directory", "-C", str(tree), f"VENV={venv}", "-o",
+                        str(venv / ".installed"), f"RESULTS={results}", target], env=tree_env(tree), check=True)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--before", type=Path, required=True, help="the earlier commit's results folder")
+    parser.add_argument("--rev", help="run the benches at this commit and here, then compare")
+    parser.add_argument("--work", type=Path, default=ROOT / "results" / "records-diff")
+    parser.add_argument("--before", type=Path, help="the earlier commit's results folder (runs made)")
     parser.add_argument("--after", type=Path, default=ROOT / "results")
     parser.add_argument("--parts", default="replay,fleet")
     args = parser.parse_args(argv)
-    if "replay" in args.parts:
+    parts = args.parts.split(",")
+    if args.rev:
+        from identify_bench import checkout
+
+        tree = checkout(args.rev, args.work)
+        args.before, args.after = args.work / f"results-{args.rev}", args.work / "results-here"
+        run_benches(tree, args.before, parts)
+        run_benches(ROOT, args.after, parts)
+    elif args.before is None:
+        parser.error("give --rev, or --before with the earlier commit's results")
+    if "replay" in parts:
         print("\n".join(replay_diff(args.before, args.after)))
-    if "fleet" in args.parts:
+    if "fleet" in parts:
         print("\n".join(fleet_diff(args.before, args.after)))
 
 
