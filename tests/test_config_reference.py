@@ -53,7 +53,7 @@ def test_the_values_the_page_states_are_the_parsers():
     """Allowed values and defaults written in the schema (their modules read their keys
     from it, so it cannot import them) are the parsers' own."""
     from rapid_cosim.identify.unit import MVA_RANGE
-    from rapid_cosim.structures.standard import KINDS
+    from rapid_cosim.structures.shipped import KINDS
     from rapid_cosim.validation.tolerances import DEFAULT_BANDS, TERM_RANGES
 
     assert schema.UNITS == tuple(signals.UNITS) and schema.CONVERSIONS == signals.CONVERSIONS

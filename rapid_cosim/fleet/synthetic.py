@@ -55,7 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from ..compiler.source import ModelSource
-from ..structures.standard import kind_files, standard_file
+from ..structures.shipped import kind_files, standard_file
 
 EVENT = Path("electrical") / "tgov1_on"  # under the experiments folder the caller names
 STRUCTURES = ("TGOV1", "IEEEG1", "GGOV1", "HYGOV", "TGTypeI")
@@ -164,7 +164,7 @@ def draw_unit(k: int, seed: int) -> UnitPlan:
 
 
 def structure_files(plan: UnitPlan, folder: Path, experiments: Path) -> list[Path]:
-    """The four classic standard structure files (shipped, :mod:`rapid_cosim.structures.standard`),
+    """The four classic standard structure files (shipped, :mod:`rapid_cosim.structures.shipped`),
     IEEEG1's documenting TG Type I's lead-lag for a TG Type I unit (its record is that IEEEG1);
     for a unit of a stated kind, the shipped files of its kind, not copied."""
     if plan.kind is not None:

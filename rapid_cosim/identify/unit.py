@@ -18,7 +18,7 @@ in the grid operator's case::
     standard = ["IEEEG1"]               # and/or the shipped standard ones, by name
 
 Without ``[structures]``, a unit gets the shipped standard structures of its kind
-(:mod:`rapid_cosim.structures.standard`: steam TGOV1 and IEEEG1, gas GAST and GGOV1,
+(:mod:`rapid_cosim.structures.shipped`: steam TGOV1 and IEEEG1, gas GAST and GGOV1,
 hydro HYGOV); a unit of no stated kind gets its own ``structures/<name>.toml`` of the
 standard names where it has that folder (as units made before the kinds had), else every
 shipped standard structure.
@@ -37,7 +37,7 @@ from pathlib import Path
 from ..data import close_matches
 from ..errors import ConfigError
 from ..experiment.schema import UNIT_FILE
-from ..structures.standard import STANDARD_FILES, kind_files, standard_file
+from ..structures.shipped import STANDARD_FILES, kind_files, standard_file
 
 MVA_RANGE = (1.0, 5000.0)
 KEYS = UNIT_FILE.accepted()  # section -> its keys, as docs/config.md lists them
