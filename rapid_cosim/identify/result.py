@@ -187,6 +187,8 @@ class Identification:
             if kind in self.files or kind in self.notes:
                 lines.append(f"\n{label}: " + (f"`{self.files[kind]}`" if kind in self.files
                                                 else f"none ({self.notes[kind]})"))
+                if kind == "dyr" and self.layout_note:
+                    lines.append(f"written as {self.layout_note}.")
         lines += ["", "## The recordings", ""]
         lines += [f"- {name}: {'; '.join(r['lines'])}" for name, r in self.recordings.items()]
         lines += ["", f"{self.seconds:.0f} s."]
