@@ -149,8 +149,10 @@ def test_effects_compose_into_a_standard_structure_but_not_valve_variants(repo, 
 
 
 def test_the_catalogue_runs_on_the_winning_structure(repo, tmp_path):
-    """A TGOV1 plant behind a 30 mHz deadband (invented here): TGOV1 wins over TG Type I,
-    and the catalogue, run on TGOV1, names the deadband."""
+    """A TGOV1 plant behind a 30 mHz deadband (invented here). The shipped TGOV1 has an
+    optional deadband: TGOV1 with it wins over plain TGOV1 (whose droop absorbs the band) and
+    TG Type I; the catalogue, run on that winner, finds nothing more to add; and the record
+    kept is TGOV1's with its band, at the plant's droop."""
     package = tmp_path / "iGrGen"
     shutil.copytree(repo / "modelica" / "iGrGen", package)
     bench = "iGrGen.Diagnosed.StagedTestTGOV1Deadband"
@@ -161,13 +163,20 @@ def test_the_catalogue_runs_on_the_winning_structure(repo, tmp_path):
                                         engine=EngineSpec(), source=ModelSource(package, tmp_path / "fmus"),
                                         log=lambda *_: None)
     record = json.loads((tmp_path / "out" / "structures.json").read_text())
-    assert record["ranking"][0]["name"] == "TGOV1", record["reason"]
+    names = [r["name"] for r in record["ranking"]]
+    assert names == ["TGOV1+deadband", "TGOV1", "TGTypeI"], record["reason"]
     effects = record["effects"]
-    assert effects["structure"] == "TGOV1" and effects["effects"] == ["deadband"], effects["reason"]
+    assert effects["structure"] == "TGOV1+deadband" and effects["effects"] == [], effects["reason"]
     assert "rate_limit" not in {r["label"] for r in effects["ranking"]}  # a TG Type I variant: not tried
     assert "the effect catalogue on it" in text
-    # the deliverable part of identify: TGOV1's record kept by its rules (TG Type I has none)
-    assert [r["model"] for r in record["records"]] == ["TGOV1"] and record["recommended"] == "TGOV1"
+    # the deliverable part of identify: TGOV1's record with its band (TG Type I has none)
+    (kept,) = record["records"]
+    assert kept["model"] == "TGOV1" and kept["fit"] == "TGOV1+deadband" and record["recommended"] == "TGOV1"
+    band = 0.03 / 50.0  # the bench's 30 mHz in pu of 50 Hz
+    assert kept["parameters"]["gov.db"] == pytest.approx(band, rel=0.15)
+    assert kept["parameters"]["gov.R"] == pytest.approx(PLANT["gov.R"], rel=0.05)
+    plain = record["ranking"][1]["parameters"]["gov.R"]
+    assert plain > 1.1 * PLANT["gov.R"]  # without the band, the droop absorbs it
     assert "## The standard records" in text and "**Recommended: TGOV1**" in text
 
 
