@@ -83,6 +83,33 @@ def test_min_above_max_is_named_by_key(test1):
     _one(test1, r"config\.toml \[estimate\.\"gov\.R\"\]: min \(0\.2\) must be less than max \(0\.12\)")
 
 
+def test_five_problems_in_one_config_are_listed_at_once(test1):
+    """Issue 56: a misspelt key, a reversed bound, a misspelt key inside an entry, a bad
+    value and a wrong column, each independent of the others: all five in one check."""
+    config = test1 / "config.toml"
+    _edit(config, 'time = "time"\n', 'time = "time"\ndelimter = ","\n')
+    _edit(config, "min = 0.02, max = 0.12", "min = 0.2, max = 0.12")
+    _edit(config, 'label = "Ts"', 'lable = "Ts"')
+    _edit(config, "offset = true", 'offset = "yes"')
+    _edit(config, 'outputs = { pm = "pm" }', 'outputs = { pm = "pmx" }')
+    problems = _problems(test1)
+    expected = [r"\[data\.delimter\]: unknown key 'delimter'.*did you mean 'delimiter'",
+                r"\[estimate\.\"gov\.R\"\]: min \(0\.2\) must be less than max",
+                r"\[estimate\.\"gov\.Ts\"\.lable\]: unknown key 'lable'",
+                r"\[fitness\.offset\]: expected true or false, got 'yes'",
+                r"\[data\.outputs\.pm\]: .*no column 'pmx'"]
+    assert len(problems) == 5, problems
+    for pattern, problem in zip(expected, problems):
+        assert re.search(pattern, problem), (pattern, problem)
+
+
+def test_a_mistake_the_set_aside_causes_is_not_reported(test1):
+    """Setting the wrong column aside leaves [data] without outputs: that is the check's
+    doing, not the user's, and only the column is said."""
+    _edit(test1 / "config.toml", 'outputs = { pm = "pm" }', 'outputs = { pm = "pmx" }')
+    _one(test1, r"\[data\.outputs\.pm\]: .*no column 'pmx'")
+
+
 def test_a_missing_data_file_is_named(test1):
     (test1 / "test1.csv").unlink()
     _one(test1, r"config\.toml \[data\.file\]: .*test1\.csv")

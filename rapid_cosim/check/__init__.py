@@ -5,7 +5,8 @@ PATH is an experiment config (a ``config.toml`` or its folder), a unit (``unit.t
 its folder) or a fleet file. The check loads the configs and their recordings, the
 structure files against their benches, the records on file, as the run would; it
 reports every problem at once, each naming its file and key or row
-(:class:`~rapid_cosim.errors.Finding`), and says each recording's time base, what will
+(:class:`~rapid_cosim.errors.Finding`), a config's too (each mistake's key set aside and
+the rest read again: :mod:`rapid_cosim.experiment.problems`), and says each recording's time base, what will
 be estimated and in which stages, and about how many simulations and how long they take
 on this machine (:mod:`.cost`). ``identify`` and ``fleet`` run the same checks before any
 fit (:mod:`rapid_cosim.identify.check`, :mod:`rapid_cosim.fleet.check`).

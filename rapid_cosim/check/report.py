@@ -63,7 +63,7 @@ def check_configs(paths: Sequence[Path], *, method: str, source: ModelSource = M
     """Configs as ``rapid-cosim estimate`` loads them, jointly fitted by ``method``."""
     from ..calibration import inputs_from_experiments
     from ..estimators.chain import parse_method
-    from ..experiment import load_experiment
+    from ..experiment.problems import every_problem
     from ..identify.check import quietly
 
     report = CheckReport(", ".join(map(str, paths)), "config")
@@ -75,10 +75,9 @@ def check_configs(paths: Sequence[Path], *, method: str, source: ModelSource = M
     notes: list[str] = []
     experiments = []
     for path in paths:
-        try:
-            experiments.append(quietly(lambda: load_experiment(path), notes))
-        except RapidCosimError as e:
-            report.problems.append(finding(e))
+        exp, problems = quietly(lambda: every_problem(path), notes)
+        experiments += [exp] if exp is not None else []
+        report.problems += [finding(e) for e in problems]
     if not experiments:
         return report
     try:

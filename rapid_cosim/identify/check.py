@@ -17,7 +17,8 @@ from pathlib import Path
 from ..compiler.source import ModelSource
 from ..data import close_matches
 from ..errors import Finding, RapidCosimError, finding
-from ..experiment import Experiment, load_experiment
+from ..experiment import Experiment
+from ..experiment.problems import every_problem
 from ..structures.structure import Structure
 from .unit import Unit
 
@@ -66,10 +67,9 @@ def check_unit(path: str | Path, *, source: ModelSource = ModelSource()) -> Unit
         return UnitCheck(None, findings=[finding(e)])
     out = UnitCheck(unit)
     for config in unit.configs:
-        try:
-            out.experiments.append(quietly(lambda: load_experiment(config), out.notes))
-        except RapidCosimError as e:
-            out.findings.append(finding(e))
+        exp, problems = quietly(lambda: every_problem(config), out.notes)
+        out.experiments += [exp] if exp is not None else []
+        out.findings += [finding(e) for e in problems]
     names = [e.name for e in out.experiments]
     loaded_all = len(out.experiments) == len(unit.configs)
     for name in unit.holdout:
