@@ -217,6 +217,13 @@ def test_every_problem_of_a_unit_is_listed_at_once(unit):
     assert any("tgtypei_on/config.toml [data.outputs.pe]" in p and "'POWER'" in p for p in problems)
 
 
+def test_a_unit_without_a_held_out_test_is_warned_of_and_still_passes(unit):
+    _edit(unit, 'holdout = ["tgtypei_off_same"]', "holdout = []")
+    report = check(unit)
+    assert report.ok, report.problems
+    assert any(line.startswith("warning: no test is held out") for line in report.lines), report.lines
+
+
 def test_identify_stops_on_the_check_before_any_fit(unit, tmp_path):
     import rapid_cosim as rc
     from rapid_cosim.errors import CheckFailed

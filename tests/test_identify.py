@@ -281,3 +281,18 @@ def test_an_explanation_with_a_remainder_counts_as_unexplained():
 
     assert ident("unexplained", False).unexplained and ident("rate_limit", False).unexplained
     assert not ident("rate_limit", True).unexplained and not ident("none", True).unexplained
+
+
+def test_a_unit_without_a_held_out_test_is_told_what_that_means():
+    """Issue 56: with nothing held out, the story's fidelity is on the training tests alone,
+    and it says so rather than 'within the noise on every test' and '0 held-out' only."""
+    from rapid_cosim.identify.unit import NO_HOLDOUT
+
+    record = _record("TGOV1", 0.0, 4)
+    record.tests = {"t1": type("F", (), {"rmse_over_noise": 1.0, "adequate": True})()}
+    explanation = {"verdict": "none", "adequate": True, "p": 0.5, "effect": "none"}
+    ident = Identification("u", None, 1, "1", ["t1"], [], explanation, [record], "TGOV1", "first by BIC", "TGOV1",
+                           0.0)
+    assert f"note: {NO_HOLDOUT}" in ident.story() and "held out:" not in ident.story()
+    ident.heldout = ["t2"]
+    assert NO_HOLDOUT not in ident.story()

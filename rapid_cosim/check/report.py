@@ -98,12 +98,15 @@ def check_configs(paths: Sequence[Path], *, method: str, source: ModelSource = M
 
 def _unit_lines(checked, report: CheckReport) -> None:
     from ..diagnose.catalogue import CATALOGUE
+    from ..identify.unit import NO_HOLDOUT
 
     unit = checked.unit
     held = set(unit.holdout)
     for exp in checked.experiments:
         report.lines += [f"{exp.name}{' (held out)' if exp.name in held else ''}: {line}"
                          for line in exp.recording.lines()]
+    if not held:
+        report.lines.append(f"warning: {NO_HOLDOUT}")
     report.lines.append(f"explanation: TG Type I and the effect catalogue ({len(CATALOGUE)} effects: "
                         f"{', '.join(CATALOGUE)}), then pairs with the best")
     for s in checked.structures:

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from ..diagnose.catalogue import NONE, VerdictKind
+from .unit import NO_HOLDOUT
 
 # What each standard structure can represent of the effect catalogue, as its own
 # parameters (PES-TR1 2013 and the PSS/E Model Library block diagrams; the deadbands in the
@@ -156,7 +157,7 @@ class Identification:
         e = self.explanation
         lines = [f"# Identification of {self.unit}", "",
                  f"Trained on {', '.join(self.training)}"
-                 + (f"; held out: {', '.join(self.heldout)}" if self.heldout else "") + ".", "",
+                 + (f"; held out: {', '.join(self.heldout)}." if self.heldout else f"; {NO_HOLDOUT}."), "",
                  "## The explanation (TG Type I and the effect catalogue)", "",
                  f"**{e['verdict']}** (campaign p-value {e['p']:.2g}).", "",
                  "| parameter | value | 90 % interval |", "|---|---:|---|"]
@@ -212,6 +213,8 @@ class Identification:
             lines.append(f"  RMSE over the noise, training: {r.fidelity(self.training, failing=True)}")
             if self.heldout:
                 lines.append(f"  held out: {r.fidelity(self.heldout, failing=True)}")
+            else:
+                lines.append(f"  note: {NO_HOLDOUT}")
             if r.adequate:  # otherwise the reason says them already (its "NOT within the noise (...)")
                 lines += [f"  note: {c}" for c in r.cautions]
         else:

@@ -54,6 +54,11 @@ def check_mva(mva, source: str | None = None, key: str | None = None, *, given: 
     return float(mva)
 
 
+NO_HOLDOUT = ("no test is held out ([tests] holdout): every fidelity figure is then on the tests the records "
+              "were fitted to, and nothing shows that a record predicts a test it was not fitted to; hold out "
+              "one test of each kind where the unit has three or more")
+
+
 @dataclass(frozen=True)
 class Unit:
     name: str
