@@ -388,3 +388,23 @@ def test_a_triangular_map_gives_each_row_the_same_sums_alone_and_in_a_batch(monk
         assert np.array_equal(T.apply(y), out)
         monkeypatch.undo()
     assert T.apply(np.zeros((3, 0))).shape == (3, 0)
+
+
+def test_regular_stamps_are_called_regular_and_a_noted_recording_not_jittered():
+    """Issue 56: a 0.1 s base summed in floating point (jitter 1e-11 ms) was described as
+    'jittered stamps'. Regular stamps are called regular; a recording whose only fact is
+    a note (a units row skipped) is told by its lines, not lumped with the jittered."""
+    from rapid_cosim.data.timebase import inspect
+    from rapid_cosim.experiment.recording import Recording
+    from rapid_cosim.identify.result import recording_story
+
+    time = np.cumsum(np.full(900, 0.1)) - 0.1  # 0.1 summed: off the grid by rounding only
+    base = inspect(time, "a.csv")
+    assert base.regular and "regular stamps" in base.describe() and "jitter" not in base.describe()
+    jittered = inspect(time + np.random.default_rng(1).uniform(-0.003, 0.003, time.size), "b.csv")
+    assert not jittered.regular and "jitter" in jittered.describe()
+    noted = Recording({"a.csv": base}, notes=("a units row under the header skipped",)).summary()
+    story = recording_story({"t1": noted, "t2": Recording({"b.csv": jittered}).summary()})
+    assert any(line.startswith("recording t1: ") and "units row" in line for line in story), story
+    assert any(line.startswith("recordings: t2 with jittered stamps") for line in story), story
+    assert not any("t1" in line and "jittered" in line for line in story), story

@@ -71,8 +71,9 @@ class TimeBase:
 
     def describe(self) -> str:
         """One line, as the CLI and the report print it."""
-        words = (f"{self.samples} samples every {_ms(self.step)} ms ({1.0 / self.step:.4g} per second); "
-                 f"jitter {_ms(self.jitter_rms)} ms RMS, {_ms(self.jitter_max)} ms at most; ")
+        words = f"{self.samples} samples every {_ms(self.step)} ms ({1.0 / self.step:.4g} per second); "
+        words += ("regular stamps (on one grid within 1 % of a step); " if self.jitter_max <= 0.01 * self.step else
+                  f"jitter {_ms(self.jitter_rms)} ms RMS, {_ms(self.jitter_max)} ms at most; ")
         if self.dropped:
             words += f"{self.dropped} frame(s) missing, at most {self.longest_drop} in a row"
             listed = ", ".join(f"{a:g}-{b:g} s ({n})" for a, b, n in self.holes[:_LISTED])

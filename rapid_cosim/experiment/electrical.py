@@ -252,7 +252,7 @@ def describe_recording(exp) -> str | None:
 
 
 def _jitter_words(base) -> str:
-    parts = [f"jitter {1e3 * base.jitter_rms:.2g} ms RMS"]
+    parts = ["regular stamps" if base.jitter_max <= 0.01 * base.step else f"jitter {1e3 * base.jitter_rms:.2g} ms RMS"]
     if base.dropped:
         parts.append(f"{base.dropped} frame(s) missing")
     return ", ".join(parts)

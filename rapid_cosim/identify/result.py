@@ -44,9 +44,11 @@ def recording_story(recordings: dict[str, dict]) -> list[str]:
     """The recordings in a few lines: one for those on regular stamps with nothing
     repaired, masked or bridged, one for those that differ only by jitter, and every fact
     of the others."""
-    def only_jitter(r: dict) -> bool:
-        return not (r["masked"] or r["bridged"] or r["rocof_unfit"]) and all(
-            not (b["dropped"] or b["repeated"] or b["reordered"]) for b in r["timebase"].values())
+    def only_jitter(r: dict) -> bool:  # stamps off their grid, and nothing else to say
+        bases = r["timebase"].values()
+        return not (r["masked"] or r["bridged"] or r["rocof_unfit"] or r.get("notes")) and all(
+            not (b["dropped"] or b["repeated"] or b["reordered"]) for b in bases) and not all(
+            b.get("regular", False) for b in bases)
 
     plain = [name for name, r in recordings.items() if r["plain"]]
     jittered = [name for name, r in recordings.items() if not r["plain"] and only_jitter(r)]
