@@ -296,3 +296,16 @@ def test_a_unit_without_a_held_out_test_is_told_what_that_means():
     assert f"note: {NO_HOLDOUT}" in ident.story() and "held out:" not in ident.story()
     ident.heldout = ["t2"]
     assert NO_HOLDOUT not in ident.story()
+
+
+def test_the_reports_record_note_says_each_clause_once():
+    """Issue 56: 'within the noise on every test; within the noise on every test'."""
+    from rapid_cosim.identify.deliver import record_note
+
+    record = _record("TGOV1", 0.0, 4)
+    record.cautions = ["it cannot carry deadband"]
+    record.words += "; it cannot carry deadband"
+    ident = Identification("u", None, 1, "1", [], [], {}, [record], "TGOV1",
+                           "first by BIC (TGOV1, 4 estimated parameters); within the noise on every test", "TGOV1", 0.0)
+    note = record_note(ident)
+    assert note.count("within the noise on every test") == 1 and note.count("cannot carry deadband") == 1, note

@@ -63,7 +63,8 @@ def record_note(result: Identification) -> str:
     comes per test (RMSE over the recorder's noise level, as the identification judged)."""
     r = result.record(result.recommended)
     fidelity = r.fidelity([*result.training, *result.heldout])
+    said = "".join(f"; {c}" for c in r.cautions) if r.adequate else ""  # the reason has said the fidelity
     return (f"The record rapid-cosim identify recommends for {result.unit}: {r.model}"
-            + (f" ({r.fit})" if r.fit != r.model else "") + f", {result.reason}; {r.words}. RMSE over the noise "
+            + (f" ({r.fit})" if r.fit != r.model else "") + f", {result.reason}{said}. RMSE over the noise "
             f"per test: {fidelity}" + (f" (held out: {', '.join(result.heldout)})" if result.heldout else "") + "."
             + (f" Written as {result.layout_note}." if result.layout_note else ""))

@@ -31,7 +31,7 @@ from .archives import ArchivedRun, FitCurves, caption, curves_at
 from .fits import plot_experiment
 from .htmlkit import STYLE, e, mark, png
 from .provenance import provenance
-from .sections import (diagnosis_section, metrics_table, noise_section, provenance_section, record_section,
+from .sections import (diagnosis_section, failures_section, metrics_table, noise_section, provenance_section, record_section,
                        recording_section, summary, timebase_section, tolerance_table)
 from ..validation.tolerances import Check, Tolerances, judge, verdict
 from .unit import DeliveredRecord, DiagnosisSummary, delivered_record, noise_summary
@@ -112,6 +112,7 @@ def write_validation_page(run: ArchivedRun, out: str | Path, *, uncertainty: Unc
             "when the measured response overshoots; settling: staying within 5 % of the change). Simulations "
             "include the profiled transducer offset; held-out tests are predicted at the training calibration "
             "(only their offset profiled). A test passes when every metric judged is within its band.</p>",
+            failures_section(rows),
             "<h3>Tolerance bands</h3>", tolerance_table(opts.tolerances),
             "<h2>Delivered record</h2>",
             f"<p id=delivered>{e(opts.record_note)}</p>" if opts.record_note else "",

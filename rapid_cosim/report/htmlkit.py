@@ -31,6 +31,7 @@ pre { background: #f5f5f5; padding: 0.5em; font-size: 0.8em; white-space: pre-wr
 .mark.pass { color: #0b5a1d; background: #d8f0dc; }
 .mark.fail { color: #8a1010; background: #f8d8d8; }
 .mark.na { color: #666; font-weight: normal; }
+.warn { color: #7a4a00; } b.bound { color: #7a4a00; font-size: 0.85em; }
 code { font-size: 0.95em; }
 @page { size: A4; margin: 14mm 12mm; }
 @media print {

@@ -8,7 +8,7 @@ from typing import Sequence
 
 from .htmlkit import e, mark, num, table
 from .provenance import Provenance
-from ..validation.tolerances import LABELS, METRIC_TERMS, SOURCE_NOTE, Check, Tolerances, verdict
+from ..validation.tolerances import LABELS, METRIC_TERMS, SOURCE_NOTE, Check, Tolerances, failure_meaning, verdict
 from .unit import DeliveredRecord, DiagnosisSummary, NoiseSummary
 from ..validation.metrics import ValidationMetrics
 
@@ -43,11 +43,34 @@ def metrics_table(rows: Sequence[tuple[ValidationMetrics, tuple[Check, ...]]]) -
     return table(["test", "metric", "measured", "simulated", "error", "band", "result"], body, text=(0, 1))
 
 
+def failures_section(rows: Sequence[tuple[ValidationMetrics, tuple[Check, ...]]]) -> str:
+    """Each band failed, said once per test and metric in terms of what it means for a
+    study that uses the record."""
+    items = [f"<li><b>{e(m.experiment)}, {e(LABELS[c.metric])}</b> (off by {num(c.error, sign=True)} "
+             f"{UNITS[c.metric]}, band ± {num(c.band)}): {e(failure_meaning(c))}.</li>"
+             for m, checks in rows for c in checks if c.passed is False]
+    if not items:
+        return ""
+    return ("<h3>What the failures mean</h3><ul id=failures>" + "".join(items) + "</ul><p class=note>A failed band "
+            "is a difference larger than the band allows between the simulated and the measured response on that "
+            "test; whether it matters depends on the study the record is for.</p>")
+
+
 def tolerance_table(tol: Tolerances) -> str:
     rows = [f'<tr data-metric="{k}"><td class="text nowrap">{e(LABELS[k])}</td><td class=text>{e(tol.describe(k))}</td>'
             f"<td class=text>{e(tol.reason(k))}</td></tr>" for k in METRIC_TERMS]
     return (table(["metric", "band (|simulated − measured| within)", "why"], rows, text=(0, 1, 2))
             + f"<p class=note>Source of the bands: {e(tol.source)}. {e(SOURCE_NOTE)}</p>")
+
+
+def on_bound(value: float, searched: tuple[float, float] | None, share: float = 0.01) -> str | None:
+    """"lower" or "upper" where an estimate ends within ``share`` of its range of a bound."""
+    if searched is None or not searched[1] > searched[0]:
+        return None
+    lo, hi = searched
+    if min(value - lo, hi - value) > share * (hi - lo):
+        return None
+    return "lower" if value - lo < hi - value else "upper"
 
 
 def record_section(rec: DeliveredRecord, interval_note: str, level: float | None) -> str:
@@ -60,14 +83,22 @@ def record_section(rec: DeliveredRecord, interval_note: str, level: float | None
         if rec.dyd is not None:
             parts.append(f'<h3>PSLF .dyd</h3><pre class="record dyd">{e(rec.dyd)}</pre>')
     lvl = f"{100 * level:.0f} % interval" if level is not None else "interval"
-    rows = []
+    rows, held = [], []
     for p in rec.parameters:
         interval = "—" if p.interval is None else f"{p.interval[0]:.4g} … {p.interval[1]:.4g}"
         searched = "—" if p.searched is None else f"{p.searched[0]:g} … {p.searched[1]:g}"
+        bound = on_bound(p.value, p.searched)
+        if bound:
+            held.append(f"{p.label or p.name} = {p.value:.4g} is on the {bound} bound of its search range")
         rows.append(f'<tr data-origin="{e(p.origin)}"><td><code>{e(p.name)}</code></td><td class=text>{e(p.label)}</td>'
-                    f"<td>{p.value:.5g}</td><td class=text>{e(p.origin)}</td><td>{interval}</td><td>{searched}</td></tr>")
+                    f"<td>{p.value:.5g}{f' <b class=bound>on {bound} bound</b>' if bound else ''}</td>"
+                    f"<td class=text>{e(p.origin)}</td><td>{interval}</td><td>{searched}</td></tr>")
     parts.append("<h3>Parameters</h3>" + table(["parameter", "label", "value", "origin", lvl, "searched"], rows,
                                                 text=(0, 1, 3)))
+    if held:
+        parts.append(f"<p id=bounds class=warn>{e('; '.join(held))}: the range, not the data, holds it there, and "
+                     "its interval is the range's as much as the data's. Widen the range where the plant allows; "
+                     "where the documentation sets the bound, the record states the documented limit.</p>")
     parts.append("<p class=note>Estimated: calibrated on the training tests. Documented: fixed in the experiments' "
                  "configs (the unit's documented constants). Bench default: neither, the model's own value, "
                  "written in the record as it stands; one with no field in the record (an operating point or a "

@@ -91,6 +91,40 @@ DEFAULT_REASONS: dict[str, str] = {
     "settling_time": "settling is read where a slow tail crosses a narrow band, so it scatters about twice as "
                      "much as the rise time",
 }
+# What a failed band means for someone who will use the record, per metric (the page's
+# "What the failures mean"): which part of the model sets it, and which studies it touches.
+FAILURE_MEANINGS: dict[str, tuple[str, str]] = {  # (larger, smaller): simulated above / below measured
+    "rmse": ("the simulated response is further from the measurement than the recorder's noise explains: the "
+             "model misses part of the response (the figure shows where); every study that uses the record "
+             "inherits that miss", ""),
+    "peak_change": ("the model's largest excursion is larger than the unit's: its gain or fast lags overstate "
+                    "the first seconds' response; a frequency nadir study with this record is optimistic",
+                    "the model's largest excursion is smaller than the unit's: its gain or fast lags understate "
+                    "the first seconds' response; a frequency nadir study with this record is pessimistic"),
+    "settled_change": ("the model settles at a larger change than the unit: its droop is too small (or a limit "
+                       "is missing); steady-state sharing with this record overstates the unit's part",
+                       "the model settles at a smaller change than the unit: its droop is too large (or a limit "
+                       "binds that should not); steady-state sharing with this record understates the unit's part"),
+    "rise_time": ("the model reaches 90 % of its change later than the unit: its time constants are too slow "
+                  "for this test (or a slow tail moves the 90 % point); how fast the unit supports the "
+                  "frequency is understated",
+                  "the model reaches 90 % of its change sooner than the unit: its time constants are too fast "
+                  "for this test (or a slow tail moves the 90 % point); how fast the unit supports the "
+                  "frequency is overstated"),
+    "time_to_peak": ("the model peaks later than the unit: its lags are too slow",
+                     "the model peaks sooner than the unit: its lags are too fast"),
+    "settling_time": ("the model takes longer to settle than the unit: a slow mode (the reheater, the water "
+                      "column) is too slow or too large",
+                      "the model settles sooner than the unit: a slow mode is too fast or missing"),
+}
+
+
+def failure_meaning(check: Check) -> str:
+    """The words of :data:`FAILURE_MEANINGS` for a failed check, by the sign of its error."""
+    larger, smaller = FAILURE_MEANINGS[check.metric]
+    return smaller if smaller and check.error is not None and check.error < 0 else larger
+
+
 SOURCE_NOTE = ("NERC MOD-027-1 (R2) asks that the model's simulated active power response be compared with the "
                "unit's recorded response to a frequency excursion or a governor reference change, and sets no "
                "numerical band; AEMO's Power System Model Guidelines (section 6, model accuracy requirements) state "
