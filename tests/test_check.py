@@ -309,3 +309,11 @@ def test_a_warning_said_many_times_is_printed_once_with_its_count(monkeypatch, c
     assert err.count("warning: frames flagged invalid in unit.csv are masked") == 1
     assert err.count("warning: another cause") == 1
     assert "warning said 3 times: frames flagged invalid" in err and "warnings.warn(" not in err
+
+
+def test_a_decimal_comma_in_toml_and_a_data_file_given_as_a_config_are_named(tmp_path, test1):
+    """Issue 56: TOML's own words ('Expected newline...') did not say what was wrong."""
+    unit = tmp_path / "u.toml"
+    unit.write_text('[unit]\nname = "u"\nmva = 400,0\n')
+    _one(unit, r"line 3.*\n.*3 \| mva = 400,0\n.*a decimal comma: TOML numbers take a point")
+    _one(test1 / "test1.csv", r"this looks like a data file \(a header of columns\), not a TOML file")

@@ -156,7 +156,7 @@ def test_a_tolerance_file_sets_the_bands(tgov1_unit, repo, tmp_path, capsys):
     ("[validation]\nrmse = { noise = \"two\" }\n", r"noise = 'two' is outside the allowed range"),
     ("[validation]\nrmse = 2.0\n", r"bad\.toml:2 \[validation\.rmse\]: rmse = 2\.0: give a table of terms"),
     ("[tolerances]\nrmse = { noise = 2 }\n", r"bad\.toml: no \[validation\] table"),
-    ("[validation\n", r"bad\.toml: not valid TOML"),
+    ("[validation\n", r"bad\.toml: invalid TOML"),
 ])
 def test_a_bad_tolerance_file_is_refused_with_file_line_key_value_and_range(tmp_path, text, found):
     bad = tmp_path / "bad.toml"

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
+from pathlib import Path
 from typing import Sequence
 
 from ..data import close_matches
@@ -76,11 +77,38 @@ def suggest(word: str, candidates: Sequence[str]) -> str:
 
 
 def toml_message(e: tomllib.TOMLDecodeError, text: str) -> str:
+    """TOML's complaint, the line it names, and what the mistake probably is: a decimal
+    comma, or a data file given where a TOML file belongs."""
     message = f"invalid TOML: {e}"
     m = re.search(r"at line (\d+)", str(e))
+    lines = text.splitlines()
     if m:
-        lines = text.splitlines()
         n = int(m.group(1))
         if 1 <= n <= len(lines):
             message += f"\n    {n} | {lines[n - 1]}"
+            if _DECIMAL_COMMA.search(lines[n - 1]):
+                message += "\n    a decimal comma: TOML numbers take a point (400.0, not 400,0)"
+    first = next((line for line in lines if line.strip()), "")
+    if "=" not in first and not first.lstrip().startswith(("[", "#")) and _CSV_HEADER.search(first):
+        message += ("\n    this looks like a data file (a header of columns), not a TOML file: give the config "
+                    "that names it in [data] file")
     return message
+
+
+_DECIMAL_COMMA = re.compile(r"=\s*-?\d+,\d+\s*(#.*)?$")
+_CSV_HEADER = re.compile(r"^[^=]+[,;\t][^=]+$")
+
+
+def load_toml(path: Path, what: str) -> tuple[dict, str]:
+    """A TOML file's table and text; an unreadable or invalid one is a ConfigError naming
+    ``what`` it should have been (``the unit file``) and, where TOML says, the line."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise ConfigError(f"cannot read {what}: {e.strerror or e}", str(path)) from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{what} is not UTF-8 text: {e}", str(path)) from None
+    try:
+        return tomllib.loads(text), text
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(toml_message(e, text), str(path)) from None

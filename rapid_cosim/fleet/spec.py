@@ -16,11 +16,11 @@ event's (the grid frequency, say) by a relative path.
 from __future__ import annotations
 
 import glob
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..experiment.reader import load_toml
 from ..experiment.schema import FLEET_FILE
 
 KEYS = FLEET_FILE.accepted()["fleet"]  # as docs/config.md lists them
@@ -51,12 +51,7 @@ def load_fleet(path: str | Path) -> FleetSpec:
     if path.is_dir():
         path = path / "fleet.toml"
     file = str(path)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise ConfigError(f"cannot read the fleet file: {e.strerror}", file) from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"not valid TOML: {e}", file) from None
+    raw, _ = load_toml(path, "the fleet file")
     extra = sorted(set(raw) - {"fleet"})
     if extra or "fleet" not in raw:
         raise ConfigError(f"a fleet file has one section, [fleet]; found {', '.join(extra) or 'none'}", file)

@@ -30,12 +30,12 @@ PSS/E or PSLF record of the unit, see :mod:`rapid_cosim.exchange`).
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..data import close_matches
 from ..errors import ConfigError
+from ..experiment.reader import load_toml
 from ..experiment.schema import UNIT_FILE
 from ..structures.shipped import STANDARD_FILES, kind_files, standard_file
 
@@ -76,12 +76,7 @@ class Unit:
         path = Path(path)
         if path.is_dir():
             path = path / "unit.toml"
-        try:
-            raw = tomllib.loads(path.read_text())
-        except OSError as e:
-            raise ConfigError(f"cannot read the unit file: {e.strerror}", str(path)) from None
-        except tomllib.TOMLDecodeError as e:
-            raise ConfigError(f"not valid TOML: {e}", str(path)) from None
+        raw, _ = load_toml(path, "the unit file")
         for section, keys in KEYS.items():
             if not isinstance(raw.get(section, {}), dict):
                 raise ConfigError(f"[{section}] must be a table (a section), got {raw[section]!r}", str(path), section)

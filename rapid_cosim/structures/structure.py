@@ -36,6 +36,7 @@ from ..errors import ConfigError, Finding
 from ..exchange import model_named
 from ..experiment import EstimateSpec, Experiment, documented, parse_experiment, render_config
 from ..experiment.config import parameter_tables
+from ..experiment.reader import load_toml
 from ..experiment.schema import STRUCTURE_FILE
 from ..simulator import get_simulator
 
@@ -118,10 +119,7 @@ class Structure:
     @classmethod
     def load(cls, path: str | Path) -> "Structure":
         path = Path(path)
-        try:
-            raw = tomllib.loads(path.read_text())
-        except (OSError, tomllib.TOMLDecodeError) as e:
-            raise ConfigError(f"cannot read the structure file: {e}", str(path)) from None
+        raw, _ = load_toml(path, "the structure file")
         head = raw.get("structure")
         accepted = STRUCTURE_FILE.accepted()
         extra = sorted(set(raw) - set(accepted))

@@ -54,12 +54,12 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
 from ..errors import ConfigError
+from ..experiment.reader import load_toml
 from ..experiment.schema import METRIC_TERMS
 from .metrics import ValidationMetrics
 
@@ -176,11 +176,7 @@ def load_tolerances(path: str | Path) -> Tolerances:
     path = Path(path)
     if not path.exists():
         raise ConfigError("no such tolerance file", str(path))
-    text = path.read_text(encoding="utf-8")
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"not valid TOML: {e}", str(path)) from None
+    doc, text = load_toml(path, "the tolerance file")
     table = doc.get("validation")
     if not isinstance(table, dict):
         raise ConfigError("no [validation] table (metrics: " + ", ".join(METRIC_TERMS) + ")", str(path))
