@@ -25,6 +25,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .archive import RunArchive
+from .archive.writer import refuse_existing
 from .calibration import RunInputs, RunOptions, inputs_from_archive, inputs_from_experiments
 from .calibration import rerun as _rerun
 from .calibration.runs import Resumed
@@ -184,8 +185,9 @@ def calibrate_with(experiments: Sequence[str | Path | Experiment] | str | Path |
                    source: ModelSource = ModelSource()) -> Calibration:
     """:func:`calibrate` with its options already built and checked (the CLI checks them
     once, before it reads a recording or announces a run)."""
-    inputs = inputs_from_experiments(as_experiments(experiments), source=source)
     path = Path(archive) if archive is not None else default_archive()
+    refuse_existing(path)  # before any recording is read
+    inputs = inputs_from_experiments(as_experiments(experiments), source=source)
     result = start_run(inputs, run_options, path, progress=progress)
     return _calibration(result, inputs, path, "finished")
 

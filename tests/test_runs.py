@@ -222,3 +222,15 @@ def test_a_workflow_remakes_its_own_archive_of_another_run_and_a_user_archive_is
     with RunArchive(archive) as view:
         assert view.configs == {e.name: e.config_text for e in changed.experiments}
     assert ensure_run(changed, options, archive, progress=False, replace_stale=True)[1] == "archived"
+
+
+def test_estimate_onto_an_existing_archive_names_resume_before_reading_any_recording(tmp_path, capsys, monkeypatch):
+    """Issue 56: it said 'reopen it to resume', after loading the data."""
+    import rapid_cosim.api as api
+
+    archive = tmp_path / "run.h5"
+    archive.write_bytes(b"an earlier run")
+    monkeypatch.setattr(api, "as_experiments", lambda *_: pytest.fail("a recording was read"))
+    code = main(["estimate", "experiments/test1", "--archive", str(archive)])
+    err = capsys.readouterr().err
+    assert code != 0 and f"'rapid-cosim resume {archive}' finishes the run it holds" in err, err

@@ -31,6 +31,13 @@ from .lock import Lock
 COMMIT_SECONDS = 0.2
 
 
+
+def refuse_existing(path: str | os.PathLike) -> None:
+    """A new run never writes over an archive: the run it holds is resumed, not restarted."""
+    if os.path.exists(path):
+        raise ArchiveError(f"{path} already exists: 'rapid-cosim resume {path}' finishes the run it holds "
+                           "(rc.resume in Python); to start a new run, give another archive path")
+
 class ArchiveWriter:
     """Appends the iterations of one run to its archive; use as a context manager.
 
@@ -118,10 +125,7 @@ class ArchiveWriter:
         lock = Lock(path)
         lock.acquire()
         try:
-            if os.path.exists(path):
-                raise ArchiveError(
-                    f"{path} already exists; reopen it to resume that run, or choose another path"
-                )
+            refuse_existing(path)
             # Built beside and renamed into place: a crash leaves no archive or a whole one.
             tmp = path + ".creating"
             try:

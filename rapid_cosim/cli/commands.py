@@ -76,13 +76,15 @@ def cmd_simulate(args) -> int:
 
 def cmd_estimate(args) -> int:
     from ..api import as_experiments, calibrate_with, default_archive
+    from ..archive.writer import refuse_existing
     from ..calibration import RunOptions, parse_option_overrides
     from ..experiment.electrical import describe_recording
 
     run_options = RunOptions(method=args.method, seed=args.seed, engine=_engine(args), runner=args.runner,
                              estimator_options=parse_option_overrides(args.option)).check()
-    experiments = as_experiments(args.configs)  # every option and config checked before anything is announced
     archive = Path(args.archive) if args.archive else default_archive(args.results)
+    refuse_existing(archive)  # before the recordings are read
+    experiments = as_experiments(args.configs)  # every option and config checked before anything is announced
     print(f"estimating on {', '.join(e.name for e in experiments)} with {args.method} (seed {args.seed}, "
           f"n_jobs {args.n_jobs})")
     for words in filter(None, map(describe_recording, experiments)):
