@@ -4,6 +4,7 @@ units row, and refusals that name file, row and value."""
 from __future__ import annotations
 
 import re
+import shutil
 import warnings
 from pathlib import Path
 
@@ -117,6 +118,32 @@ def test_a_units_row_is_skipped_and_said(tmp_path):
     assert data.notes == ("row 2 holds units (time s, pm pu, f Hz), not a sample: skipped",)
     assert data.rows[0] == 3 and data.columns["pm"][0] == 0.6
     assert data.window(0.0, 0.05).notes == data.notes  # the note stays with the recording
+
+
+def test_a_units_row_is_kept_with_the_recording(tmp_path):
+    with pytest.warns(SkippedRowWarning):
+        data = load(write(tmp_path / "u.csv", "time,pm,f\ns,,mHz\n0,1,50\n1,2,50\n"))
+    assert dict(data.units) == {"f": "mHz"}  # a blank cell states nothing
+    assert dict(data.window(0.0, 1.0).units) == {"f": "mHz"}
+
+
+def test_a_units_row_that_contradicts_the_config_is_refused_naming_both(tmp_path):
+    """Issue 56: a column in mHz read as Hz lay a thousand times off and was refused as
+    'every value is blank or masked'. A units row that states the config's unit, or a
+    unit at its base where the config gives none, reads as before."""
+    folder = tmp_path / "test1"
+    shutil.copytree(REPO / "experiments" / "test1", folder)
+    csv = folder / "test1.csv"
+    lines = csv.read_text().splitlines(keepends=True)
+    csv.write_text(lines[0] + "s,kW\n" + "".join(lines[1:]))
+    with pytest.raises(ConfigError) as e:
+        with pytest.warns(SkippedRowWarning):
+            load_experiment(folder)
+    assert e.value.key == "data.outputs.pm.unit"
+    assert "gives column 'pm' in 'kW', but the config reads it in its own units" in str(e.value)
+    csv.write_text(lines[0] + "s,pu\n" + "".join(lines[1:]))
+    with pytest.warns(SkippedRowWarning):
+        assert load_experiment(folder).data.units == {"pm": "pu"}
 
 
 def test_a_units_row_may_leave_a_cell_blank_and_a_bad_row_later_is_still_refused(tmp_path):

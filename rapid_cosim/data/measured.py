@@ -100,6 +100,7 @@ class MeasuredData:
     rows: np.ndarray | None = field(default=None, compare=False)
     repairs: Repairs = field(default=Repairs(), compare=False)  # what loading did to the stamps
     notes: tuple[str, ...] = field(default=(), compare=False)  # what reading skipped (a units row)
+    units: Mapping[str, str] = field(default_factory=dict, compare=False)  # per column, as a units row states them
 
     def __post_init__(self):
         time = _readonly(np.asarray(self.time, dtype=np.float64))
@@ -152,7 +153,8 @@ class MeasuredData:
         The values stay as recorded: what masked them (a config's flags and limits) masks
         them again when the recording is read back from an archive, which keeps values only."""
         masks = {k: np.asarray(valid.get(k, v), dtype=bool) & v for k, v in self.valid.items()}
-        return MeasuredData(self.source, self.time, self.columns, masks, self.rows, self.repairs, self.notes)
+        return MeasuredData(self.source, self.time, self.columns, masks, self.rows, self.repairs, self.notes,
+                            self.units)
 
     def __len__(self) -> int:
         return self.time.size
@@ -176,7 +178,7 @@ class MeasuredData:
             self.source, self.time[sl],
             {k: v[sl] for k, v in self.columns.items()},
             {k: v[sl] for k, v in self.valid.items()},
-            None if self.rows is None else self.rows[sl], self.repairs, self.notes,
+            None if self.rows is None else self.rows[sl], self.repairs, self.notes, self.units,
         )
 
     def resample(self, times) -> "MeasuredData":
@@ -201,7 +203,7 @@ class MeasuredData:
                 values = np.where(w == 1, v[hi], np.where(w == 0, v[lo], (1 - w) * v[lo] + w * v[hi]))
             columns[name] = np.where(inside, values, np.nan)
             valid[name] = inside & np.isfinite(columns[name])
-        return MeasuredData(f"{self.source} (resampled)", times, columns, valid, notes=self.notes)
+        return MeasuredData(f"{self.source} (resampled)", times, columns, valid, notes=self.notes, units=self.units)
 
     def gaps(self, column: str | None = None) -> tuple[Gap, ...]:
         """Masked intervals of one column, or of every column when ``column`` is None."""
@@ -236,7 +238,8 @@ class MeasuredData:
 
 
 def from_recorded(time: np.ndarray, columns: dict[str, np.ndarray], source: str, time_column: str,
-            rows: np.ndarray | None = None, notes: tuple[str, ...] = ()) -> MeasuredData:
+            rows: np.ndarray | None = None, notes: tuple[str, ...] = (),
+            units: Mapping[str, str] | None = None) -> MeasuredData:
     """A reader's arrays -> :class:`MeasuredData`: stamps settled (:func:`.timebase.settle`),
     non-finite values masked; ``notes`` say what the reader skipped."""
     time, columns, rows, repairs = settle(time, columns, rows, source, time_column)
@@ -246,7 +249,7 @@ def from_recorded(time: np.ndarray, columns: dict[str, np.ndarray], source: str,
         ok = np.isfinite(v)
         v[~ok] = np.nan
         cols[name], valid[name] = v, ok
-    return MeasuredData(source, time, cols, valid, rows, repairs, tuple(notes))
+    return MeasuredData(source, time, cols, valid, rows, repairs, tuple(notes), dict(units or {}))
 
 
 def first_bad_time(time: np.ndarray) -> int | None:

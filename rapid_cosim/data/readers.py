@@ -121,7 +121,7 @@ def load_measurements(path: str | Path, time_column: str = "time",
         data = MeasuredData(source, data.time,
                             {new: data.columns[old] for new, old in columns.items()},
                             {new: data.valid[old] for new, old in columns.items()}, data.rows, data.repairs,
-                            data.notes)
+                            data.notes, {new: data.units[old] for new, old in columns.items() if old in data.units})
     if warn and data.notes:
         warnings.warn(f"{source}: " + "; ".join(data.notes), SkippedRowWarning, stacklevel=2)
     if warn and data.repairs:
@@ -139,7 +139,8 @@ def _read_csv(file: Path, source: str, time_column: str, time_unit: str = "s", d
     t = table.names.index(time_column)
     return from_recorded(values[:, t] * TIME_UNITS[time_unit],
                          {n: values[:, k] for k, n in enumerate(table.names) if k != t},
-                         source, time_column, table.rows, notes=table.notes)
+                         source, time_column, table.rows, notes=table.notes,
+                         units={n: u for n, u in table.units.items() if u and n != time_column})
 
 
 def _read_mat(file: Path, source: str, time_column: str,

@@ -103,6 +103,7 @@ from .reader import ConfigReader, positive
 from .recorder import read_noise_models
 from .recording import Bridge, Recording, RecordingWarning, apply_flags, apply_limits, blanks, bridges, check_step, \
     exclude
+from .signals import check_units_row
 from .spec import ExperimentSpec, experiment_spec, parameter_tables
 from .toml_writer import config_key
 
@@ -150,6 +151,10 @@ def experiment_from(spec: ExperimentSpec, data: MeasuredData | None = None,
                 raise ConfigError(describe_missing(col, list(data.names)), spec.file,
                                   config_key("data.outputs", out))
     check_step(data, cfg, "data.time")
+    check_units_row(data.units, [*((config_key("data.outputs", o), s.column, s.conversion) for o, s in
+                                   output_specs.items()),
+                                 *((config_key("inputs", s.name), s.column, s.conversion) for s in inputs
+                                   if s.file is None)], data.source, cfg)
     blank = blanks(data, [*outputs.values(), *(s.column for s in inputs if s.file is None)])
     with warnings.catch_warnings():
         if given:  # the recording was inspected and said when it was read: a config made from it says it once
@@ -182,6 +187,8 @@ def experiment_from(spec: ExperimentSpec, data: MeasuredData | None = None,
             loaded = _load_data(spec.path, s.file, s.time, {s.name: s.column}, spec.file, None, None,
                                 key=config_key("inputs", s.name), dialect=spec.dialect)
             check_step(loaded, cfg, config_key("inputs", s.name))
+            check_units_row(loaded.units, [(config_key("inputs", s.name), s.column, s.conversion)], loaded.source,
+                            cfg)
             files[s.file], more = apply_limits(loaded, recorded, {s.column: s.frequency} if s.frequency else {}, {})
             masked += more
     bridged = check_inputs(inputs, data, files, simulation, cfg)

@@ -30,6 +30,7 @@ file than the outputs (``file``, with its own ``time`` column, on the same time 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -45,6 +46,28 @@ CONVERSIONS = ("none", "deviation", "deviation_pu")
 BASELINES = ("none", "pre-event", "detrend")
 INPUT_KEYS = INPUT.names
 OUTPUT_KEYS = OUTPUT.names
+
+
+_DIMENSIONS = ({"Hz", "mHz", "kHz"}, {"MW", "kW", "W", "GW"}, {"Hz/s", "mHz/s"})
+
+
+def check_units_row(units: Mapping[str, str], columns: Sequence[tuple[str, str, "Conversion"]], source: str,
+                    cfg) -> None:
+    """A column whose units row states another unit of its dimension than the config reads
+    it in is refused, naming both: read as stated, a frequency in mHz taken as Hz lies a
+    thousand times off and every sample falls outside the plausible band. ``columns``:
+    (the config key, the column, its conversion) of each column the config reads."""
+    for key, column, conversion in columns:
+        stated = units.get(column, "").strip("[]() ")
+        if stated not in UNITS or stated == conversion.unit:
+            continue
+        given = conversion.unit
+        same = any(stated in d and given in d for d in _DIMENSIONS)
+        if same or (not given and UNITS[stated] != 1.0):
+            read = f"'{given}'" if given else "its own units (no unit given)"
+            raise ConfigError(f"the units row of {source} gives column '{column}' in '{stated}', but the config "
+                              f"reads it in {read}: set unit = \"{stated}\" (values are scaled to the dimension's "
+                              f"base), or correct the units row", cfg.file, f"{key}.unit")
 
 
 @dataclass(frozen=True)
