@@ -11,13 +11,13 @@ DOC = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
 
 # top-level module or subpackage (a room) -> layer (a room may import from lower layers)
 LAYERS = {
-    "errors": 0, "version": 0, "compiler": 1, "simulator": 2, "data": 3, "noise": 3.5, "exchange": 3.7,
+    "errors": 0, "version": 0, "progress": 0, "compiler": 1, "simulator": 2, "data": 3, "noise": 3.5, "exchange": 3.7,
     "experiment": 4, "fitting": 5, "estimators": 8, "archive": 9, "calibration": 10, "validation": 10.5, "diagnose": 11,
     "structures": 11.3, "identify": 11.5, "report": 12, "api": 13, "fleet": 13.5, "check": 13.7, "cli": 14,
 }
-LEAVES = {"errors", "version"}
-# the modules that may sit at the package root: its face (__init__, api), errors, the version
-ROOT_MODULES = {"__init__", "api", "errors", "version"}
+LEAVES = {"errors", "version", "progress"}
+# the modules that may sit at the package root: its face (__init__, api), errors, the version, progress
+ROOT_MODULES = {"__init__", "api", "errors", "version", "progress"}
 
 
 FACE = "<the package's face>"  # rapid_cosim/__init__.py, which imports everything
@@ -179,7 +179,7 @@ def test_the_circle_check_finds_a_circle():
     assert not _cycles({"a": {"b"}, "b": set()})
 
 
-def test_only_the_face_errors_and_the_version_sit_at_the_root():
+def test_only_the_face_errors_the_version_and_progress_sit_at_the_root():
     loose = {p.stem for p in PACKAGE.glob("*.py")} - ROOT_MODULES
     assert not loose, f"modules at the package root that belong in a room: {sorted(loose)}"
 

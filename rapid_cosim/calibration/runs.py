@@ -24,10 +24,10 @@ from ..version import __version__
 from ..archive import ArchiveWriter, RunArchive, data_sha256
 from ..errors import ArchiveDamaged, ArchiveError, ConfigError, EngineLost, RunInterrupted
 from ..estimators import parse_method, run_chain
-from ..estimators.chain import REGISTRY
 from ..estimators.base import EstimationResult, Iteration
 from ..experiment import Experiment
 from ..fitting.engine import EngineSpec
+from ..progress import Stage
 from ..fitting.objective import ProblemObjective
 from ..simulator import get_simulator
 from .inputs import RunInputs, inputs_from_archive, log_likelihood_for
@@ -36,40 +36,31 @@ from .replay import RecordingObjective, same_iteration
 
 
 class _Progress:
-    """A tqdm bar over iterations showing the best fitness and simulations so far. Its
-    total is every stage's cap (``A:n``, else the method's own ``max_iter``); a stage that
-    converges early moves the bar to its end, so the bar ends with the run."""
+    """One :class:`~rapid_cosim.progress.Stage` per estimator stage, showing the best
+    fitness and simulations so far: bounded by the stage's cap where the method states one
+    (``pf:10``), else counted (Nelder-Mead stops when it converges, far below its
+    ``max_iter``); a bar on a terminal, plain lines in a log."""
 
     def __init__(self, options: RunOptions, enabled: bool):
-        self.bar, self.caps, self.stage, self.done = None, [], -1, 0
-        if enabled:
-            from tqdm.auto import tqdm
-
-            own = stage_options(options)
-            for s in parse_method(options.method):
-                cap = s.max_iter or getattr(own.get(s.name) or REGISTRY[s.name][1](), "max_iter", None)
-                self.caps.append((s.name, int(cap) if cap else 1))
-            self.bar = tqdm(total=sum(c for _, c in self.caps), desc=options.method, unit="it", dynamic_ncols=True)
+        self.enabled, self.stage, self.name = enabled, None, None
+        self.caps = {s.name: s.max_iter for s in parse_method(options.method)} if enabled else {}
 
     def update(self, it: Iteration) -> None:
-        if self.bar is None:
+        if not self.enabled:
             return
-        if self.stage < 0 or it.stage != self.caps[self.stage][0]:  # the next stage: the last one's allotment done
-            if self.stage >= 0:
-                self.done += self.caps[self.stage][1]
-                self.bar.n = self.done
-            self.stage = min(self.stage + 1, len(self.caps) - 1)
-        self.bar.set_postfix_str(f"{it.stage} best {it.best_fitness:.4g}, {it.n_sims} sims")
-        self.bar.update(1 if self.bar.n < self.done + self.caps[self.stage][1] else 0)
+        if it.stage != self.name:
+            self.close()
+            self.name = it.stage
+            self.stage = Stage(it.stage, self.caps.get(it.stage), unit="it")
+        self.stage.update(1, f"best {it.best_fitness:.4g}, {it.n_sims} sims")
 
     def finish(self) -> None:
-        if self.bar is not None:
-            self.bar.n = self.bar.total
-            self.bar.refresh()
+        self.close()
 
     def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+        if self.stage is not None:
+            self.stage.close()
+            self.stage = None
 
 
 def _simulation_paths(inputs: RunInputs, options: RunOptions) -> dict[str, str]:

@@ -26,6 +26,7 @@ from typing import Callable
 
 from ..compiler.source import ModelSource
 from ..fitting.engine import EngineSpec
+from ..progress import Stage
 from ..version import __version__
 from .playback import RULES
 from .spec import FleetSpec, UnitEntry, load_fleet
@@ -112,21 +113,19 @@ def run_fleet(fleet: str | Path, *, results: str | Path, engine: EngineSpec = En
 def _distribute(todo, options: FleetOptions, folder: Path, engine: EngineSpec,
                 progress: bool) -> dict[str, UnitResult]:
     from distributed import as_completed
-    from tqdm import tqdm
 
     out = {}
     with engine.client() as client:
         futures = {client.submit(run_unit, entry, options, key=f"unit-{entry.name}-{digest[:12]}", retries=3):
                    (entry, digest) for entry, digest in todo}
-        bar = tqdm(total=len(todo), unit="unit", disable=not progress, desc="units")
-        for future in as_completed(futures):
-            entry, digest = futures[future]
-            row = future.result()
-            row.digest = digest
-            _write(folder / f"{entry.name}.json", row.to_json())  # kept as it finishes: a rerun skips it
-            out[entry.name] = row
-            bar.update(1)
-        bar.close()
+        with Stage("units", len(todo), unit="unit", enabled=progress) as bar:
+            for future in as_completed(futures):
+                entry, digest = futures[future]
+                row = future.result()
+                row.digest = digest
+                _write(folder / f"{entry.name}.json", row.to_json())  # kept as it finishes: a rerun skips it
+                out[entry.name] = row
+                bar.update(1, f"{entry.name}: {row.route.value}")
     return out
 
 

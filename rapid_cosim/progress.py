@@ -1,0 +1,79 @@
+"""Progress an engineer reads: a tqdm bar on a terminal, plain lines in a log.
+
+A bar redrawn with carriage returns is right on a terminal and wrong in a file, where
+every frame stays as a line of ``\\r``-joined text. :class:`Stage` draws a bar only where
+its stream is a terminal; elsewhere it writes one line when the stage starts, one at
+most every ``every`` seconds while it runs, and one when it ends. A stage without a known
+length (an optimiser that stops when it converges) counts up instead of jumping from
+part-way to the end."""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import TextIO
+
+
+class Stage:
+    """One stage's progress (module docstring); ``total`` None: counted, not bounded."""
+
+    def __init__(self, desc: str, total: int | None = None, *, unit: str = "it", enabled: bool = True,
+                 stream: TextIO | None = None, every: float = 10.0):
+        self.desc, self.total, self.unit, self.every = desc, total, unit, every
+        self.stream = stream if stream is not None else sys.stderr
+        self.n, self.note, self.started = 0, "", time.monotonic()
+        self.enabled, self.bar, self._said = enabled, None, self.started
+        if not enabled:
+            return
+        if _is_terminal(self.stream):
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(total=total, desc=desc, unit=unit, file=self.stream, dynamic_ncols=True)
+        else:
+            self._line(f"started{f', {total} {unit}' if total else ''}")
+
+    def update(self, n: int = 1, note: str = "") -> None:
+        self.n += n
+        self.note = note or self.note
+        if not self.enabled:
+            return
+        if self.bar is not None:
+            if note:
+                self.bar.set_postfix_str(note, refresh=False)
+            self.bar.update(n)
+        elif time.monotonic() - self._said >= self.every:
+            self._line(self._count())
+
+    def close(self, note: str = "") -> None:
+        self.note = note or self.note
+        if not self.enabled:
+            return
+        if self.bar is not None:
+            if note:
+                self.bar.set_postfix_str(note, refresh=False)
+            self.bar.close()
+            self.bar = None
+        else:
+            self._line(f"done, {self._count()} in {time.monotonic() - self.started:.0f} s")
+        self.enabled = False
+
+    def __enter__(self) -> "Stage":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _count(self) -> str:
+        count = f"{self.n}{f' of {self.total}' if self.total else ''} {self.unit}"
+        return f"{count}, {self.note}" if self.note else count
+
+    def _line(self, words: str) -> None:
+        self._said = time.monotonic()
+        print(f"{self.desc}: {words}", file=self.stream, flush=True)
+
+
+def _is_terminal(stream: TextIO) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):  # a closed or stream-like object
+        return False
