@@ -291,3 +291,17 @@ def test_a_config_with_the_wrong_decimal_is_refused_at_the_data_row(tmp_path):
     write(path.parent / "de.csv", dialect((TEST1 / "test1.csv").read_text(), ";", ","))
     with pytest.raises(DataError, match=r"de\.csv, row 2: column 'time': '0,0000' is not a number.*decimal = \",\""):
         load_experiment(path)
+
+
+def test_estimate_says_a_units_row_once(tmp_path, capsys):
+    """Issue 56: the note came as a warning and again among the recording's lines."""
+    from rapid_cosim.cli import main
+
+    folder = tmp_path / "test1"
+    shutil.copytree(REPO / "experiments" / "test1", folder)
+    csv = folder / "test1.csv"
+    lines = csv.read_text().splitlines(keepends=True)
+    csv.write_text(lines[0] + "s,pu\n" + "".join(lines[1:]))
+    assert main(["estimate", str(folder), "--method", "nm:2", "--archive", str(tmp_path / "run.h5"), "--quiet"]) == 0
+    out = capsys.readouterr()
+    assert (out.out + out.err).count("holds units (time s, pm pu)") == 1, out

@@ -79,12 +79,14 @@ def cmd_estimate(args) -> int:
     from ..archive.writer import refuse_existing
     from ..calibration import RunOptions, parse_option_overrides
     from ..experiment.electrical import describe_recording
+    from ..identify.check import quietly, say, unsaid
 
     run_options = RunOptions(method=args.method, seed=args.seed, engine=_engine(args), runner=args.runner,
                              estimator_options=parse_option_overrides(args.option)).check()
     archive = Path(args.archive) if args.archive else default_archive(args.results)
     refuse_existing(archive)  # before the recordings are read
-    experiments = as_experiments(args.configs)  # every option and config checked before anything is announced
+    notes: list = []  # what reading warned of: said once, with the recordings' lines or after them
+    experiments = quietly(lambda: as_experiments(args.configs), notes)  # checked before anything is announced
     print(f"estimating on {', '.join(e.name for e in experiments)} with {args.method} (seed {args.seed}, "
           f"n_jobs {args.n_jobs})")
     for words in filter(None, map(describe_recording, experiments)):
@@ -92,6 +94,7 @@ def cmd_estimate(args) -> int:
     for exp in experiments:
         for line in exp.recording.lines():
             print(f"  {exp.name}: {line}")
+    say(unsaid(notes, experiments))
     fit = calibrate_with(experiments, run_options, archive=archive, progress=not args.quiet, source=_source(args))
     print(fit)
     print(f"\narchive: {archive}")

@@ -52,6 +52,14 @@ def quietly(load, notes: list[warnings.WarningMessage]):
     return out
 
 
+def unsaid(notes: list[warnings.WarningMessage], experiments) -> list[warnings.WarningMessage]:
+    """The notes that the experiments' recording lines do not say already (a units row
+    skipped, frames masked, stamps repaired are in both): what is printed with the lines
+    is not warned of as well."""
+    said = [line.split(": ", 1)[-1] for e in experiments for line in e.recording.lines()]
+    return [w for w in notes if not any(s and s in str(w.message) for s in said)]
+
+
 def say(notes: list[warnings.WarningMessage]) -> None:
     """Warn of each note again, as it was raised: shown once by whatever filter is on (the
     CLI's says each text once, with how often it recurred)."""

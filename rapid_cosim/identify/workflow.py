@@ -48,7 +48,7 @@ from ..errors import CheckFailed
 from ..experiment import Experiment
 from ..fitting.engine import EngineSpec
 from ..noise import NoiseFit, campaign_noise
-from .check import check_unit, say
+from .check import check_unit, say, unsaid
 from .deliver import write_configs
 from .result import CARRIES, NEUTRAL, Identification, StandardRecord, TestFidelity, cannot_carry
 from .unit import Unit
@@ -65,7 +65,7 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, eng
     unit = unit if isinstance(unit, Unit) else check.unit
     structures = check.structures
     training, heldout = split_holdout(check.experiments, unit.holdout)
-    say(check.notes)  # what reading the recordings warned of, once
+    say(unsaid(check.notes, check.experiments))  # once: the story says the recordings' own lines
     workdir = Path(workdir)
     log(f"identifying {unit.name}: {len(training)} training and {len(heldout)} held-out experiments")
     fitted_noise = campaign_noise([*training, *heldout])  # one noise model for both parts
