@@ -416,14 +416,13 @@ def reference(key: str) -> str | None:
 
 def explain(key: str) -> str | None:
     """What an error says of the key it names: what the key allows and its default, and
-    its entry on the page (which an installed rapid-cosim prints with ``python -m
-    rapid_cosim.experiment.schema``: the wheel ships no docs/); None if the page has no
-    entry for it."""
+    its entry on the page (which an installed rapid-cosim prints with ``rapid-cosim docs
+    config``); None if the page has no entry for it."""
     found = _entry(key)
     if found is None:
         return None
     anchor, entry = found
-    where = f"{PAGE}#{anchor}; python -m rapid_cosim.experiment.schema prints the page"
+    where = f"{PAGE}#{anchor}; 'rapid-cosim docs config' prints the page"
     if entry is None:
         return where
     allowed = _allowed(entry.allowed).replace("`", "")
