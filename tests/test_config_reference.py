@@ -38,7 +38,7 @@ def _unknown(e: RapidCosimError, key: str) -> bool:
 
 def test_the_page_is_what_the_schema_writes():
     assert (REPO / PAGE).read_text(encoding="utf-8") == schema.reference_markdown(), \
-        "docs/config.md is stale: python -m rapid_cosim.experiment.schema --write"
+        "docs/config.md is stale: rapid-cosim docs config > docs/config.md"
 
 
 def test_every_key_has_one_anchor():

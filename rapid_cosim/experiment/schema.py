@@ -9,16 +9,14 @@ module cannot be imported here without a cycle); ``tests/test_config_reference.p
 them equal. Layers above ``experiment`` import this module; it imports none of them, so
 the unit, structure, fleet and tolerance files are declared here as data.
 
-    python -m rapid_cosim.experiment.schema --write     # regenerates docs/config.md
+    rapid-cosim docs config > docs/config.md     # regenerates docs/config.md
 """
 
 from __future__ import annotations
 
 import json
 import re
-import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 from ..data.csv_table import DECIMALS, DELIMITERS
 from ..data.readers import TIME_UNITS
@@ -353,7 +351,7 @@ def reference_markdown() -> str:
     """docs/config.md: a table per section, an anchor per key (``#data.delimiter``)."""
     out = ["# Config reference", "",
            ("<!-- Generated from rapid_cosim/experiment/schema.py by "
-            "`python -m rapid_cosim.experiment.schema --write`: edit that, not this. -->"), "",
+            "`rapid-cosim docs config > docs/config.md`: edit that, not this. -->"), "",
            ("Every key of every TOML file rapid-cosim reads, as its parser reads it: the type, the unit, the default, "
             "the values allowed and what it does. The parsers take their keys from the same declarations, so a key "
             "is here exactly when it is accepted. `<output>`, `<parameter>` and the like stand for names you choose; "
@@ -429,16 +427,3 @@ def explain(key: str) -> str | None:
     words = "; ".join(w for w in (allowed and f"allowed: {allowed}",
                                   entry.default not in (REQUIRED, "") and f"default {entry.default}") if w)
     return f"{words}; {where}" if words else where
-
-
-def main(argv: list[str] | None = None) -> None:
-    """Print the page, or with ``--write [PATH]`` write it (default docs/config.md)."""
-    argv = sys.argv[1:] if argv is None else argv
-    if argv[:1] == ["--write"]:
-        Path(argv[1] if len(argv) > 1 else PAGE).write_text(reference_markdown(), encoding="utf-8")
-    else:
-        sys.stdout.write(reference_markdown())
-
-
-if __name__ == "__main__":
-    main()
