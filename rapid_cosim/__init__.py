@@ -35,7 +35,7 @@ from .version import __version__  # noqa: E402
 # modules are imported with ``from rapid_cosim.diagnose import selection``, not
 # ``import rapid_cosim.diagnose.selection as ...``, which reads the name as the function.)
 from . import diagnose as _diagnose, fleet as _fleet, identify as _identify  # noqa: E402, F401
-from .api import Calibration, calibrate, diagnose, export, identify, load, rerun, resume, simulate  # noqa: E402
+from .api import Calibration, calibrate, diagnose, example, export, identify, load, rerun, resume, simulate  # noqa: E402
 from .fleet import run_fleet as fleet  # noqa: E402
 from .check import check  # noqa: E402
 from .compiler.source import ModelSource  # noqa: E402
@@ -44,5 +44,5 @@ from .experiment import Experiment, experiment_from_arrays, experiment_from_fram
 from .simulator import Trajectory  # noqa: E402
 
 __all__ = ["Calibration", "EngineSpec", "Experiment", "ModelSource", "Trajectory", "experiment_from_arrays", "experiment_from_frame",
-           "load_experiment", "calibrate", "check", "diagnose", "export", "fleet", "identify", "load", "rerun", "resume",
+           "load_experiment", "calibrate", "check", "diagnose", "example", "export", "fleet", "identify", "load", "rerun", "resume",
            "simulate", "__version__"]

@@ -155,6 +155,14 @@ def as_experiments(experiments: Sequence[str | Path | Experiment] | str | Path |
     return out
 
 
+def example(name: str, dest: str | Path | None = None) -> Path:
+    """A shipped example (``rapid_cosim.examples.EXAMPLES``) copied into ``dest`` (default
+    ``./NAME``), or left as it is where that folder already holds files; its folder."""
+    from .examples import copy_example
+
+    return copy_example(name, dest)[0]
+
+
 def default_archive(folder: str | Path | None = None) -> Path:
     """``<folder>/run-<time>.h5``; without a folder, a fresh temporary one."""
     folder = Path(folder) if folder is not None else Path(tempfile.mkdtemp(prefix="rapid_cosim_run_"))

@@ -13,7 +13,7 @@ DOC = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
 LAYERS = {
     "errors": 0, "version": 0, "progress": 0, "compiler": 1, "simulator": 2, "data": 3, "noise": 3.5, "exchange": 3.7,
     "experiment": 4, "fitting": 5, "estimators": 8, "archive": 9, "calibration": 10, "validation": 10.5, "diagnose": 11,
-    "structures": 11.3, "identify": 11.5, "report": 12, "api": 13, "fleet": 13.5, "check": 13.7, "cli": 14,
+    "structures": 11.3, "identify": 11.5, "report": 12, "examples": 12.5, "api": 13, "fleet": 13.5, "check": 13.7, "cli": 14,
 }
 LEAVES = {"errors", "version", "progress"}
 # the modules that may sit at the package root: its face (__init__, api), errors, the version, progress

@@ -65,3 +65,19 @@ def _title(path: Path) -> str:
 def cmd_docs(args) -> int:
     print(page(args.topic, ModelSource(args.package, args.fmus, args.compiler)), end="")
     return 0
+
+
+def cmd_example(args) -> int:
+    """``rapid-cosim example [NAME [DIR]]``: the list, or one copied out."""
+    from ..examples import EXAMPLES, copy_example
+
+    if args.name is None:
+        print("examples (rapid-cosim example NAME [DIR]; copied into ./NAME by default):")
+        for name, ex in EXAMPLES.items():
+            print(f"  {name:<13} {ex.what}")
+        return 0
+    folder, copied = copy_example(args.name, args.dir)
+    ex = EXAMPLES[args.name]
+    print(f"{folder}: {'copied' if copied else 'there already, left as it is'} ({ex.what})")
+    print(f"next: {ex.try_it.replace(f' {args.name}', f' {folder}', 1)}")
+    return 0

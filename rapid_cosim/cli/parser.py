@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 
 from ..version import __version__
-from .docs import cmd_docs
+from .docs import cmd_docs, cmd_example
 from .commands import (cmd_benches, cmd_build, cmd_check, cmd_demo, cmd_diagnose, cmd_estimate, cmd_export,
                        cmd_figures, cmd_fleet, cmd_identify, cmd_joint, cmd_report, cmd_rerun, cmd_resume, cmd_show,
                        cmd_simulate, cmd_staged_test, cmd_structures, cmd_table1, cmd_verify)
@@ -217,6 +217,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "nothing (about 2 s a unit; a unit without a record is a failed row)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     model_options(p)
+
+    p = command("example", cmd_example, "copy a shipped example (staged tests, units from grid events, a fleet) into "
+                "a folder of yours; no name lists them")
+    p.add_argument("name", nargs="?", help="the example (none: the list)")
+    p.add_argument("dir", nargs="?", help="the folder to copy it into (default ./NAME)")
 
     p = command("docs", cmd_docs, "print a page of the documentation as installed: config (every key), benches, "
                 "structures, formats, or a guide (calibrate, identify, recordings, ...); no topic lists them")
