@@ -22,7 +22,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay bench-identify profile-identify records-diff stories-diff fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-deadband identify-gas identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow test-faults bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay bench-identify profile-identify records-diff stories-diff fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-deadband identify-gas identify-png fleet-png bench-speed report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -47,6 +47,12 @@ test: fmus  ## run the test suite (statistical suites at reduced size)
 
 test-slow: fmus  ## the statistical suites at full size (minutes; CI runs them after make test)
 	$(PY) -m pytest -q -rs -m slow
+
+test-faults: fmus  ## the interrupt tests (Ctrl-C, SIGTERM mid-run) RUNS=50 times in a row: how many pass
+	@mkdir -p $(RESULTS); pass=0; for i in $$(seq $(or $(RUNS),50)); do \
+		if $(PY) -m pytest -q -p no:cacheprovider tests/test_faults.py -k "interrupt" >$(RESULTS)/test-faults.log 2>&1; \
+		then pass=$$((pass + 1)); else echo "run $$i failed:"; tail -n 30 $(RESULTS)/test-faults.log; fi; \
+	done; echo "interrupt tests: $$pass of $(or $(RUNS),50) runs passed"; test $$pass -eq $(or $(RUNS),50)
 
 $(STAGED_TESTS): test%: fmus  ## PSO10+NM and PF10+NM on one staged test, archived in results/testN/, with its figure
 	$(RC) staged-test experiments/test$* $(RUN_OPTS)
