@@ -18,7 +18,7 @@ class Stage:
     """One stage's progress (module docstring); ``total`` None: counted, not bounded."""
 
     def __init__(self, desc: str, total: int | None = None, *, unit: str = "it", enabled: bool = True,
-                 stream: TextIO | None = None, every: float = 10.0):
+                 stream: TextIO | None = None, every: float = 10.0, quiet_start: bool = False):
         self.desc, self.total, self.unit, self.every = desc, total, unit, every
         self.stream = stream if stream is not None else sys.stderr
         self.n, self.note, self.started = 0, "", time.monotonic()
@@ -29,7 +29,7 @@ class Stage:
             from tqdm.auto import tqdm
 
             self.bar = tqdm(total=total, desc=desc, unit=unit, file=self.stream, dynamic_ncols=True)
-        else:
+        elif not quiet_start:  # quiet: the caller's own line has said it started
             self._line(f"started{f', {total} {unit}' if total else ''}")
 
     def update(self, n: int = 1, note: str = "") -> None:
@@ -77,3 +77,35 @@ def _is_terminal(stream: TextIO) -> bool:
         return stream.isatty()
     except (AttributeError, ValueError):  # a closed or stream-like object
         return False
+
+
+class StagedLog:
+    """A ``log`` for a long job that reports in lines (``identify``): each unindented line
+    ending in ``:`` opens a stage (``the explanation ...:``, ``the standard records:``),
+    and each line that reports a fit (it names a ``BIC``) counts one fit done in it. On a
+    terminal each stage is a counting bar with its elapsed time, the lines printed above
+    it; in a log the lines pass as they are, with the stage's count and time at most
+    every ``every`` seconds as its fits finish, and a line when it ends."""
+
+    def __init__(self, *, enabled: bool = True, stream: TextIO | None = None, every: float = 30.0):
+        self.enabled, self.every = enabled, every
+        self.stream = stream if stream is not None else sys.stdout
+        self.terminal = enabled and _is_terminal(self.stream)
+        self.stage: Stage | None = None
+
+    def __call__(self, line: str) -> None:
+        if self.enabled and line.endswith(":") and not line.startswith(" "):
+            self.close()
+            self.stage = Stage(line.rstrip(":").strip(), None, unit="fit", stream=self.stream, every=self.every,
+                               quiet_start=not self.terminal)
+        if self.terminal and self.stage is not None and self.stage.bar is not None:
+            self.stage.bar.write(line, file=self.stream)
+        else:
+            print(line, file=self.stream, flush=True)
+        if self.stage is not None and "BIC" in line:
+            self.stage.update(1, line.strip().split(":")[0])
+
+    def close(self) -> None:
+        if self.stage is not None:
+            self.stage.close()
+            self.stage = None

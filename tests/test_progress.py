@@ -46,3 +46,35 @@ def test_on_a_terminal_it_is_a_bar_and_disabled_it_is_silent():
     with Stage("units", 3, stream=quiet, enabled=False) as stage:
         stage.update(3)
     assert quiet.getvalue() == ""
+
+
+def test_identifys_log_passes_its_lines_in_a_log_and_counts_fits_per_stage():
+    from rapid_cosim.progress import StagedLog
+
+    out = io.StringIO()
+    log = StagedLog(stream=out, every=3600.0)
+    for line in ("identifying u: 2 training and 1 held-out experiments", "the explanation (TG Type I):",
+                 "  fitting none ...", "    none: fitness 1.2, BIC 40.1, 90 simulations",
+                 "    deadband: fitness 1.0, BIC 20.3, 120 simulations", "the standard records:",
+                 "  TGOV1 (R, T1): BIC 12.0, variance ratio 1.01"):
+        log(line)
+    log.close()
+    lines = out.getvalue().splitlines()
+    assert "\r" not in out.getvalue()
+    assert lines[:5] == ["identifying u: 2 training and 1 held-out experiments", "the explanation (TG Type I):",
+                         "  fitting none ...", "    none: fitness 1.2, BIC 40.1, 90 simulations",
+                         "    deadband: fitness 1.0, BIC 20.3, 120 simulations"]
+    assert lines[5].startswith("the explanation (TG Type I): done, 2 fit, deadband in ")
+    assert lines[6] == "the standard records:" and lines[8].startswith("the standard records: done, 1 fit, ")
+
+
+def test_identifys_log_on_a_terminal_writes_lines_above_a_bar():
+    from rapid_cosim.progress import StagedLog
+
+    term = _Terminal()
+    log = StagedLog(stream=term)
+    log("the explanation (TG Type I):")
+    log("    none: fitness 1.2, BIC 40.1, 90 simulations")
+    log.close()
+    text = term.getvalue()
+    assert "    none: fitness 1.2, BIC 40.1, 90 simulations\n" in text and "the explanation (TG Type I)" in text

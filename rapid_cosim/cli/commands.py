@@ -263,10 +263,15 @@ def cmd_structures(args) -> int:
 
 def cmd_identify(args) -> int:
     from ..api import identify
+    from ..progress import StagedLog
     from .campaign import identification_report
 
-    result = identify(args.unit, workdir=args.results, seed=args.seed, engine=_engine(args), source=_source(args),
-                      mva=args.mva, report=not args.no_report, pdf=not args.no_pdf)
+    log = StagedLog()
+    try:
+        result = identify(args.unit, workdir=args.results, seed=args.seed, engine=_engine(args), source=_source(args),
+                          mva=args.mva, report=not args.no_report, pdf=not args.no_pdf, log=log)
+    finally:
+        log.close()
     _, files = identification_report(result, args.results)
     print()
     print(result.story(also=files))
