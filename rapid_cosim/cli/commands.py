@@ -32,10 +32,13 @@ def _source(args) -> ModelSource:
     return ModelSource(args.package, args.fmus, args.compiler).check()
 
 
-def _engine(args) -> EngineSpec:
+def _engine(args, backend: str | None = None) -> EngineSpec:
     """The engine of ``--n-jobs``, ``--joblib-backend`` and ``--scheduler`` (the parser's
-    ``engine_options``), checked here, before anything is read."""
-    return EngineSpec(args.n_jobs, args.joblib_backend, args.scheduler)
+    ``engine_options``; a command with ``--n-jobs`` alone gets the default backend, the
+    fleet its ``backend``), checked here, before anything is read: the one place the CLI
+    builds an engine."""
+    scheduler = getattr(args, "scheduler", None)
+    return EngineSpec(args.n_jobs, backend or getattr(args, "joblib_backend", EngineSpec.backend), scheduler)
 
 
 def _archived_engine(args):
@@ -153,7 +156,7 @@ def cmd_verify(args) -> int:
 
 
 def _campaign(args) -> dict:
-    return {"results": args.results, "seed": args.seed, "engine": EngineSpec(args.n_jobs), "progress": not args.quiet,
+    return {"results": args.results, "seed": args.seed, "engine": _engine(args), "progress": not args.quiet,
             "source": _source(args)}
 
 
@@ -169,7 +172,7 @@ def cmd_report(args) -> int:
     from ..report.html import validation_page
     from ..validation.tolerances import LABELS, verdict
 
-    page = validation_page(args.archive, args.out, engine=EngineSpec(args.n_jobs), tolerances=args.tolerances,
+    page = validation_page(args.archive, args.out, engine=_engine(args), tolerances=args.tolerances,
                            heldout=args.holdout or (), diagnosis=args.diagnosis, pdf=args.pdf or None, bus=args.bus,
                            machine_id=args.id, mva=args.mva, source=_source(args))
     print(f"{page.path}: {page.n_figures} figure(s); per test the error metrics against the tolerance bands")
@@ -281,7 +284,7 @@ def cmd_identify(args) -> int:
 def cmd_fleet(args) -> int:
     from ..fleet import Route, run_fleet
 
-    result = run_fleet(args.fleet, results=args.results, engine=EngineSpec(args.n_jobs, "dask", args.scheduler),
+    result = run_fleet(args.fleet, results=args.results, engine=_engine(args, "dask"),
                        seed=args.seed, source=_source(args), pdf=args.pdf, check_only=args.check_only,
                        progress=not args.quiet)
     print(f"\n{result.summary()} ({result.seconds:.0f} s, {len(result.kept)} kept from an earlier run)")
