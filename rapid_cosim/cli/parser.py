@@ -4,6 +4,7 @@ several commands share (models, engine, campaign, selection) written once."""
 from __future__ import annotations
 
 import argparse
+from functools import partial
 
 from ..version import __version__
 from .docs import cmd_docs, cmd_example
@@ -16,64 +17,80 @@ FMUS_HELP = "folder the FMUs are built into (default: the user's cache, or $RAPI
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The parser, one group of commands at a time (the option groups they share are below)."""
     parser = argparse.ArgumentParser(prog="rapid-cosim", description="Calibrate Modelica models of power-plant "
                                      "governors against field measurements.")
     parser.add_argument("--version", action="version", version=f"rapid-cosim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    def command(name, func, help, aliases=()):
-        p = sub.add_parser(name, help=help, aliases=list(aliases))
-        p.set_defaults(func=func)
-        return p
+    command = partial(_command, sub)
+    for group in (_run_commands, _campaign_commands, _unit_commands, _help_commands):
+        group(command)
+    return parser
 
-    def model_options(p, why: str = ""):
-        """--package, --fmus and --compiler: one ModelSource (cli/commands.py, _source)."""
-        from ..compiler import COMPILERS
 
-        p.add_argument("--package", help=PACKAGE_HELP + why)
-        p.add_argument("--fmus", help=FMUS_HELP)
-        p.add_argument("--compiler", default="auto", choices=list(COMPILERS),
-                       help="Modelica-to-FMU compiler; auto = OpenModelica where omc exists (default %(default)s)")
+def _command(sub, name, func, help, aliases=()):
+    """One sub-parser, its command function set as the default."""
+    p = sub.add_parser(name, help=help, aliases=list(aliases))
+    p.set_defaults(func=func)
+    return p
 
-    def runner_option(p):
-        from ..simulator import DEFAULT_RUNNER, RUNNERS
 
-        p.add_argument("--runner", default=DEFAULT_RUNNER, choices=list(RUNNERS),
-                       help="simulation runner: the exponential integrator (one model evaluation per sample, CVODE "
-                            "where its error estimate asks), CVODE in the compiled batch runner, or the Python "
-                            "reference loop (default %(default)s; an archive records it, and rerun/resume use it)")
+def model_options(p, why: str = ""):
+    """--package, --fmus and --compiler: one ModelSource (cli/commands.py, _source)."""
+    from ..compiler import COMPILERS
 
-    def engine_options(p, where: str, archived: bool = False):
-        """--n-jobs, --joblib-backend and --scheduler: one setting of where the work runs
-        (fitting.engine.EngineSpec), its choices written once."""
-        from ..fitting.engine import JOBLIB_BACKENDS
+    p.add_argument("--package", help=PACKAGE_HELP + why)
+    p.add_argument("--fmus", help=FMUS_HELP)
+    p.add_argument("--compiler", default="auto", choices=list(COMPILERS),
+                   help="Modelica-to-FMU compiler; auto = OpenModelica where omc exists (default %(default)s)")
 
-        default = "as archived" if archived else "%(default)s"
-        p.add_argument("--n-jobs", type=int, default=None if archived else 1,
-                       help=f"worker processes (-1: all cores; default {default}; with --joblib-backend dask, 1 or "
-                            "-1 split each batch over every worker of the cluster)")
-        p.add_argument("--joblib-backend", default=None if archived else "loky", choices=list(JOBLIB_BACKENDS),
-                       help=f"{where} (default {default})")
-        p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="a running dask scheduler, with --joblib-backend "
-                       "dask")
 
-    def campaign_options(p, n_jobs=2):
-        p.add_argument("--results", default="results", help="results folder (default %(default)s)")
-        p.add_argument("--seed", type=int, default=1, help="random seed of both chains (default %(default)s)")
-        p.add_argument("--n-jobs", type=int, default=n_jobs, help="worker processes (default %(default)s)")
-        p.add_argument("--quiet", action="store_true", help="no progress bar")
-        model_options(p)
+def runner_option(p):
+    from ..simulator import DEFAULT_RUNNER, RUNNERS
 
-    def selection_options(p, results):  # what diagnose and structures share
-        p.add_argument("configs", nargs="+", help="experiment configs (or their folders)")
-        p.add_argument("--holdout", action="append", metavar="EXPERIMENT",
-                       help="experiment kept out of the fits to confirm the verdict (repeatable)")
-        p.add_argument("--results", default=results, help="work and report folder (default %(default)s)")
-        p.add_argument("--seed", type=int, default=1)
-        engine_options(p, "where the work goes with --n-jobs > 1: candidates fitted in local processes (loky), or "
-                          "their batches on a dask cluster")
-        model_options(p)
+    p.add_argument("--runner", default=DEFAULT_RUNNER, choices=list(RUNNERS),
+                   help="simulation runner: the exponential integrator (one model evaluation per sample, CVODE "
+                        "where its error estimate asks), CVODE in the compiled batch runner, or the Python "
+                        "reference loop (default %(default)s; an archive records it, and rerun/resume use it)")
 
+
+def engine_options(p, where: str, archived: bool = False):
+    """--n-jobs, --joblib-backend and --scheduler: one setting of where the work runs
+    (fitting.engine.EngineSpec), its choices written once."""
+    from ..fitting.engine import JOBLIB_BACKENDS
+
+    default = "as archived" if archived else "%(default)s"
+    p.add_argument("--n-jobs", type=int, default=None if archived else 1,
+                   help=f"worker processes (-1: all cores; default {default}; with --joblib-backend dask, 1 or "
+                        "-1 split each batch over every worker of the cluster)")
+    p.add_argument("--joblib-backend", default=None if archived else "loky", choices=list(JOBLIB_BACKENDS),
+                   help=f"{where} (default {default})")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="a running dask scheduler, with --joblib-backend "
+                   "dask")
+
+
+def campaign_options(p, n_jobs=2):
+    p.add_argument("--results", default="results", help="results folder (default %(default)s)")
+    p.add_argument("--seed", type=int, default=1, help="random seed of both chains (default %(default)s)")
+    p.add_argument("--n-jobs", type=int, default=n_jobs, help="worker processes (default %(default)s)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    model_options(p)
+
+
+def selection_options(p, results):  # what diagnose and structures share
+    p.add_argument("configs", nargs="+", help="experiment configs (or their folders)")
+    p.add_argument("--holdout", action="append", metavar="EXPERIMENT",
+                   help="experiment kept out of the fits to confirm the verdict (repeatable)")
+    p.add_argument("--results", default=results, help="work and report folder (default %(default)s)")
+    p.add_argument("--seed", type=int, default=1)
+    engine_options(p, "where the work goes with --n-jobs > 1: candidates fitted in local processes (loky), or "
+                      "their batches on a dask cluster")
+    model_options(p)
+
+
+def _run_commands(command) -> None:
+    """The sub-parsers of a run: build, simulate, estimate (and its other names), resume, rerun, show, verify, report."""
     p = command("build", cmd_build, "compile test benches into FMUs (only what changed)")
     p.add_argument("models", nargs="*", help="class names; default: every model in <package>.TestBenches")
     p.add_argument("--force", action="store_true", help="rebuild even if up to date")
@@ -140,6 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mva", type=float, help="the machine's MVA base, for the PSLF .dyd record")
     model_options(p, "; for the held-out tests' benches")
 
+
+def _campaign_commands(command) -> None:
+    """The sub-parsers of the paper's campaign: benches, staged tests, Table 1, figures, the joint fit."""
     p = command("benches", cmd_benches, "build the FMUs and plot every test bench's step response")
     p.add_argument("--results", default="results", help="output directory (default %(default)s)")
     model_options(p)
@@ -169,6 +189,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "smc.n_particles=200 (repeatable)")
     campaign_options(p)
 
+
+def _unit_commands(command) -> None:
+    """The sub-parsers of a unit and a fleet: diagnose, structures, identify, fleet."""
     p = command("diagnose", cmd_diagnose, "find what the base model misses: try each named effect, rank, "
                 "write the winner into the Modelica package and re-calibrate")
     selection_options(p, "results/diagnose")
@@ -218,6 +241,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     model_options(p)
 
+
+def _help_commands(command) -> None:
+    """The sub-parsers of help and delivery: example, docs, check, export, demo."""
     p = command("example", cmd_example, "copy a shipped example (staged tests, units from grid events, a fleet) into "
                 "a folder of yours; no name lists them")
     p.add_argument("name", nargs="?", help="the example (none: the list)")
@@ -254,4 +280,3 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--experiments", default="experiments", help="experiments folder (default %(default)s, in the "
                    "current folder: the repository's bundled tests)")
     campaign_options(p)
-    return parser
