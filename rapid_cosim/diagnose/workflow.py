@@ -11,7 +11,7 @@ catalogue, built like any other bench.
 from __future__ import annotations
 
 import os
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable, Sequence
@@ -51,22 +51,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     ``noise_fits``: the recorders' noise fits of these experiments, where the caller has
     them already (an identification shares one fit between its two parts); ``kept``: the
     noise replicates it shares likewise (:class:`~.null.KeptReplicates`)."""
-    if not training:
-        raise ConfigError("diagnose needs at least one training experiment (none given, or every one held out)")
-    for exp in [*training, *heldout]:
-        try:
-            check_base(exp.model)
-        except ValueError as e:
-            raise ConfigError(str(e), str(exp.config_path), "experiment.model") from None
-    bases = {e.model for e in [*training, *heldout]}
-    apart = [c for c in options.candidates if not all(composable(c, b) for b in bases)]
-    if apart:  # the valve-side effects are TG Type I variants
-        log(f"not tried on {', '.join(sorted({governor(b) for b in bases}))}: {', '.join(apart)} (TG Type I variants)")
-        options = replace(options, candidates=tuple(c for c in options.candidates if c not in apart))
-    undocumented = [c for c in options.candidates if CATALOGUE[c].relative
-                    and not all(p.name in e.fixed for e in [*training, *heldout] for p in CATALOGUE[c].parameters)]
-    if undocumented:  # a constant no config documents cannot be "documented wrong"
-        options = replace(options, candidates=tuple(c for c in options.candidates if c not in undocumented))
+    options = _tried(training, heldout, options, log)
     ctx = Context(training, heldout, workdir, options, source, log, noise_fits, kept)
     for fit in {id(f): f for f in ctx.noise_fits.values()}.values():
         log(f"noise of the recorder of {', '.join(fit.tests)} ({fit.n_stretches} quiet stretches, {fit.n_samples} "
@@ -79,42 +64,9 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     singles = ctx.fit_many([(CandidateSpec((name,)), None) for name in options.candidates])
     ranking = rank([base, *singles], ctx.noise)
 
-    not_excluded: list[str] = []
-    if not decisive(ranking, options.threshold):
-        not_excluded = _material_checks(ctx, base, options)
-    verdict = decide(ranking, threshold=options.threshold, not_excluded=not_excluded)
-    if verdict.effect == AMBIGUOUS and ctx.heldout and NONE not in verdict.candidates:
-        verdict = settle_on_heldout(verdict, ranking, {c: _held_out_score(ctx, ctx.fits[c])
-                                                       for c in verdict.candidates if c in ctx.fits},
-                                    options.threshold)
-    chosen = ctx.fits[verdict.effect] if verdict.effect in ctx.fits and verdict.effect != NONE else None
-    if chosen is not None and ctx.heldout:
-        verdict = _confirm(ctx, chosen, base, verdict)
-        if verdict.effect == NONE:  # not confirmed: a caveat of none, not a verdict
-            not_excluded = [*not_excluded, chosen.spec.label]
-            chosen = None
-
-    second: list[Ranked] = []
-    if chosen is not None and options.max_effects >= 2:
-        chosen, verdict, second = _second_effect(ctx, chosen, verdict, options)
-
-    variants, story = {}, None  # story: the simpler of two stories the data cannot tell apart
-    if chosen is not None:
-        chosen, verdict, variants, story = check_variants(ctx, chosen, verdict, options.threshold)
-        if verdict.effect == AMBIGUOUS:
-            chosen = None
-
-    separating = None
-    if verdict.effect == AMBIGUOUS:
-        separating = _separating(ctx, verdict.candidates, not_excluded)
-    elif verdict.effect == NONE and not_excluded:  # the staged test that would tell none from the caveat
-        separating = _separating(ctx, [NONE, not_excluded[0]], not_excluded)
-        if separating:
-            verdict.note(separating['advice'])
-
-    materiality = {}
-    if chosen is not None:
-        chosen, verdict, materiality = check_material(ctx, base, chosen, verdict)
+    n = _name(ctx, base, ranking, options)
+    verdict, chosen, not_excluded, second, variants, story, separating, materiality = (
+        n.verdict, n.chosen, n.not_excluded, n.second, n.variants, n.story, n.separating, n.materiality)
 
     final_fit = chosen if chosen is not None else story if story is not None else base
     after_tests = ctx.tests(final_fit)
@@ -156,6 +108,84 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
         archives={label: str(f.archive) for label, f in ctx.fits.items()},
         training=[e.name for e in training], heldout=[e.name for e in heldout],
         created=datetime.now(timezone.utc).isoformat(timespec="seconds"))
+
+
+def _tried(training: Sequence[Experiment], heldout: Sequence[Experiment], options: DiagnoseOptions,
+           log: Callable[[str], None]) -> DiagnoseOptions:
+    """The options with the candidates that can be tried on these benches: the
+    experiments checked, TG Type I's valve-side variants left out on other governors, a
+    documented constant no config documents left out (it cannot be "documented wrong")."""
+    if not training:
+        raise ConfigError("diagnose needs at least one training experiment (none given, or every one held out)")
+    for exp in [*training, *heldout]:
+        try:
+            check_base(exp.model)
+        except ValueError as e:
+            raise ConfigError(str(e), str(exp.config_path), "experiment.model") from None
+    bases = {e.model for e in [*training, *heldout]}
+    apart = [c for c in options.candidates if not all(composable(c, b) for b in bases)]
+    if apart:  # the valve-side effects are TG Type I variants
+        log(f"not tried on {', '.join(sorted({governor(b) for b in bases}))}: {', '.join(apart)} (TG Type I variants)")
+        options = replace(options, candidates=tuple(c for c in options.candidates if c not in apart))
+    undocumented = [c for c in options.candidates if CATALOGUE[c].relative
+                    and not all(p.name in e.fixed for e in [*training, *heldout] for p in CATALOGUE[c].parameters)]
+    if undocumented:
+        options = replace(options, candidates=tuple(c for c in options.candidates if c not in undocumented))
+    return options
+
+
+@dataclass
+class _Named:
+    """What naming the effect found: the verdict, the fit chosen (None: none, ambiguous or
+    unconfirmed) and what the steps on the way kept."""
+
+    verdict: Verdict
+    chosen: CandidateFit | None
+    not_excluded: list[str]
+    second: list[Ranked]
+    variants: dict
+    story: CandidateFit | None  # the simpler of two stories the data cannot tell apart
+    separating: dict | None
+    materiality: dict
+
+
+def _name(ctx: Context, base: CandidateFit, ranking: list[Ranked], options: DiagnoseOptions) -> _Named:
+    """The verdict from the ranking: the material checks of none, the held-out tests on a
+    tie and on the chosen effect, a second effect, the variants of form, the separating
+    test of an ambiguous verdict or of a caveat, the materiality of what is named."""
+    not_excluded: list[str] = []
+    if not decisive(ranking, options.threshold):
+        not_excluded = _material_checks(ctx, base, options)
+    verdict = decide(ranking, threshold=options.threshold, not_excluded=not_excluded)
+    if verdict.effect == AMBIGUOUS and ctx.heldout and NONE not in verdict.candidates:
+        verdict = settle_on_heldout(verdict, ranking, {c: _held_out_score(ctx, ctx.fits[c])
+                                                       for c in verdict.candidates if c in ctx.fits},
+                                    options.threshold)
+    chosen = ctx.fits[verdict.effect] if verdict.effect in ctx.fits and verdict.effect != NONE else None
+    if chosen is not None and ctx.heldout:
+        verdict = _confirm(ctx, chosen, base, verdict)
+        if verdict.effect == NONE:  # not confirmed: a caveat of none, not a verdict
+            not_excluded = [*not_excluded, chosen.spec.label]
+            chosen = None
+    second: list[Ranked] = []
+    if chosen is not None and options.max_effects >= 2:
+        chosen, verdict, second = _second_effect(ctx, chosen, verdict, options)
+    variants, story = {}, None
+    if chosen is not None:
+        chosen, verdict, variants, story = check_variants(ctx, chosen, verdict, options.threshold)
+        if verdict.effect == AMBIGUOUS:
+            chosen = None
+    separating = None
+    if verdict.effect == AMBIGUOUS:
+        separating = _separating(ctx, verdict.candidates, not_excluded)
+    elif verdict.effect == NONE and not_excluded:  # the staged test that would tell none from the caveat
+        separating = _separating(ctx, [NONE, not_excluded[0]], not_excluded)
+        if separating:
+            verdict.note(separating['advice'])
+    materiality = {}
+    if chosen is not None:
+        chosen, verdict, materiality = check_material(ctx, base, chosen, verdict)
+    return _Named(verdict, chosen, not_excluded, second, variants, story, separating, materiality)
 
 
 def _material_checks(ctx: Context, base: CandidateFit, options: DiagnoseOptions) -> list[str]:
