@@ -407,7 +407,7 @@ def lines(rows: list[dict]) -> list[str]:
         first = True
         other = next((k for f in row["events"].values() for k in f if k not in ("delivered", "plant's own")), None)
         if other:
-            out.append(f"{'':<34} {'':<22} {'':<17} {'':>17} {'':>17} {other[:17]:>17}")
+            out.append(f"{'':<34} {'':<22} {'':<17} {'':>17} {'':>17} {other:>18}")
         for name, figs in sorted(row["events"].items(), key=lambda kv: kv[0] not in row["heldout"]):
             cells = []
             for which in ("delivered", "plant's own", other):
