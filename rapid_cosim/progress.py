@@ -34,28 +34,29 @@ class Stage:
 
     def update(self, n: int = 1, note: str = "") -> None:
         self.n += n
-        self.note = note or self.note
-        if not self.enabled:
+        if not self._noted(note):
             return
         if self.bar is not None:
-            if note:
-                self.bar.set_postfix_str(note, refresh=False)
             self.bar.update(n)
         elif time.monotonic() - self._said >= self.every:
             self._line(self._count())
 
     def close(self, note: str = "") -> None:
-        self.note = note or self.note
-        if not self.enabled:
+        if not self._noted(note):
             return
         if self.bar is not None:
-            if note:
-                self.bar.set_postfix_str(note, refresh=False)
             self.bar.close()
             self.bar = None
         else:
             self._line(f"done, {self._count()} in {time.monotonic() - self.started:.0f} s")
         self.enabled = False
+
+    def _noted(self, note: str) -> bool:
+        """Keep ``note`` (on the bar too); whether there is anything to show."""
+        self.note = note or self.note
+        if self.enabled and self.bar is not None and note:
+            self.bar.set_postfix_str(note, refresh=False)
+        return self.enabled
 
     def __enter__(self) -> "Stage":
         return self
