@@ -44,7 +44,7 @@ def test_a_deadband_unit_gets_a_record_that_carries_its_band(fmus, tmp_path):
     assert lo < 0.036 < hi
     assert ident["recommended"] == "TGOV1"
     record = next(r for r in ident["records"] if r["model"] == "TGOV1")
-    assert record["fit"] == "TGOV1+deadband" and record["optional_freed"]
+    assert record["fit"] == "TGOV1+deadband" and record["optional_freed"] and record["undetermined"] == []
     written = read_record(tmp_path / "unit.dyr")
     assert (written.model, written.block) == ("TGOV1D", "TGOV1")
     assert written.values["R"] == pytest.approx(PLANT["R"], rel=0.03)
@@ -59,6 +59,8 @@ def test_events_of_one_size_do_not_determine_the_band_and_the_story_says_so(fmus
     ident, story = _identify(REPO / "experiments" / "deadband" / "one_size.toml", tmp_path)
     assert "deadband" in ident["explanation"]["not_excluded"]
     assert read_record(tmp_path / "unit.dyr").model == "TGOV1"  # no band stated ...
+    record = next(r for r in ident["records"] if r["model"] == "TGOV1")
+    assert record["undetermined"] == ["deadband"]  # ... the fleet's row flags it from this
     assert ("the recordings do not exclude a deadband of a material size, which TGOV1's db would carry, and do "
             "not determine one: the record states none; its droop may have absorbed a band") in story  # ... and said
 

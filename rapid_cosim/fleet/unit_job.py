@@ -133,6 +133,10 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
         result.flags.append("at bounds: " + ", ".join(rec.at_bounds))
     if not rec.adequate:
         result.flags.append("not within the noise")
+    for effect in rec.undetermined:  # said in the unit's story; a fleet's row says it too
+        result.flags.append(f"{effect.replace('_', ' ')} not determined: the recordings do not exclude one, the "
+                            "record states none" + ("; its droop may hold a band (events of two sizes separate "
+                                                    "them)" if effect == "deadband" else ""))
     written = read_record(ident.files["dyr"], bus=unit.bus, machine_id=unit.machine_id)
     same = archived_reproduction(rec.archive, written)  # the file on disk is the model identify fitted
     if not same.reproduces:

@@ -108,6 +108,9 @@ class StandardRecord:
     relative_se: dict[str, float] = field(default_factory=dict)  # each estimate's, from the Fisher information
     cautions: list[str] = field(default_factory=list)  # the clauses of words after the fit's: what it cannot carry
     freed_effect: str | None = None  # the effect whose optional parts the kept fit freed (None: the plain fit)
+    # effects its optional parts would carry that the explanation names or does not exclude,
+    # and the kept fit does not carry: the recordings do not determine them (a fleet flags them)
+    undetermined: list[str] = field(default_factory=list)
 
     def fidelity(self, tests: Sequence[str], *, failing: bool = False) -> str:
         """RMSE over the noise per test of ``tests`` it has (``failing``: marked where the

@@ -168,8 +168,9 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
                f"not within the noise on {', '.join(failing)} (pooled variance ratio {use.variance_ratio:.2f})"]
     best = {e: min((fits[v.name].bic for v in structure.optional_variants() if v.name in fits
                     and structure.freed_effect(v.name) == e), default=None) for e in structure.effects}
-    clauses += _carrying(structure, missing, open_, _Kept(structure.freed_effect(use.name), plain.bic, best),
-                         use.parameters, relative_se)
+    kept = _Kept(structure.freed_effect(use.name), plain.bic, best)
+    clauses += _carrying(structure, missing, open_, kept, use.parameters, relative_se)
+    undetermined = [e for e in structure.effects if e != kept.effect and (e in open_ or e in missing)]
     swaps = [f"{x['a']} and {x['b']}" for x in use.identifiability.get("exchanges", [])]
     if swaps:
         clauses.append(f"the tests fit {', '.join(swaps)} either way round: which is which is not the data's to say")
@@ -178,7 +179,7 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
                           adequate=use.adequate, variance_ratio=use.variance_ratio, tests=per_test,
                           cannot_carry=missing, words="; ".join(clauses), archive=use.archive,
                           at_bounds=use.at_bounds, relative_se=relative_se, cautions=clauses[1:],
-                          freed_effect=structure.freed_effect(use.name))
+                          freed_effect=kept.effect, undetermined=undetermined)
 
 
 @dataclass(frozen=True)
