@@ -16,11 +16,18 @@ from pathlib import Path
 
 from ..compiler.source import ModelSource
 from ..data import close_matches
+from ..data.csv_table import SkippedRowWarning
+from ..data.measured import MaskedSamplesWarning
+from ..data.timebase import TimeBaseWarning
 from ..errors import Finding, RapidCosimError, finding
 from ..experiment import Experiment
 from ..experiment.problems import every_problem
+from ..experiment.recording import RecordingWarning
 from ..structures.structure import Structure
 from .unit import Unit
+
+# what reading a recording warns of, each also a line of the experiment's Recording
+_RECORDING_FACTS = (MaskedSamplesWarning, SkippedRowWarning, TimeBaseWarning, RecordingWarning)
 
 
 @dataclass
@@ -53,11 +60,13 @@ def quietly(load, notes: list[warnings.WarningMessage]):
 
 
 def unsaid(notes: list[warnings.WarningMessage], experiments) -> list[warnings.WarningMessage]:
-    """The notes that the experiments' recording lines do not say already (a units row
-    skipped, frames masked, stamps repaired are in both): what is printed with the lines
-    is not warned of as well."""
-    said = [line.split(": ", 1)[-1] for e in experiments for line in e.recording.lines()]
-    return [w for w in notes if not any(s and s in str(w.message) for s in said)]
+    """The notes that the experiments' recording lines do not say already: what reading
+    found in a recording (a units row skipped, samples masked, stamps repaired) is a line
+    of its :class:`~rapid_cosim.experiment.recording.Recording`, printed with the others,
+    so it is not warned of as well."""
+    sources = {str(d.source) for e in experiments for d in (e.data, *e.files.values())}
+    return [w for w in notes if not (issubclass(w.category, _RECORDING_FACTS)
+                                     and any(str(w.message).startswith(f"{s}: ") for s in sources))]
 
 
 def say(notes: list[warnings.WarningMessage]) -> None:
