@@ -18,6 +18,8 @@ def test_a_parameter_on_its_bound_is_flagged_and_said_once():
     assert html.count("on lower bound") == 1 and "T3 = 3 is on the lower bound of its search range" in html
     assert "R = 0.05 is on" not in html
     assert on_bound(29.8, (3.0, 30.0)) == "upper" and on_bound(10.0, (3.0, 30.0)) is None
+    assert on_bound(0.0067, (0.001, 1.0)) is None and on_bound(0.00101, (0.001, 1.0)) == "lower"  # in the log
+    assert on_bound(-0.00101, (-1.0, -0.001)) == "upper" and on_bound(-0.99, (-1.0, -0.001)) == "lower"
     assert on_bound(1.0, None) is None
 
 

@@ -32,13 +32,13 @@ def _source(args) -> ModelSource:
     return ModelSource(args.package, args.fmus, args.compiler).check()
 
 
-def _engine(args, backend: str | None = None) -> EngineSpec:
+def _engine(args, *, cluster: bool = False) -> EngineSpec:
     """The engine of ``--n-jobs``, ``--joblib-backend`` and ``--scheduler`` (the parser's
     ``engine_options``; a command with ``--n-jobs`` alone gets the default backend, the
-    fleet its ``backend``), checked here, before anything is read: the one place the CLI
-    builds an engine."""
-    scheduler = getattr(args, "scheduler", None)
-    return EngineSpec(args.n_jobs, backend or getattr(args, "joblib_backend", EngineSpec.backend), scheduler)
+    fleet, ``cluster``, dask's), checked here, before anything is read: the one place the
+    CLI builds an engine."""
+    kind = "dask" if cluster else getattr(args, "joblib_backend", EngineSpec.backend)
+    return EngineSpec(args.n_jobs, kind, getattr(args, "scheduler", None))
 
 
 def _archived_engine(args):
@@ -284,7 +284,7 @@ def cmd_identify(args) -> int:
 def cmd_fleet(args) -> int:
     from ..fleet import Route, run_fleet
 
-    result = run_fleet(args.fleet, results=args.results, engine=_engine(args, "dask"),
+    result = run_fleet(args.fleet, results=args.results, engine=_engine(args, cluster=True),
                        seed=args.seed, source=_source(args), pdf=args.pdf, check_only=args.check_only,
                        progress=not args.quiet)
     print(f"\n{result.summary()} ({result.seconds:.0f} s, {len(result.kept)} kept from an earlier run)")

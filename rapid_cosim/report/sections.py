@@ -4,6 +4,7 @@ Nothing here computes: what a section says was decided where its data were gathe
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 from .htmlkit import e, mark, num, table
@@ -64,13 +65,19 @@ def tolerance_table(tol: Tolerances) -> str:
 
 
 def on_bound(value: float, searched: tuple[float, float] | None, share: float = 0.01) -> str | None:
-    """"lower" or "upper" where an estimate ends within ``share`` of its range of a bound."""
+    """"lower" or "upper" where an estimate ends within ``share`` of its range of a bound;
+    a range of one sign spanning a decade or more is measured in the log, as its search
+    is (a valve rate searched 0.001 to 1 pu/s is not on its bound at 0.0067)."""
     if searched is None or not searched[1] > searched[0]:
         return None
     lo, hi = searched
+    sign = 1.0
+    if lo * hi > 0 and max(abs(lo), abs(hi)) >= 10 * min(abs(lo), abs(hi)) and value * lo > 0:
+        sign = 1.0 if lo > 0 else -1.0  # a negative range's bound nearest zero is its upper one
+        lo, hi, value = sorted((math.log(abs(lo)), math.log(abs(hi)))) + [math.log(abs(value))]
     if min(value - lo, hi - value) > share * (hi - lo):
         return None
-    return "lower" if value - lo < hi - value else "upper"
+    return "lower" if (value - lo < hi - value) == (sign > 0) else "upper"
 
 
 def record_section(rec: DeliveredRecord, interval_note: str, level: float | None) -> str:
