@@ -32,9 +32,14 @@ OPEN_CALLS = 5  # objective calls a gated run makes (PF iterations, each archive
 
 def _gated_cli(gate):
     """The command line in a subprocess, held at its sixth objective call while ``gate``
-    exists (see conftest.gated_objective): no timing decides what the test sees."""
+    exists (see conftest.gated_objective): no timing decides what the test sees. Its
+    Ctrl-C is a terminal's: a harness started in the background (``make test-faults &``
+    from a script) hands its children SIGINT ignored, and Python then installs no
+    KeyboardInterrupt at all, so every interrupt test timed out there however sound the
+    run's own handling."""
     gate.touch()
-    return gated_objective(gate, OPEN_CALLS) + "import sys\nfrom rapid_cosim.cli import main\nsys.exit(main(sys.argv[1:]))\n"
+    return ("import signal\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n" + gated_objective(gate, OPEN_CALLS)
+            + "import sys\nfrom rapid_cosim.cli import main\nsys.exit(main(sys.argv[1:]))\n")
 
 
 @pytest.fixture(scope="module")
