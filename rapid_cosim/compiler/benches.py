@@ -9,10 +9,11 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from .builder import test_benches
+from .modelica_source import class_index, load_package
+
 _MODEL = re.compile(r'^\s*(?:partial\s+)?model\s+(\w+)\s*"([^"]*)"', re.M)
 _PORT = re.compile(r'^\s*(input|output)\s+([\w.]+)\s+(\w+)[^;"]*(?:"([^"]*)")?\s*;', re.M)
-GROUPS = {"TestBenches": "the test benches (a staged test's model, or a recorded event's with an f_dev input)",
-          "Diagnosed": "benches the discrepancy workflow writes (a bench with an effect added)"}
 
 
 @dataclass(frozen=True)
@@ -38,17 +39,22 @@ class Bench:
         return tuple(p for p in self.ports if p.kind == "output")
 
 
-def benches(package: Path, group: str = "TestBenches") -> list[Bench]:
-    """Every model of ``package``/``group`` (its ``.mo`` files), in name order."""
+def benches(package: Path) -> list[Bench]:
+    """Every model of the package's ``TestBenches`` (:func:`.builder.test_benches`, what
+    ``rapid-cosim build`` builds by default), in name order, read from its own lines."""
+    source = load_package(package)
+    index = class_index(source)
+    lines = source.text.splitlines()
     out = []
-    for file in sorted((Path(package) / group).glob("*.mo")):
-        text = file.read_text(encoding="utf-8")
+    for name in sorted(test_benches(source)):
+        extent = index[name]
+        text = "\n".join(lines[extent.first_line - 1:extent.last_line])  # 1-based, inclusive
         head = _MODEL.search(text)
         if head is None:
             continue
         body = text[head.end():text.find("equation", head.end())]
         ports = tuple(Port(m.group(3), m.group(1), m.group(2), m.group(4) or "") for m in _PORT.finditer(body))
-        out.append(Bench(f"{Path(package).name}.{group}.{head.group(1)}", head.group(2), ports))
+        out.append(Bench(name, head.group(2), ports))
     return out
 
 
