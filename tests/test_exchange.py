@@ -216,7 +216,7 @@ def _andes_system(record_text: str, tmp_path: Path):
     """Kundur's two-area case with ``record_text`` as generator 1's governor (its own
     TGOV1 removed from kundur_full.dyr)."""
     andes = pytest.importorskip("andes")
-    andes.config_logger(stream_level=40)
+    andes.config_logger(stream_level=40, file=False, log_path=str(tmp_path))  # no /tmp/andes-* log per call
     full = Path(andes.get_case("kundur/kundur_full.dyr")).read_text()
     kept = [r for r in full.split("/") if r.strip() and not re.match(r"\s*1\s+'TGOV1'\s+1\s", r)]
     assert len(kept) == len([r for r in full.split("/") if r.strip()]) - 1

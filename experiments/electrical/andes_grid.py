@@ -144,7 +144,8 @@ def run_record(record: str, event: GridEvent) -> dict[str, np.ndarray]:
     (pu on the machine base), and ``departures``, the conversions made."""
     import andes
 
-    andes.config_logger(stream_level=40)
+    # no log file: ANDES would make a fresh /tmp/andes-* folder per call and log every step in it
+    andes.config_logger(stream_level=40, file=False, log_path=tempfile.gettempdir())
     block = powerworld_block(record)
     with tempfile.TemporaryDirectory(prefix="rapid_cosim_andes_") as tmp:
         dyr = Path(tmp) / "kundur_unit.dyr"

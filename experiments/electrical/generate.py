@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -115,7 +116,7 @@ def andes_run(event: Event) -> dict[str, np.ndarray]:
     """ANDES's run: time, generator 1's speed (pu), P_e and governor output (machine base)."""
     import andes
 
-    andes.config_logger(stream_level=40)
+    andes.config_logger(stream_level=40, file=False, log_path=tempfile.gettempdir())  # no /tmp/andes-* log per run
     name, params = andes_governor(event)
     case = "kundur/kundur_ieeeg1.xlsx" if name == "IEEEG1" else "kundur/kundur_full.xlsx"
     ss = andes.load(andes.get_case(case), setup=False, no_output=True, default_config=True)
