@@ -24,7 +24,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .archive import RunArchive
+from .archive import RunArchive, RunStatus
 from .archive.writer import refuse_existing
 from .calibration import RunInputs, RunOptions, inputs_from_archive, inputs_from_experiments
 from .calibration import rerun as _rerun
@@ -78,7 +78,7 @@ class Calibration:
     method: str
     names: tuple[str, ...]
     labels: tuple[str, ...]
-    status: str
+    status: RunStatus
     archive: Path | None
     uncertainty: Uncertainty | None = None
     identical: bool | None = None
@@ -89,7 +89,7 @@ class Calibration:
     def finished(self) -> bool:
         """Whether the run it holds ran to its end (a rerun of an unfinished archive, or a
         partial load, did not)."""
-        return self.status == "finished"
+        return self.status is RunStatus.FINISHED
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -135,9 +135,9 @@ class Calibration:
         return result_table(self)
 
 
-def _calibration(result: EstimationResult, inputs: RunInputs, archive: Path | None, status: str,
+def _calibration(result: EstimationResult, inputs: RunInputs, archive: Path | None, status: RunStatus,
                  identical: bool | None = None) -> Calibration:
-    ok = status == "finished" and result.n_failed < result.nfev
+    ok = status is RunStatus.FINISHED and result.n_failed < result.nfev
     return Calibration(x=np.asarray(result.x, dtype=float), fun=float(result.fun), nfev=result.nfev,
                        nit=result.nit, success=ok, message=result.stop_reason, method=result.method,
                        names=tuple(result.names), labels=tuple(inputs.problem.labels), status=status,
@@ -197,7 +197,7 @@ def calibrate_with(experiments: Sequence[str | Path | Experiment] | str | Path |
     refuse_existing(path)  # before any recording is read
     inputs = inputs_from_experiments(as_experiments(experiments), source=source)
     result = start_run(inputs, run_options, path, progress=progress)
-    return _calibration(result, inputs, path, "finished")
+    return _calibration(result, inputs, path, RunStatus.FINISHED)
 
 
 @pinned
@@ -205,7 +205,7 @@ def resume(path: str | Path, *, engine: Resumed = None, progress: bool = False) 
     """Continue an interrupted run from its archive, on the archived engine or on
     ``engine`` (or a function of the archived one); the result is the uninterrupted one."""
     result = resume_run(path, engine=engine, progress=progress)
-    return _calibration(result, _inputs(path), Path(path), "finished")
+    return _calibration(result, _inputs(path), Path(path), RunStatus.FINISHED)
 
 
 @pinned
@@ -214,7 +214,7 @@ def rerun(path: str | Path, *, engine: Resumed = None, progress: bool = False) -
     (``identical``; ``message`` names the first difference when there is one), on the
     archived engine or on ``engine``."""
     report = _rerun(path, engine=engine, progress=progress)
-    calib = _calibration(report.result, _inputs(path), Path(path), "finished" if report.finished else "unfinished",
+    calib = _calibration(report.result, _inputs(path), Path(path), RunStatus.FINISHED if report.finished else RunStatus.UNFINISHED,
                          identical=report.identical)
     if not report.identical:
         calib = replace(calib, message=f"different from the archive: {report.first_difference}")

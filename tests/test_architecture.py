@@ -390,3 +390,42 @@ def test_one_model_source_and_one_engine_are_passed_down():
     caught = _loose_parameters(ast.parse("def f(x, *, fmu_dir=None): ...\nclass O:\n    n_jobs: int = 1\n"
                                          "def write_bench(package): ...\n"), "diagnose/catalogue")
     assert caught == ["diagnose/catalogue: f(fmu_dir) -> source", "diagnose/catalogue: field n_jobs -> engine"]
+
+
+KIND_WORDS = {"none", "ambiguous", "unexplained", "running", "finished", "interrupted", "unfinished"}
+KIND_NAMES = {"NONE", "AMBIGUOUS", "UNEXPLAINED"}  # the words as constants: a verdict is built of them, not tested
+KIND_FIELDS = {"effect", "structure", "status", "structure_verdict"}
+
+
+def _kind_field(node: ast.AST) -> bool:
+    """``x.effect`` or ``x["effect"]`` (and structure, status): a field holding a verdict's or a
+    run's word (a dask ``client.status`` is dask's own)."""
+    if isinstance(node, ast.Attribute):
+        return node.attr in KIND_FIELDS and not (isinstance(node.value, ast.Name) and node.value.id == "client")
+    return isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant) and node.slice.value in KIND_FIELDS
+
+
+def _kind_word(node: ast.AST) -> bool:
+    if isinstance(node, (ast.Tuple, ast.List, ast.Set)):
+        return any(_kind_word(e) for e in node.elts)
+    return (isinstance(node, ast.Constant) and node.value in KIND_WORDS) or (
+        isinstance(node, ast.Name) and node.id in KIND_NAMES)
+
+
+def _kinds_by_word(tree: ast.AST) -> list[str]:
+    """``verdict.effect == AMBIGUOUS``, ``view.status != "finished"``: a kind told by its word
+    rather than by its enum (``verdict.kind is VerdictKind.AMBIGUOUS``, ``RunStatus.FINISHED``)."""
+    return [ast.unparse(node) for node in ast.walk(tree) if isinstance(node, ast.Compare)
+            and any(_kind_field(a) and _kind_word(b) or _kind_word(a) and _kind_field(b)
+                    for a, b in zip([node.left, *node.comparators], node.comparators))]
+
+
+def test_verdicts_and_statuses_are_told_by_their_enums():
+    """Issue 57: a verdict's kind (VerdictKind) and a run's status (RunStatus) are compared as
+    enums; the words stay what JSON and archives hold."""
+    found = [f"{'/'.join(parts)}: {s}" for path, parts in _modules() for s in _kinds_by_word(ast.parse(path.read_text()))]
+    assert not found, found
+    assert _kinds_by_word(ast.parse("v.effect == AMBIGUOUS")) and _kinds_by_word(ast.parse('s.status != "finished"'))
+    assert _kinds_by_word(ast.parse('r["effect"] in (NONE, "x")'))
+    assert not _kinds_by_word(ast.parse("v.kind is VerdictKind.AMBIGUOUS")) and not _kinds_by_word(
+        ast.parse("r.label == BASE"))

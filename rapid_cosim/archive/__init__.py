@@ -5,8 +5,8 @@
 finished archive): storage only; running estimations is :mod:`rapid_cosim.calibration`'s.
 """
 
-from .format import FORMAT_VERSION, data_sha256
+from .format import FORMAT_VERSION, RunStatus, data_sha256
 from .reader import RunArchive, StoredEvaluations
 from .writer import ArchiveWriter
 
-__all__ = ["FORMAT_VERSION", "ArchiveWriter", "RunArchive", "StoredEvaluations", "data_sha256"]
+__all__ = ["FORMAT_VERSION", "ArchiveWriter", "RunArchive", "RunStatus", "StoredEvaluations", "data_sha256"]

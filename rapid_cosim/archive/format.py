@@ -70,6 +70,7 @@ import io
 import json
 import os
 import zlib
+from enum import StrEnum
 from typing import Any, Mapping
 from urllib.parse import quote
 
@@ -83,7 +84,21 @@ from . import seal
 
 FORMAT = "rapid-cosim-archive"
 FORMAT_VERSION = 2  # 2: checksums (see "Checksums"); archives of version 1 are read without them
-STATUSES = ("running", "finished", "interrupted")
+
+
+class RunStatus(StrEnum):
+    """A run's state. The first three are what an archive's /status holds (written as these
+    words, so older archives read as they are); UNKNOWN is a reader's where /status is
+    damaged, UNFINISHED a calibration loaded from an archive that is not finished."""
+
+    RUNNING = "running"
+    FINISHED = "finished"
+    INTERRUPTED = "interrupted"
+    UNKNOWN = "unknown"
+    UNFINISHED = "unfinished"
+
+
+STATUSES = (RunStatus.RUNNING, RunStatus.FINISHED, RunStatus.INTERRUPTED)  # what /status may hold
 
 LIBVER = ("earliest", "v108")  # 1.8 objects (creation order); no superblock status flags
 STAGE_BYTES = 64
@@ -341,7 +356,7 @@ def rewrite(path: str, room: Mapping[str, int], result: EstimationResult | None 
                 put_rows(dst["iterations"][b], 0, src["iterations"][b][: ends[b]])
             if result is not None:
                 write_result(dst, result)
-                dst["status"][()] = np.bytes_(b"finished")
+                dst["status"][()] = np.bytes_(RunStatus.FINISHED.encode())
         seal.seal(tmp)
     except BaseException:
         if os.path.exists(tmp):
@@ -415,8 +430,10 @@ def read_uncertainty(p, names: tuple[str, ...]) -> Uncertainty:
                        evaluations=int(p.attrs.get("evaluations", 0)))
 
 
-def status_of(f: h5py.File) -> str:
-    return f["status"][()].decode()
+def status_of(f: h5py.File) -> RunStatus | None:
+    """/status as written; None for a word no writer writes (a damaged part)."""
+    word = f["status"][()].decode()
+    return RunStatus(word) if word in STATUSES else None
 
 
 def check_format(f: h5py.File, path: str) -> None:

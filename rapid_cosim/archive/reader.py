@@ -81,7 +81,7 @@ class RunArchive:
             # raised by what needs them.
             self.damaged: list[ArchiveDamaged] = []
             self.n_iterations = self.n_evaluations = 0
-            self.status = "unknown"
+            self.status = fmt.RunStatus.UNKNOWN
             try:
                 with self.guard("iteration count (/committed)", "the inputs may still be readable"):
                     # /committed first: everything it counts was flushed before it was written.
@@ -98,8 +98,8 @@ class RunArchive:
             try:
                 with self.guard("status"):
                     status = fmt.status_of(f)
-                    if status not in fmt.STATUSES:
-                        raise _Mismatch(f"unknown status {status!r}")
+                    if status is None:
+                        raise _Mismatch(f"unknown status {f['status'][()].decode()!r}")
                     self.status = status
             except ArchiveDamaged as e:
                 self.damaged.append(e)
@@ -249,7 +249,7 @@ class RunArchive:
 
     def result(self) -> EstimationResult | None:
         """The final result once the run is finished (history = the archived iterations)."""
-        if self.status != "finished":
+        if self.status is not fmt.RunStatus.FINISHED:
             return None
         history = tuple(self.iterations())
         with self.guard("result", "the iterations are intact"):
@@ -264,7 +264,7 @@ class RunArchive:
                 failure_messages=tuple(json.loads(str(r.attrs.get("failure_messages", "[]")))))
 
     def uncertainty(self) -> Uncertainty | None:
-        if self.status != "finished":
+        if self.status is not fmt.RunStatus.FINISHED:
             return None
         with self.guard("result"):
             if "posterior" not in self._f["result"]:
@@ -284,7 +284,7 @@ class RunArchive:
         if damage is not None and damage not in self.damaged:
             out["damaged"].append(str(damage))
         result = None
-        if self.status == "finished" and damage is None:
+        if self.status is fmt.RunStatus.FINISHED and damage is None:
             try:
                 result = self.result()
             except ArchiveDamaged as e:

@@ -46,7 +46,7 @@ def verify(path: str | os.PathLike) -> list[PartCheck]:
         else:
             checks.append(PartCheck(damage.part, False, f"{damage.reason}; iterations 0 to {len(its) - 1} intact"
                                     if its else damage.reason))
-        if view.status == "finished" and damage is None:
+        if view.status is fmt.RunStatus.FINISHED and damage is None:
             try:
                 view.result()
                 checks.append(PartCheck("result", True))

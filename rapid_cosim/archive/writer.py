@@ -81,7 +81,7 @@ class ArchiveWriter:
             self._n_it = self._keep
             self._n_ev = int(kept[-1]["eval_offset"] + kept[-1]["eval_count"]) if len(kept) else 0
         self._ends = fmt.blob_ends(f["iterations/table"][: self._n_it])
-        self._finished = fmt.status_of(f) == "finished"
+        self._finished = fmt.status_of(f) is fmt.RunStatus.FINISHED
         self._ev = {name: f["evaluations"][name] for name in fmt.EVAL_COLUMNS}
         self._it = {name: f["iterations"][name] for name in ("table", *fmt.BLOBS)}
         self._committed = f["committed"]
@@ -141,7 +141,7 @@ class ArchiveWriter:
                         seed="" if seed is None else str(int(seed)),
                         n_experiments=int(n_experiments),
                     )
-                    f.create_dataset("status", data=np.bytes_(b"running"), dtype="S16")
+                    f.create_dataset("status", data=np.bytes_(fmt.RunStatus.RUNNING.encode()), dtype="S16")
                     f.create_dataset("committed", data=fmt.committed_row(0, 0))
                     f["committed"].attrs["meaning"] = (
                         "[n_iterations, n_evaluations, crc] complete; ignore rows past these"
@@ -189,7 +189,7 @@ class ArchiveWriter:
             try:
                 with fmt.open_reader(path) as f:
                     fmt.check_format(f, path)
-                    if fmt.status_of(f) == "finished":
+                    if fmt.status_of(f) is fmt.RunStatus.FINISHED:
                         raise ArchiveError(f"{path}: the run is finished; nothing to resume")
             except OSError as exc:
                 raise ArchiveError(f"{path}: not a readable archive ({exc})") from None
@@ -203,7 +203,7 @@ class ArchiveWriter:
                     ) from None
                 raise
             try:
-                writer._set_status("running")
+                writer._set_status(fmt.RunStatus.RUNNING)
             except BaseException:
                 writer._f.close()
                 raise
@@ -376,7 +376,7 @@ class ArchiveWriter:
         try:
             if not self._finished:
                 self.commit()
-                self._set_status("interrupted")
+                self._set_status(fmt.RunStatus.INTERRUPTED)
         except Exception:
             if not quiet:
                 raise
@@ -413,7 +413,7 @@ class ArchiveWriter:
         finally:
             self._open()
 
-    def _set_status(self, status: str) -> None:
+    def _set_status(self, status: fmt.RunStatus) -> None:
         assert status in fmt.STATUSES, status
         self._f["status"][()] = np.bytes_(status.encode())
         self._f.flush()

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from ..version import __version__
-from ..archive import ArchiveWriter, RunArchive, data_sha256
+from ..archive import ArchiveWriter, RunArchive, RunStatus, data_sha256
 from ..errors import ArchiveDamaged, ArchiveError, ConfigError, EngineLost, RunInterrupted
 from ..estimators import parse_method, run_chain
 from ..estimators.base import EstimationResult, Iteration
@@ -175,7 +175,7 @@ def resume_run(archive: str | Path, *, engine: Resumed = None, progress: bool = 
     """Continue an interrupted run, on the archived engine or ``engine``; the result
     equals that of an uninterrupted run."""
     with RunArchive(archive) as view:
-        if view.status == "finished":
+        if view.status is RunStatus.FINISHED:
             raise ArchiveError(f"{archive}: the run is finished; use 'rapid-cosim rerun' to reproduce it")
         inputs = inputs_from_archive(view)
         options = _resumed_options(view, engine)
@@ -313,7 +313,7 @@ def ensure_run(inputs: RunInputs, options: RunOptions, archive: str | Path, *,
                                "remove it (or choose another archive) to run again")
         if not differences:
             stale_fmu = view.hashes["fmus"] != {m: ref.sha256 for m, ref in inputs.fmus.items()}
-            finished = view.status == "finished"
+            finished = view.status is RunStatus.FINISHED
             result = view.result() if finished else None
     if differences:  # replace_stale: the workflow's own archive of another run, closed now
         archive.unlink()

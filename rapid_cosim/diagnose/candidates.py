@@ -24,7 +24,7 @@ from ..fitting.objective import ProblemObjective, evaluate_in_detail
 from ..experiment import Experiment, parse_experiment, render_config
 from ..noise import RecorderNoise
 from ..simulator import FmuRef
-from .catalogue import CATALOGUE, EFFECTS, NONE, bench_name, effect_parameters
+from .catalogue import BASE, CATALOGUE, EFFECTS, bench_name, effect_parameters
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class CandidateSpec:
 
     @property
     def label(self) -> str:
-        name = "+".join(self.effects) or NONE
+        name = "+".join(self.effects) or BASE
         return name + "".join(f"@{k}={v:g}" for k, v in self.held)
 
     @property

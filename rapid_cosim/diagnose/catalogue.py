@@ -63,7 +63,8 @@ class VerdictKind(StrEnum):
 
 
 NONE, AMBIGUOUS, UNEXPLAINED = (VerdictKind.NONE.value, VerdictKind.AMBIGUOUS.value,
-                                VerdictKind.UNEXPLAINED.value)
+                                VerdictKind.UNEXPLAINED.value)  # the words, as a verdict's effect holds them
+BASE = "none"  # the label of the candidate without an effect (the base model), in rankings and fits
 
 
 @dataclass(frozen=True)

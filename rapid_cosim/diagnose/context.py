@@ -28,7 +28,7 @@ from ..simulator import DEFAULT_RUNNER
 from .adequacy import Adequacy, adequacy
 from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, jacobian_at, \
     residuals_at
-from .catalogue import BASES, CATALOGUE, NONE, bench_name, is_generated, write_bench
+from .catalogue import BASE, BASES, CATALOGUE, bench_name, is_generated, write_bench
 from .null import REPLICATES, KeptReplicates, NoiseReplicates, replicates_for
 from .selection import THRESHOLD, bic, noise_floors
 
@@ -157,7 +157,7 @@ class Context:
             fits = [f for part in parts for f in part]
         else:
             run_options = self.run_options
-            if self.parallel and len(jobs) == 1 and jobs[0][0].label == NONE:
+            if self.parallel and len(jobs) == 1 and jobs[0][0].label == BASE:
                 # the base model, the first fit: here, as a worker fits a candidate, not batch
                 # by batch on workers that are still starting (a set's score does not depend
                 # on where it is computed, so the numbers are the same)
@@ -186,7 +186,7 @@ class Context:
                                    kept=self.kept, engine=self.options.engine)
 
     def base_parameters(self) -> dict[str, float] | None:
-        base = self.fits.get(NONE)
+        base = self.fits.get(BASE)
         return dict(base.parameters) if base else None
 
     def tests(self, fit: CandidateFit) -> dict:

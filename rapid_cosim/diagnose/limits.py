@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from .adequacy import misfit_locations
 from .candidates import CandidateFit, CandidateSpec
-from .catalogue import AMBIGUOUS, NONE, UNEXPLAINED
+from .catalogue import BASE, NONE, UNEXPLAINED, VerdictKind
 from .materiality import gap_share, material
 from .selection import Verdict
 
@@ -60,9 +60,9 @@ def inadequate(ctx, verdict: Verdict, ranking, before_tests, after_tests, fit_af
     explanation and where the misfit lies."""
     experiments = ctx.training + ctx.heldout
     where = misfit_locations(experiments, after_tests, ctx.noise)
-    passing = [label for label, fit in ctx.fits.items() if label != NONE and not fit.spec.held
+    passing = [label for label, fit in ctx.fits.items() if label != BASE and not fit.spec.held
                and ctx.adequacy(fit).adequate]
-    best = next((r for r in ranking if r.label != NONE), None)
+    best = next((r for r in ranking if r.label != BASE), None)
     partial = None
     if best is not None:
         share = gap_share(before_tests, ctx.tests(ctx.fits[best.label]), ctx.noise)
@@ -73,8 +73,8 @@ def inadequate(ctx, verdict: Verdict, ranking, before_tests, after_tests, fit_af
     first = ctx.fits.get(CandidateSpec(tuple(verdict.effects[:1])).label) if verdict.effects else None
     first_share = gap_share(before_tests, ctx.tests(first), ctx.noise) if first is not None else 0.0
     info["named_gap_share"], info["first_effect_gap_share"] = named_share, first_share
-    ambiguous_failing = verdict.effect == AMBIGUOUS and not set(verdict.candidates) & set(passing)
-    if (verdict.effect == NONE and not passing) or ambiguous_failing or (
+    ambiguous_failing = verdict.kind is VerdictKind.AMBIGUOUS and not set(verdict.candidates) & set(passing)
+    if (verdict.kind is VerdictKind.NONE and not passing) or ambiguous_failing or (
             verdict.effects and first_share < MIN_PARTIAL_SHARE and named_share < MIN_NAMED_SHARE):
         what = ("the base model" if not verdict.effects else
                 f"the model with {' + '.join(verdict.effects)} (removing {named_share:.0%} of the gap; "
@@ -93,6 +93,6 @@ def inadequate(ctx, verdict: Verdict, ranking, before_tests, after_tests, fit_af
 
 def verdict_text(verdict: Verdict, fit_after) -> str:
     named = " + ".join(verdict.effects) if verdict.effects else verdict.effect
-    if not fit_after.adequate and verdict.effect != UNEXPLAINED:
+    if not fit_after.adequate and verdict.kind is not VerdictKind.UNEXPLAINED:
         return f"{named} + unexplained remainder"
     return named

@@ -11,6 +11,7 @@ import h5py
 import numpy as np
 
 from .adequacy import Adequacy
+from .catalogue import VerdictKind
 from .selection import Ranked
 
 
@@ -30,6 +31,10 @@ class DiagnosisVerdict:
     not_excluded: list[str]
     separating_test: dict | None
     held_out: dict | None
+
+    @property
+    def kind(self) -> VerdictKind:
+        return VerdictKind.of(self.effect)
 
 
 @dataclass(frozen=True)
@@ -95,6 +100,10 @@ class Diagnosis:
     @property
     def effect(self) -> str:
         return self.named.effect
+
+    @property
+    def kind(self) -> VerdictKind:
+        return self.named.kind
 
     @property
     def adequate(self) -> bool:

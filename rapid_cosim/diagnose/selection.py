@@ -41,7 +41,7 @@ import numpy as np
 from ..experiment import Experiment
 from ..noise import NoiseFit, campaign_noise
 from .candidates import CandidateFit, ExperimentResiduals
-from .catalogue import AMBIGUOUS, NONE
+from .catalogue import AMBIGUOUS, BASE, NONE, VerdictKind
 
 THRESHOLD = 10.0
 
@@ -140,12 +140,16 @@ class Ranked:
 
 @dataclass
 class Verdict:
-    effect: str  # a catalogue name, "none" or "ambiguous"
+    effect: str  # a catalogue name or the word of its kind (none, ambiguous, unexplained): see .kind
     effects: list[str] = field(default_factory=list)  # named effects, greedy order
     candidates: list[str] = field(default_factory=list)  # when ambiguous: which could not be told apart
     reason: str = ""  # why this verdict, in one clause; what later stages learn goes to notes
     held_out: dict | None = None
     notes: list[str] = field(default_factory=list)
+
+    @property
+    def kind(self) -> VerdictKind:
+        return VerdictKind.of(self.effect)
 
     def note(self, text: str) -> None:
         """What a later stage adds (held-out confirmation, a limit it ran into): kept
@@ -167,14 +171,14 @@ def rank(fits: Sequence[CandidateFit], noise: Mapping[str, NoiseFloor]) -> list[
 
 def _margin(ranking: Sequence[Ranked], candidate: Ranked) -> float:
     """How much better than ``none`` the candidate is (positive: better)."""
-    none = next(r for r in ranking if r.label == "none")
+    none = next(r for r in ranking if r.label == BASE)
     return none.bic - candidate.bic
 
 
 def decisive(ranking: Sequence[Ranked], threshold: float = THRESHOLD) -> bool:
     """Whether the best candidate is an effect that beats ``none`` by the threshold."""
     best = ranking[0]
-    return best.label != "none" and _margin(ranking, best) >= threshold
+    return best.label != BASE and _margin(ranking, best) >= threshold
 
 
 def decide(ranking: Sequence[Ranked], *, threshold: float = THRESHOLD,
@@ -186,17 +190,17 @@ def decide(ranking: Sequence[Ranked], *, threshold: float = THRESHOLD,
     """
     best = ranking[0]
     if not decisive(ranking, threshold):
-        closest = best if best.label != "none" else ranking[1]
+        closest = best if best.label != BASE else ranking[1]
         support = (f"no effect improves the criterion decisively (closest: {closest.label}, "
                    f"{_margin(ranking, closest):+.1f} against the base model)")
         if not_excluded:  # a caveat, not a verdict: nothing is shown missing
-            return Verdict("none", reason=support + "; the data cannot exclude " + ", ".join(not_excluded)
+            return Verdict(NONE, reason=support + "; the data cannot exclude " + ", ".join(not_excluded)
                                           + " at a material size (it fits as well as the base model with other "
                                             "parameters)")
-        return Verdict("none", reason=support)
+        return Verdict(NONE, reason=support)
     margin_none = _margin(ranking, best)
     # ambiguous only between effects that each beat none decisively
-    rivals = [r.label for r in ranking[1:] if r.label != "none" and r.delta < threshold
+    rivals = [r.label for r in ranking[1:] if r.label != BASE and r.delta < threshold
               and _margin(ranking, r) >= threshold]
     if rivals:
         return Verdict(AMBIGUOUS, candidates=[best.label, *rivals],
@@ -219,7 +223,7 @@ def settle_on_heldout(verdict: Verdict, ranking: Sequence[Ranked], heldout_terms
     which the held-out confirmation against ``none`` answers later.
     """
     tied = verdict.candidates
-    if verdict.effect != AMBIGUOUS or NONE in tied or not all(c in heldout_terms for c in tied):
+    if verdict.kind is not VerdictKind.AMBIGUOUS or BASE in tied or not all(c in heldout_terms for c in tied):
         return verdict
     bics = {r.label: r.bic for r in ranking}
     total = {c: bics[c] + heldout_terms[c] for c in tied}
@@ -232,7 +236,7 @@ def settle_on_heldout(verdict: Verdict, ranking: Sequence[Ranked], heldout_terms
         return verdict
     parts = ", ".join(f"{c} by {total[c] - total[best]:.1f} (held-out {heldout_terms[c] - heldout_terms[best]:+.1f})"
                       for c in order[1:])
-    margin_none = bics[NONE] - bics[best] if NONE in bics else float("nan")
+    margin_none = bics[BASE] - bics[best] if BASE in bics else float("nan")
     return Verdict(best, effects=[best],
                    reason=f"{best} beats none by {margin_none:.1f}; {', '.join(order[1:])} fit the training tests "
                           f"within {threshold:g} of it, but over training and held-out tests together it beats "

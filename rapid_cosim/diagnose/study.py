@@ -24,7 +24,7 @@ import numpy as np
 from ..compiler.source import ModelSource
 from ..experiment import load_experiment
 from .campaigns import CAMPAIGN, FOREIGN, SINGLE_SIZE, Case, draw_case, write_campaign  # noqa: F401  (re-exported)
-from .catalogue import AMBIGUOUS, CATALOGUE, EFFECTS, NONE, UNEXPLAINED, VARIANTS
+from .catalogue import AMBIGUOUS, CATALOGUE, EFFECTS, NONE, UNEXPLAINED, VARIANTS, VerdictKind
 from .workflow import DiagnoseOptions, Diagnosis, diagnose
 
 # The physical effects a plant can hide (the freed documented constants are studied apart).
@@ -43,7 +43,7 @@ class CaseResult:
         d = self.diagnosis.named
         self.named_first = d.effects[0] if d.effects else d.effect
         # no model was added for these verdicts, so there is no shrink to measure
-        self.gap_shrink = None if d.effect in (NONE, AMBIGUOUS, UNEXPLAINED) else _shrink(self.diagnosis,
+        self.gap_shrink = None if d.kind is not VerdictKind.NAMED else _shrink(self.diagnosis,
                                                                                            self.case.noise.sigma)
 
     @property
@@ -51,7 +51,7 @@ class CaseResult:
         """The verdict as the confusion matrix counts it: a named effect, ``none``,
         ``ambiguous``, ``unexplained``, or ``+remainder`` (named, model still inadequate)."""
         d = self.diagnosis
-        if d.effect in (NONE, AMBIGUOUS, UNEXPLAINED):
+        if d.kind is not VerdictKind.NAMED:
             return d.effect
         return self.named_first if d.adequate else "+remainder"
 
@@ -63,12 +63,12 @@ class CaseResult:
         tell apart."""
         d = self.diagnosis.named
         if self.case.foreign:
-            return d.effect == UNEXPLAINED
+            return d.kind is VerdictKind.UNEXPLAINED
         if len(self.case.effects) > 1:
             return set(d.effects) == set(self.case.effects)
         if self.case.truth in VARIANTS:
             return self.named_first in (self.case.truth, VARIANTS[self.case.truth].variant_of) or (
-                d.effect == AMBIGUOUS and self.case.truth in d.candidates)
+                d.kind is VerdictKind.AMBIGUOUS and self.case.truth in d.candidates)
         return self.named_first == self.case.truth
 
     @property
@@ -86,7 +86,7 @@ class CaseResult:
     def wrong_whole_story(self) -> bool:
         """A catalogue name given as the whole story (adequate model) that is wrong."""
         d = self.diagnosis
-        return d.effect not in (NONE, AMBIGUOUS, UNEXPLAINED) and d.adequate and not self.correct
+        return d.kind is VerdictKind.NAMED and d.adequate and not self.correct
 
 
 def _shrink(d: Diagnosis, sigma: float) -> float | None:

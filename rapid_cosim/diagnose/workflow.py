@@ -26,7 +26,7 @@ from ..fitting.objective import ProblemObjective
 from ..experiment import Experiment
 from .adequacy import jitter_share
 from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, residuals_at
-from .catalogue import AMBIGUOUS, BASES, CATALOGUE, NONE, UNEXPLAINED, camel, check_base, composable, effect_parameters, governor, is_staged, \
+from .catalogue import BASE, BASES, CATALOGUE, NONE, VerdictKind, camel, check_base, composable, effect_parameters, governor, is_staged, \
     write_bench
 from .context import Context, DiagnoseOptions, split_holdout
 from .null import KeptReplicates
@@ -74,7 +74,7 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
     unexplained = None
     if not fit_after.adequate:
         verdict, unexplained = inadequate(ctx, verdict, ranking, before_tests, after_tests, fit_after)
-        if verdict.effect == UNEXPLAINED:
+        if verdict.kind is VerdictKind.UNEXPLAINED:
             chosen = None  # a partial explanation is reported, not written into the package
     model_written, model_file = None, None
     if chosen is not None and options.write_model:
@@ -157,14 +157,14 @@ def _name(ctx: Context, base: CandidateFit, ranking: list[Ranked], options: Diag
     if not decisive(ranking, options.threshold):
         not_excluded = _material_checks(ctx, base, options)
     verdict = decide(ranking, threshold=options.threshold, not_excluded=not_excluded)
-    if verdict.effect == AMBIGUOUS and ctx.heldout and NONE not in verdict.candidates:
+    if verdict.kind is VerdictKind.AMBIGUOUS and ctx.heldout and BASE not in verdict.candidates:
         verdict = settle_on_heldout(verdict, ranking, {c: _held_out_score(ctx, ctx.fits[c])
                                                        for c in verdict.candidates if c in ctx.fits},
                                     options.threshold)
-    chosen = ctx.fits[verdict.effect] if verdict.effect in ctx.fits and verdict.effect != NONE else None
+    chosen = ctx.fits[verdict.effect] if verdict.kind is VerdictKind.NAMED and verdict.effect in ctx.fits else None
     if chosen is not None and ctx.heldout:
         verdict = _confirm(ctx, chosen, base, verdict)
-        if verdict.effect == NONE:  # not confirmed: a caveat of none, not a verdict
+        if verdict.kind is VerdictKind.NONE:  # not confirmed: a caveat of none, not a verdict
             not_excluded = [*not_excluded, chosen.spec.label]
             chosen = None
     second: list[Ranked] = []
@@ -173,13 +173,13 @@ def _name(ctx: Context, base: CandidateFit, ranking: list[Ranked], options: Diag
     variants, story = {}, None
     if chosen is not None:
         chosen, verdict, variants, story = check_variants(ctx, chosen, verdict, options.threshold)
-        if verdict.effect == AMBIGUOUS:
+        if verdict.kind is VerdictKind.AMBIGUOUS:
             chosen = None
     separating = None
-    if verdict.effect == AMBIGUOUS:
+    if verdict.kind is VerdictKind.AMBIGUOUS:
         separating = _separating(ctx, verdict.candidates, not_excluded)
-    elif verdict.effect == NONE and not_excluded:  # the staged test that would tell none from the caveat
-        separating = _separating(ctx, [NONE, not_excluded[0]], not_excluded)
+    elif verdict.kind is VerdictKind.NONE and not_excluded:  # the staged test that would tell none from the caveat
+        separating = _separating(ctx, [BASE, not_excluded[0]], not_excluded)
         if separating:
             verdict.note(separating['advice'])
     materiality = {}
@@ -272,7 +272,7 @@ def _separating(ctx: Context, labels: Sequence[str], not_excluded: Sequence[str]
     a = ctx.fits.get(labels[0])
     other = labels[1]
     b = None
-    if other in not_excluded or (labels[0] == NONE and other in CATALOGUE):
+    if other in not_excluded or (labels[0] == BASE and other in CATALOGUE):
         held = tuple((p.name, p.material) for p in CATALOGUE[other].parameters)
         b = ctx.fits.get(CandidateSpec((other,), held).label)  # at its material size
     b = b or ctx.fits.get(other)

@@ -8,7 +8,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
 
-from ..diagnose.catalogue import NONE, VerdictKind
+from ..diagnose.catalogue import VerdictKind
 from .unit import NO_HOLDOUT
 
 # What each standard structure can represent of the effect catalogue, as its own
@@ -207,7 +207,7 @@ class Identification:
         e = self.explanation
         lines = [f"explanation (TG Type I and the effect catalogue): {e['verdict']}, "
                  f"{'adequate' if e['adequate'] else 'not adequate'} (campaign p {e['p']:.2g})"]
-        if e["effect"] == NONE and e.get("not_excluded"):
+        if VerdictKind.of(e["effect"]) is VerdictKind.NONE and e.get("not_excluded"):
             test = e.get("separating_test")
             lines[0] += (f"; not excluded at a material size: {', '.join(e['not_excluded'])}"
                          + (f" ({test['advice']})" if test else ""))

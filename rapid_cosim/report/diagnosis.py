@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 
 from .figures import plt, save
-from ..diagnose.catalogue import AMBIGUOUS
+from ..diagnose.catalogue import VerdictKind
 
 
 def load(folder: str | Path) -> tuple[dict, dict[str, dict[str, np.ndarray]]]:
@@ -63,7 +63,7 @@ def residual_figure(folder: str | Path, out: str | Path | None = None, *, dpi: i
         ax.set_xlabel("time (s)")
     axes.flat[0].legend(fontsize=7, loc="upper right")
     verdict = record.get("verdict") or record["effect"]
-    if record["effect"] == AMBIGUOUS:
+    if VerdictKind.of(record["effect"]) is VerdictKind.AMBIGUOUS:
         verdict = verdict.replace("ambiguous", "ambiguous between " + " and ".join(record["candidates"]))
     fig.suptitle(f"Residuals: verdict {verdict} (red: windows not explained by noise)",
                  fontsize=10)
@@ -83,7 +83,7 @@ def markdown(folder: str | Path) -> str:
     record, _ = load(folder)
     lines = ["# Discrepancy diagnosis", ""]
     text = record.get("verdict") or (" + ".join(record["effects"]) or record["effect"])
-    if record["effect"] == AMBIGUOUS:
+    if VerdictKind.of(record["effect"]) is VerdictKind.AMBIGUOUS:
         text = text.replace("ambiguous", f"ambiguous between {' and '.join(record['candidates'])}")
     lines.append(f"**Verdict: {text}.** {record['reason']}.")
     unexplained = record.get("unexplained")

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .figures import plt, save
-from ..diagnose.catalogue import AMBIGUOUS
+from ..diagnose.catalogue import VerdictKind
 
 
 def markdown(record: dict) -> str:
@@ -39,7 +39,7 @@ def markdown(record: dict) -> str:
         for r in eff["ranking"][:6]:
             params = ", ".join(f"{k} = {v:.4g}" for k, v in r["parameters"].items())
             lines.append(f"| {r['label']} | {r['delta']:.1f} | {params} |")
-    elif record["structure"] == AMBIGUOUS:
+    elif VerdictKind.of(record["structure"]) is VerdictKind.AMBIGUOUS:
         lines += ["", "The effect catalogue was not run: no structure wins."]
     lines += ["", "## Identifiability at each optimum (Fisher information of the prewhitened residuals)", ""]
     for r in record["ranking"]:

@@ -42,7 +42,7 @@ from ..experiment import EstimateSpec, Experiment
 from ..simulator import get_simulator
 from ..noise import campaign_noise
 from ..diagnose.adequacy import TestAdequacy, adequacy
-from ..diagnose.catalogue import AMBIGUOUS, UNEXPLAINED
+from ..diagnose.catalogue import AMBIGUOUS, UNEXPLAINED, VerdictKind
 from ..diagnose.candidates import jacobian_at, residuals_at
 from .identifiability import best_separating_step, identifiability
 from .structure import Structure, on_structure
@@ -74,7 +74,7 @@ class StructureFit:
 
 @dataclass
 class StructureVerdict:
-    structure: str  # a name, "ambiguous" or "unexplained"
+    structure: str  # a name, or the word of its kind (ambiguous, unexplained): see .kind
     candidates: list[str]
     reason: str
     ranking: list[StructureFit] = field(default_factory=list)
@@ -82,13 +82,17 @@ class StructureVerdict:
     separating_test: dict | None = None  # when ambiguous: the staged test that would tell the first two apart
 
     @property
+    def kind(self) -> VerdictKind:
+        return VerdictKind.of(self.structure)
+
+    @property
     def winner(self) -> str | None:
         """The structure the effect catalogue runs on: the one named, or, when none fits
         to the noise, the first if it beats every other by the threshold (what is missing
         may be an effect on top of it)."""
-        if self.structure not in (AMBIGUOUS, UNEXPLAINED):
+        if self.kind is VerdictKind.NAMED:
             return self.structure
-        if self.structure == UNEXPLAINED and (len(self.ranking) == 1 or self.ranking[1].delta >= THRESHOLD):
+        if self.kind is VerdictKind.UNEXPLAINED and (len(self.ranking) == 1 or self.ranking[1].delta >= THRESHOLD):
             return self.ranking[0].name
         return None
 
@@ -171,7 +175,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         f.delta = f.bic - fits[0].bic
     verdict = _verdict(fits, threshold)
     staged = [e for e in training if not e.inputs]  # a step test to design the next one from
-    if verdict.structure == AMBIGUOUS and staged:
+    if verdict.kind is VerdictKind.AMBIGUOUS and staged:
         a, b = (next(s for s in structures if s.name == n) for n in verdict.candidates[:2])
         verdict.separating_test = _separating(a, b, fits, staged[0], noise, source)
         log(f"  {verdict.separating_test['advice']}")
