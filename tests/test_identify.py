@@ -309,3 +309,35 @@ def test_the_reports_record_note_says_each_clause_once():
                            "first by BIC (TGOV1, 4 estimated parameters); within the noise on every test", "TGOV1", 0.0)
     note = record_note(ident)
     assert note.count("within the noise on every test") == 1 and note.count("cannot carry deadband") == 1, note
+
+
+def test_a_part_the_data_lean_to_is_said_where_it_moves_the_record():
+    """Issue 53: a single event's deadband unit got a plain TGOV1 whose droop held the band
+    (+25 %), and nothing said so: the explanation's catalogue (on TG Type I) excluded a band,
+    and freeing TGOV1's db did not win by the threshold. A freed fit that moves a stated
+    parameter by more than 5 % is now said, and the record's effect counted undetermined; one
+    that leaves them where they were is not."""
+    from rapid_cosim.identify.workflow import _moved_by
+    from rapid_cosim.structures.select import StructureFit
+    from rapid_cosim.structures.shipped import standard_file
+    from rapid_cosim.structures.structure import Structure
+
+    tgov1 = Structure.load(standard_file("TGOV1"))
+
+    def fit(name, bic, **values):
+        return StructureFit(name, bic, 0.0, 1.0, values, len(values), True, 1.0, None, {}, None, "")
+
+    plain = {"gov.R": 0.0538, "gov.T1": 0.77, "gov.T2": 2.14, "gov.T3": 4.96}
+    fits = {"TGOV1": fit("TGOV1", 100.0, **plain),
+            "TGOV1+deadband": fit("TGOV1+deadband", 101.6, **{**plain, "gov.R": 0.0444, "gov.T3": 6.09,
+                                                              "gov.db": 0.00053})}
+    words = _moved_by(tgov1, fits, None)
+    assert list(words) == ["deadband"]
+    assert "moves R from 0.0538 to 0.0444 (-17 %) and T3 from 4.96 to 6.09 (+23 %);" in words["deadband"] and "+1.6 in BIC" in words["deadband"]
+    assert "db = 0.00053" in words["deadband"] and "events of two sizes" in words["deadband"]
+    assert _moved_by(tgov1, fits, "deadband") == {}  # kept: the record carries it
+    fits["TGOV1+deadband"] = fit("TGOV1+deadband", 107.8, **{**plain, "gov.R": 0.0540, "gov.db": 1e-6})
+    assert _moved_by(tgov1, fits, None) == {}  # freed, it stays where the plain fit is
+    fits["TGOV1"].identifiability["parameters"] = {"gov.R": {"relative_se": 0.01}, "gov.T3": {"relative_se": 0.9}}
+    fits["TGOV1+deadband"] = fit("TGOV1+deadband", 101.6, **{**plain, "gov.T3": 9.0, "gov.db": 0.00053})
+    assert _moved_by(tgov1, fits, None) == {}  # T3 moves, but the plain fit does not determine it either

@@ -169,8 +169,11 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
     best = {e: min((fits[v.name].bic for v in structure.optional_variants() if v.name in fits
                     and structure.freed_effect(v.name) == e), default=None) for e in structure.effects}
     kept = _Kept(structure.freed_effect(use.name), plain.bic, best)
-    clauses += _carrying(structure, missing, open_, kept, use.parameters, relative_se)
     undetermined = [e for e in structure.effects if e != kept.effect and (e in open_ or e in missing)]
+    moved = {e: w for e, w in _moved_by(structure, fits, kept.effect).items() if e not in undetermined}
+    clauses += _carrying(structure, missing, open_, kept, use.parameters, relative_se, moved=list(moved))
+    clauses += moved.values()
+    undetermined += moved
     swaps = [f"{x['a']} and {x['b']}" for x in use.identifiability.get("exchanges", [])]
     if swaps:
         clauses.append(f"the tests fit {', '.join(swaps)} either way round: which is which is not the data's to say")
@@ -180,6 +183,38 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
                           cannot_carry=missing, words="; ".join(clauses), archive=use.archive,
                           at_bounds=use.at_bounds, relative_se=relative_se, cautions=clauses[1:],
                           freed_effect=kept.effect, undetermined=undetermined)
+
+
+MOVED = 0.05  # a relative change in a kept parameter that a record's user would see (a droop 5 % off)
+
+
+def _moved_by(structure: Structure, fits: dict[str, StructureFit], kept: str | None) -> dict[str, str]:
+    """Effects whose parts were not kept, but whose freed fit moves a parameter the plain fit
+    determines by more than MOVED and two of its standard errors: the data lean towards the effect without deciding it, and the
+    record's value depends on the choice (a single event's droop holding a deadband: the
+    explanation's catalogue, on TG Type I, may not see it, and the plain record states a
+    droop 25 % off). Said, not silently kept."""
+    plain = fits[structure.name]
+    out = {}
+    for effect in structure.effects:
+        freed = [fits[v.name] for v in structure.optional_variants()
+                 if v.name in fits and structure.freed_effect(v.name) == effect]
+        if effect == kept or not freed:
+            continue
+        best = min(freed, key=lambda f: f.bic)
+        se = {n: v["relative_se"] for n, v in plain.identifiability.get("parameters", {}).items()}
+        moves = {n: best.parameters[n] / v - 1 for n, v in plain.parameters.items()
+                 if n in structure.estimate and n in best.parameters and v and se.get(n, 0.0) <= WEAK_SE}
+        moved = [f"{n.removeprefix('gov.')} from {plain.parameters[n]:.4g} to {best.parameters[n]:.4g} "
+                 f"({100 * m:+.0f} %)" for n, m in moves.items() if abs(m) > max(MOVED, 2 * se.get(n, 0.0))]
+        if not moved:
+            continue
+        parts = ", ".join(f"{n.removeprefix('gov.')} = {best.parameters[n]:.3g}" for n in structure.parts(effect))
+        out[effect] = (f"the recordings do not determine a {effect.replace('_', ' ')}: freed, it fits "
+                       f"{best.bic - plain.bic:+.1f} in BIC ({parts}) and moves {' and '.join(moved)}; the record "
+                       "states none, so its values hold the choice"
+                       + ("; events of two sizes separate a band from the droop" if effect == "deadband" else ""))
+    return out
 
 
 @dataclass(frozen=True)
@@ -201,7 +236,7 @@ class _Kept:
 
 
 def _carrying(structure: Structure, missing: list[str], open_: list[str], kept: _Kept,
-              parameters: dict[str, float], relative_se: dict[str, float]) -> list[str]:
+              parameters: dict[str, float], relative_se: dict[str, float], moved: Sequence[str] = ()) -> list[str]:
     """What the kept fit cannot carry, in words: an effect the explanation names that the
     structure has no part for, or holds off in its file, or whose optional parts were not
     kept (why: :meth:`_Kept.why_not`; a droop may then have absorbed a deadband); an effect
@@ -230,9 +265,9 @@ def _carrying(structure: Structure, missing: list[str], open_: list[str], kept: 
         out.append(f"the explanation names {effect}, which {structure.name}'s {parts} would carry, but "
                    f"{kept.why_not(effect)}, and the record states none"
                    + ("; its droop may have absorbed the band" if effect == "deadband" else ""))
-    if kept.effect is None and not unfreed and not said and any(b is not None for b in kept.best.values()):
-        freed = "; ".join(f"{', '.join(n.removeprefix('gov.') for n in structure.parts(e))} ({e})"
-                          for e in structure.effects)
+    quiet = [e for e in structure.effects if e not in moved]  # a moved one is said by _moved_by
+    if kept.effect is None and not unfreed and not said and quiet and any(b is not None for b in kept.best.values()):
+        freed = "; ".join(f"{', '.join(n.removeprefix('gov.') for n in structure.parts(e))} ({e})" for e in quiet)
         out.append(f"freeing {freed} did not win by {THRESHOLD:g} in BIC")
     if kept.effect is not None:
         weak = [(n, relative_se[n]) for n in structure.parts(kept.effect) if relative_se.get(n, 0.0) > WEAK_SE]
