@@ -341,3 +341,9 @@ def test_a_part_the_data_lean_to_is_said_where_it_moves_the_record():
     fits["TGOV1"].identifiability["parameters"] = {"gov.R": {"relative_se": 0.01}, "gov.T3": {"relative_se": 0.9}}
     fits["TGOV1+deadband"] = fit("TGOV1+deadband", 101.6, **{**plain, "gov.T3": 9.0, "gov.db": 0.00053})
     assert _moved_by(tgov1, fits, None) == {}  # T3 moves, but the plain fit does not determine it either
+    ieeeg1 = Structure.load(standard_file("IEEEG1"))
+    plain = {"gov.K": 20.0, "gov.T3": 0.5, "gov.T5": 5.0}
+    fits = {"IEEEG1": fit("IEEEG1", 100.0, **plain),
+            "IEEEG1+rate_limit(Uc)": fit("IEEEG1+rate_limit(Uc)", 99.0, **{**plain, "gov.K": 23.0, "gov.Uc": -0.05})}
+    words = _moved_by(ieeeg1, fits, None)  # the best of an effect's fits frees one of its parts
+    assert list(words) == ["rate_limit"] and "(Uc = -0.05)" in words["rate_limit"]

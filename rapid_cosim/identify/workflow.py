@@ -209,7 +209,8 @@ def _moved_by(structure: Structure, fits: dict[str, StructureFit], kept: str | N
                  f"({100 * m:+.0f} %)" for n, m in moves.items() if abs(m) > max(MOVED, 2 * se.get(n, 0.0))]
         if not moved:
             continue
-        parts = ", ".join(f"{n.removeprefix('gov.')} = {best.parameters[n]:.3g}" for n in structure.parts(effect))
+        parts = ", ".join(f"{n.removeprefix('gov.')} = {best.parameters[n]:.3g}" for n in structure.parts(effect)
+                          if n in best.parameters)  # the best may free some of them (IEEEG1+rate_limit(Uc))
         out[effect] = (f"the recordings do not determine a {effect.replace('_', ' ')}: freed, it fits "
                        f"{best.bic - plain.bic:+.1f} in BIC ({parts}) and moves {' and '.join(moved)}; the record "
                        "states none, so its values hold the choice"
