@@ -317,6 +317,10 @@ def test_a_part_the_data_lean_to_is_said_where_it_moves_the_record():
     and freeing TGOV1's db did not win by the threshold. A freed fit that moves a stated
     parameter by more than 5 % is now said, and the record's effect counted undetermined; one
     that leaves them where they were is not."""
+    from dataclasses import replace
+
+    import numpy as np
+
     from rapid_cosim.identify.workflow import _moved_by
     from rapid_cosim.structures.select import StructureFit
     from rapid_cosim.structures.shipped import standard_file
@@ -324,8 +328,9 @@ def test_a_part_the_data_lean_to_is_said_where_it_moves_the_record():
 
     tgov1 = Structure.load(standard_file("TGOV1"))
 
-    def fit(name, bic, **values):
-        return StructureFit(name, bic, 0.0, 1.0, values, len(values), True, 1.0, None, {}, None, "")
+    def fit(name, bic, **values):  # 2400 samples: the data term is the BIC less k ln n
+        return StructureFit(name, bic, 0.0, 1.0, values, len(values), True, 1.0, None, {}, None, "",
+                            data_term=bic - len(values) * np.log(2400))
 
     plain = {"gov.R": 0.0538, "gov.T1": 0.77, "gov.T2": 2.14, "gov.T3": 4.96}
     fits = {"TGOV1": fit("TGOV1", 100.0, **plain),
@@ -334,7 +339,9 @@ def test_a_part_the_data_lean_to_is_said_where_it_moves_the_record():
     words = _moved_by(tgov1, fits, None)
     assert list(words) == ["deadband"]
     assert "moves R from 0.0538 to 0.0444 (-17 %) and T3 from 4.96 to 6.09 (+23 %);" in words["deadband"] and "+1.6 in BIC" in words["deadband"]
-    assert "db = 0.00053" in words["deadband"] and "events of two sizes" in words["deadband"]
+    assert "(db = 0.00053; likelihood-ratio p 0.013)" in words["deadband"] and "events of two sizes" in words["deadband"]
+    fits["TGOV1+deadband"] = replace(fits["TGOV1+deadband"], bic=107.0, data_term=107.0 - 5 * np.log(2400))
+    assert _moved_by(tgov1, fits, None) == {}  # R moves as much, but the data do not lean to the band (p 0.37)
     assert _moved_by(tgov1, fits, "deadband") == {}  # kept: the record carries it
     fits["TGOV1+deadband"] = fit("TGOV1+deadband", 107.8, **{**plain, "gov.R": 0.0540, "gov.db": 1e-6})
     assert _moved_by(tgov1, fits, None) == {}  # freed, it stays where the plain fit is
@@ -344,6 +351,6 @@ def test_a_part_the_data_lean_to_is_said_where_it_moves_the_record():
     ieeeg1 = Structure.load(standard_file("IEEEG1"))
     plain = {"gov.K": 20.0, "gov.T3": 0.5, "gov.T5": 5.0}
     fits = {"IEEEG1": fit("IEEEG1", 100.0, **plain),
-            "IEEEG1+rate_limit(Uc)": fit("IEEEG1+rate_limit(Uc)", 99.0, **{**plain, "gov.K": 23.0, "gov.Uc": -0.05})}
-    words = _moved_by(ieeeg1, fits, None)  # the best of an effect's fits frees one of its parts
-    assert list(words) == ["rate_limit"] and "(Uc = -0.05)" in words["rate_limit"]
+            "IEEEG1+rate_limit(Uc)": fit("IEEEG1+rate_limit(Uc)", 103.8, **{**plain, "gov.K": 23.0, "gov.Uc": -0.05})}
+    words = _moved_by(ieeeg1, fits, None)  # the best of an effect's fits frees one of its parts (p 0.046)
+    assert list(words) == ["rate_limit"] and "(Uc = -0.05; likelihood-ratio p 0.046)" in words["rate_limit"]

@@ -33,6 +33,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
+from scipy.stats import chi2
+
 from ..calibration import RunOptions
 from ..compiler.source import ModelSource
 from ..diagnose.context import METHOD
@@ -186,14 +188,18 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
 
 
 MOVED = 0.05  # a relative change in a kept parameter that a record's user would see (a droop 5 % off)
+LEANING = 0.05  # the likelihood-ratio test's level at which the data lean towards a part they do not decide
 
 
 def _moved_by(structure: Structure, fits: dict[str, StructureFit], kept: str | None) -> dict[str, str]:
-    """Effects whose parts were not kept, but whose freed fit moves a parameter the plain fit
-    determines by more than MOVED and two of its standard errors: the data lean towards the effect without deciding it, and the
-    record's value depends on the choice (a single event's droop holding a deadband: the
-    explanation's catalogue, on TG Type I, may not see it, and the plain record states a
-    droop 25 % off). Said, not silently kept."""
+    """Effects whose parts were not kept, but whose freed fit is better than the plain one by
+    a likelihood-ratio test at LEANING and moves a parameter the plain fit determines by more
+    than MOVED and two of its standard errors: the data lean towards the effect without
+    deciding it, and the record's values depend on the choice (a single event's droop
+    holding a deadband: the explanation's catalogue, on TG Type I, may not see it, and the
+    plain record states a droop 25 % off). Said, not silently kept. Without the test, any one
+    event's TGOV1 would be said to hold a band: one event size always trades a band against
+    the droop, whatever the plant."""
     plain = fits[structure.name]
     out = {}
     for effect in structure.effects:
@@ -202,6 +208,11 @@ def _moved_by(structure: Structure, fits: dict[str, StructureFit], kept: str | N
         if effect == kept or not freed:
             continue
         best = min(freed, key=lambda f: f.bic)
+        if plain.data_term is None or best.data_term is None:
+            continue
+        p = float(chi2.sf(plain.data_term - best.data_term, max(best.n_estimated - plain.n_estimated, 1)))
+        if p >= LEANING:
+            continue
         se = {n: v["relative_se"] for n, v in plain.identifiability.get("parameters", {}).items()}
         moves = {n: best.parameters[n] / v - 1 for n, v in plain.parameters.items()
                  if n in structure.estimate and n in best.parameters and v and se.get(n, 0.0) <= WEAK_SE}
@@ -212,7 +223,7 @@ def _moved_by(structure: Structure, fits: dict[str, StructureFit], kept: str | N
         parts = ", ".join(f"{n.removeprefix('gov.')} = {best.parameters[n]:.3g}" for n in structure.parts(effect)
                           if n in best.parameters)  # the best may free some of them (IEEEG1+rate_limit(Uc))
         out[effect] = (f"the recordings do not determine a {effect.replace('_', ' ')}: freed, it fits "
-                       f"{best.bic - plain.bic:+.1f} in BIC ({parts}) and moves {' and '.join(moved)}; the record "
+                       f"{best.bic - plain.bic:+.1f} in BIC ({parts}; likelihood-ratio p {p:.2g}) and moves {' and '.join(moved)}; the record "
                        "states none, so its values hold the choice"
                        + ("; events of two sizes separate a band from the droop" if effect == "deadband" else ""))
     return out

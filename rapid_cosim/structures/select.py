@@ -66,6 +66,7 @@ class StructureFit:
     archive: str
     at_bounds: list[str] = field(default_factory=list)  # estimates that ended on a bound of their range
     tests: dict[str, TestAdequacy] = field(default_factory=dict)  # per test, its adequacy
+    data_term: float | None = None  # the BIC less its k ln n: two nested fits' difference is their likelihood ratio
 
     def to_json(self) -> dict:
         """As structures.json holds it (each test's adequacy under its name)."""
@@ -167,7 +168,8 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         fits.append(StructureFit(s.name, data_term + k * np.log(n), 0.0, float(result.fun), result.best(),
                                  len(result.names), fit_ok.adequate, fit_ok.pooled_variance_ratio, held_score,
                                  ident.to_json(), step, str(archive),
-                                 _at_bounds(s.estimate, result.best()), {t.test: t for t in fit_ok.tests}))
+                                 _at_bounds(s.estimate, result.best()), {t.test: t for t in fit_ok.tests},
+                                 float(data_term)))
         log(f"  {s.name} ({', '.join(s.estimate)}): BIC {fits[-1].bic:.1f}, variance ratio "
             f"{fit_ok.pooled_variance_ratio:.2f}, {ident.summary()}")
     fits.sort(key=lambda f: f.bic)
