@@ -30,7 +30,7 @@ EFFECT_DEFAULTS = {
                                    "gov.T_rl": 0.02},
 }
 # extra states of each bench, after xg1, xg2, xg3
-EXTRA_STATES = {"StagedTestDelay": 2, "StagedTestBacklash": 1, "StagedTestLoadController": 1,
+EXTRA_STATES = {"StagedTestBacklash": 1, "StagedTestLoadController": 1,
                 "StagedTestMeasurementLag": 1, "StagedTestLoadControllerFiltered": 2,
                 "StagedTestRateLimitCommand": 1}
 
@@ -63,10 +63,12 @@ class Reference:
     def __init__(self, bench: str, params: dict):
         self.bench = bench
         self.p = {**BASE, **EFFECT_DEFAULTS[bench], **params}
+        # a transport delay moves the step's switching times: y(t) = u(t - T), exactly
+        self.p["src.t_delay"] = self.p.get("dly.T", 0.0) if bench == "StagedTestDelay" else 0.0
 
     def dw(self, t):
         p = self.p
-        on = p["src.t_step"] <= t < p["src.t_return"]
+        on = p["src.t_step"] + p["src.t_delay"] <= t < p["src.t_return"] + p["src.t_delay"]
         return -p["src.df"] / p["src.f_nom"] if on else 0.0
 
     def _governor_input(self, dw, x):
@@ -75,10 +77,6 @@ class Reference:
         if self.bench == "StagedTestDeadband":
             d, e = p["db.db"] / p["db.f_nom"], p["db.eps_db"] / p["db.f_nom"]
             return dw + 0.5 * (np.sqrt((dw - d) ** 2 + e ** 2) - np.sqrt((dw + d) ** 2 + e ** 2)), []
-        if self.bench == "StagedTestDelay":
-            T = p["dly.T"]
-            x1, x2 = x[3], x[4]
-            return dw - 12 / T * x2, [x2, dw - 12 / T ** 2 * x1 - 6 / T * x2]
         return dw, []
 
     def rhs(self, t, x):
@@ -152,8 +150,10 @@ class Reference:
 
 def integrate_between_switches(rhs, output, x0, p, t_out):
     """Output at ``t_out`` of ``x' = rhs(t, x)`` from ``x0``, integrating each interval
-    between the source's switching times (``src.t_step``, ``src.t_return``) apart."""
-    cuts = sorted({0.0, p["src.t_step"], p["src.t_return"], float(t_out[-1])})
+    between the source's switching times (``src.t_step``, ``src.t_return``, each moved by a
+    transport delay ``src.t_delay``) apart."""
+    late = p.get("src.t_delay", 0.0)
+    cuts = sorted({0.0, p["src.t_step"] + late, p["src.t_return"] + late, float(t_out[-1])})
     cuts = [c for c in cuts if c <= t_out[-1]]
     x = x0
     y = np.full(len(t_out), np.nan)

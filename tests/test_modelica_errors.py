@@ -72,9 +72,15 @@ def test_unsupported_construct_names_file_line_and_construct(package, construct,
 
 def test_unsupported_construct_in_an_unused_class_does_not_matter(package):
     _edit(package / "Effects" / "PadeDelay.mo", "der(x1) = x2;", "der(x1) = delay(x2, 0.1);")
-    _translate(package, "iGrGen.TestBenches.StagedTest")  # does not use PadeDelay
+    _translate(package, "iGrGen.TestBenches.StagedTestDelay")  # its delay is exact: no PadeDelay in it
+    (package / "TestBenches" / "StagedTestPade.mo").write_text(
+        "within iGrGen.TestBenches;\nmodel StagedTestPade\n  Sources.FrequencyStep src;\n  Effects.PadeDelay dly;\n"
+        "  Governors.TGTypeI gov;\n  output Real pm;\nequation\n  connect(src.y, dly.u);\n  connect(dly.y, gov.dw);\n"
+        "  pm = gov.pm.signal;\nend StagedTestPade;\n")
+    order = package / "TestBenches" / "package.order"
+    order.write_text(order.read_text() + "StagedTestPade\n")
     with pytest.raises(UnsupportedConstruct, match=r"delay\(\)"):
-        _translate(package, "iGrGen.TestBenches.StagedTestDelay")
+        _translate(package, "iGrGen.TestBenches.StagedTestPade")
 
 
 def test_unknown_function_is_located(package):

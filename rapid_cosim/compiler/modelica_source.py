@@ -39,7 +39,7 @@ _UNSUPPORTED_CALLS = {
     "sample": "sample()",
     "initial": "initial()",
     "terminal": "terminal()",
-    "delay": "delay() (use iGrGen.Effects.PadeDelay)",
+    "delay": "delay() (on a known input use iGrGen.Effects.TransportDelay, exact; inside a loop iGrGen.Effects.PadeDelay)",
     "spatialDistribution": "spatialDistribution()",
     "cardinality": "cardinality()",
 }

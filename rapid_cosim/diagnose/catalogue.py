@@ -31,6 +31,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
 
+from ..simulator.delayed import DELAYED_FREQUENCY
+
 BASE_BENCH = "iGrGen.TestBenches.StagedTest"
 INPUT_BENCH = "iGrGen.TestBenches.FrequencyInput"
 # The standard structures of iGrGen.Governors, each with the same two benches.
@@ -268,8 +270,16 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
     lines = [f"within {within};" if within else "within;",
              f'model {short} "{description or kind + " with " + (", ".join(effects) or "no effect")}"']
     connects = []
+    # A delay acts on a known input, so it is exact (Effects.TransportDelay): a staged test's
+    # step moves its switching instants, a recorded event is read at t - T (f_dev_delayed,
+    # filled by the runner). It commutes with the static deadband that may follow it.
+    delayed = "delay" in effects
+    if delayed:
+        lines.append(f"  Effects.TransportDelay dly{_modifiers(values, 'dly')};")
     if is_staged(base):
-        lines.append(f"  Sources.FrequencyStep src{_modifiers(values, 'src')};")
+        own = _modifiers(values, "src")
+        mods = ", ".join(m for m in ("t_delay = dly.T" if delayed else "", own[1:-1]) if m)
+        lines.append(f"  Sources.FrequencyStep src{'(' + mods + ')' if mods else ''};")
         path = "src.y"
     else:  # as TestBenches.FrequencyInput: the recorded deviation in Hz, on the f_nom base
         f_nom = values.pop("f_nom", 50.0)
@@ -277,10 +287,14 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
                   '  input Types.Frequency f_dev "measured frequency minus nominal";',
                   '  input Types.FrequencyRate rocof "rate of change of the measured frequency (Hz/s)";',
                   f"  Machines.SwingPower mach{_modifiers(values, 'mach')};"]
+        if delayed:
+            lines.append(f'  input Types.Frequency {DELAYED_FREQUENCY} "f_dev at t - dly.T, as the governor receives it '
+                         '(the runner fills it from f_dev)";')
         path = None
+    heard = DELAYED_FREQUENCY if delayed else "f_dev"
 
     def feed(block: str) -> None:
-        connects.append(f"connect({path}, {block});" if path else f"{block}.signal = -f_dev / f_nom;")
+        connects.append(f"connect({path}, {block});" if path else f"{block}.signal = -{heard} / f_nom;")
 
     if "deadband" in effects:  # its band in Hz on the test's own frequency base
         own = _modifiers({k: v for k, v in values.items() if k != "db.f_nom"}, "db")
@@ -290,10 +304,6 @@ def bench_source(effects: Sequence[str], class_name: str, *, values: Mapping[str
         lines.append(f"  Effects.Deadband db(f_nom = {f_base}{', ' + own[1:-1] if own else ''});")
         feed("db.u")
         path = "db.y"
-    if "delay" in effects:
-        lines.append(f"  Effects.PadeDelay dly{_modifiers(values, 'dly')};")
-        feed("dly.u")
-        path = "dly.y"
     lines.append(f"  Governors.{gov_class} gov{_modifiers(values, 'gov')};")
     feed("gov.dw")
     out = "gov.pm"

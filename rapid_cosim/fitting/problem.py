@@ -22,6 +22,7 @@ from .search import SearchSpace
 from ..simulator import ParameterInfo
 from ..simulator.fmu import OUTPUT_TYPES, REAL_TYPES
 from ..simulator.rocof import FREQUENCY, ROCOF
+from ..simulator.delayed import DELAYED_FREQUENCY
 
 @dataclass(frozen=True, eq=False)
 class Problem:
@@ -132,8 +133,8 @@ def check_signals(experiment: Experiment, types: Mapping[str, str], model_inputs
             raise ConfigError(f"input '{spec.name}' is a {types[spec.name]} input; rapid-cosim drives Real "
                               "(FMI 3.0: Float64) inputs only", file, key)
     driven = {s.name for s in experiment.inputs}
-    if FREQUENCY in driven:  # a recorded-frequency bench's ROCOF is derived from it (simulator.rocof)
-        driven.add(ROCOF)
+    if FREQUENCY in driven:  # a recorded-frequency bench's ROCOF and delayed frequency derive from it
+        driven |= {ROCOF, DELAYED_FREQUENCY}  # (simulator.rocof, simulator.delayed)
     undriven = [n for n in model_inputs if n not in driven]
     if undriven:
         raise ConfigError(f"model {experiment.model} has input(s) {', '.join(undriven)} that no [inputs] entry "

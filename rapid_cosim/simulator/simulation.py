@@ -56,6 +56,7 @@ from . import compiled
 from .fmu import FmuRef, LoadedFmu, ParameterInfo, cache_key
 from .inputs import InputTable
 from .rocof import FREQUENCY, ROCOF, with_rocof, without_rocof
+from .delayed import DELAY, DELAYED_FREQUENCY, delayed_table, set_delays, with_delayed
 
 RUNNERS = ("compiled", "python", "exponential")  # archives record these names
 DEFAULT_RUNNER = "exponential"
@@ -222,6 +223,8 @@ class Simulator:
             table = with_rocof(table)  # a recorded-frequency bench always gets its ROCOF (.rocof)
         elif table is not None and ROCOF in table.names and ROCOF not in self.inputs and FREQUENCY in table.names:
             table = without_rocof(table)  # an experiment's derived ROCOF, offered to a model without it
+        if table is not None and DELAYED_FREQUENCY in self.inputs and FREQUENCY in table.names:
+            table = with_delayed(table)  # a delayed bench's governor input: each set's made by the runner
         held = self.fmu.check_inputs(table.names if table is not None else ())
         if held and tuple(held) not in self._held_noted:
             self._held_noted.add(tuple(held))
@@ -244,13 +247,18 @@ class Simulator:
         table, held = self._input_table(input_time, inputs)
         kind, run = self._runner(runner)
         names = list(names)
-        if self.fmu.co_simulation:
-            call = run.prepare(names, record, types, start_time, times, table, self.timeout, communication_step)
-        elif kind in ("compiled", "exponential"):
-            call = run.prepare(names, record, types, start_time, times, table, self.timeout)
+
+        def prepared(table):
+            if self.fmu.co_simulation:
+                return run.prepare(names, record, types, start_time, times, table, self.timeout, communication_step)
+            if kind in ("compiled", "exponential"):
+                return run.prepare(names, record, types, start_time, times, table, self.timeout)
+            return lambda values: self._run_reference(run, names, values, record, types, start_time, times, table)
+
+        if table is not None and DELAYED_FREQUENCY in table.names:
+            call = _set_by_set(prepared, table, names, self.fmu.parameters[DELAY].start)
         else:
-            def call(values):
-                return self._run_reference(run, names, values, record, types, start_time, times, table)
+            call = prepared(table)
         return PreparedBatch(self, names, tuple(record), times, call, held)
 
     def simulate_batch(self, names: Sequence[str], values, *, check: bool = True, **kwargs) -> BatchResult:
@@ -363,6 +371,19 @@ class PreparedBatch:
         described = tuple(m and f"{self.sim.name} failed with {_describe(dict(zip(self.names, row)))}: {m}"
                           for m, row in zip(messages, values))
         return BatchResult(self.time, self.outputs, out, np.asarray(status), described)
+
+
+def _set_by_set(prepared, table: InputTable, names: list[str], default_delay: float):
+    """A delayed bench's batch (:mod:`.delayed`): each set with the recording moved by its
+    own delay, so each is prepared and run alone."""
+    def call(values):
+        delays = set_delays(names, values, default_delay)
+        runs = [prepared(delayed_table(table, d))(values[i:i + 1]) for i, d in enumerate(delays)]
+        if not runs:
+            return prepared(table)(values)
+        return (np.concatenate([r[0] for r in runs]), np.concatenate([np.asarray(r[1]) for r in runs]),
+                [m for r in runs for m in r[2]])
+    return call
 
 
 def _content(value):
