@@ -9,8 +9,10 @@ at its first, as every input is (the pre-event steady state).
 Each set's table holds the recording's rows and the same rows moved by T, both kept exact:
 between them every column is linear in time, so the delayed column is the recording's
 linear interpolant moved by T, and a step (a time written twice) stays a step, moved.
-A set's table differs from the next one's, so a batch is run set by set (a prepared run
-per set): what the exact delay costs, measured by ``tests/test_delay.py``'s figures.
+A recording without steps takes the short way (interpolation on the merged rows). A set's
+table differs from the next one's, so a batch is run set by set (a prepared run per set):
+on event1's 6000 rows, 1.15 times a bench without the delay on the exponential runner and
+1.6 times on CVODE (``benchmarks/delay_cost.py``, 2026-11-29, 2 busy cores).
 """
 
 from __future__ import annotations
@@ -47,6 +49,11 @@ def delayed_table(table: InputTable, delay: float) -> InputTable:
         raise ParameterError(f"a transport delay must be finite and not negative; got {delay!r} s")
     names = table.names
     source, target = names.index(FREQUENCY), names.index(DELAYED_FREQUENCY)
+    if not _steps(table).size:  # a recording: no steps, so plain interpolation on the merged rows
+        rows = np.union1d(table.time, table.time + delay)
+        values = np.column_stack([np.interp(rows, table.time, table.values[:, j]) for j in range(len(names))])
+        values[:, target] = np.interp(rows, table.time + delay, table.values[:, source])
+        return InputTable(rows, names, values)
     moved = InputTable(table.time + delay, (FREQUENCY,), table.values[:, [source]])
     times = np.unique(np.concatenate([table.time, moved.time]))
     steps = np.union1d(_steps(table), _steps(moved))
