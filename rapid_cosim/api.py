@@ -125,7 +125,8 @@ class Calibration:
         from .report.fits import plot_calibration
 
         if self.inputs is None:
-            raise ValueError("this calibration has no inputs to simulate (load it from its archive)")
+            raise RapidCosimError("this calibration has no inputs to simulate: load it from its archive "
+                                  "(rc.load(path)) to plot it")
         return plot_calibration(self.inputs, self.x, self.labels, path=path,
                                 title=title or f"{self.method}: fitness {self.fun:.4g}")
 

@@ -429,3 +429,46 @@ def test_verdicts_and_statuses_are_told_by_their_enums():
     assert _kinds_by_word(ast.parse('r["effect"] in (NONE, "x")'))
     assert not _kinds_by_word(ast.parse("v.kind is VerdictKind.AMBIGUOUS")) and not _kinds_by_word(
         ast.parse("r.label == BASE"))
+
+
+USER_ROOMS = ("api", "experiment", "data", "identify", "fleet", "structures", "exchange", "check", "cli", "examples")
+VALUE_ERRORS_LEFT = {  # (module, function) -> why its ValueError never reaches a user as it is
+    ("data/pmu", "parse_timestamp"): "a parser's contract, like int(): each caller names the file and row (DataError)",
+    ("experiment/toml_writer", "_toml_value"): "a writer's contract: check's every_problem catches it and writes the rest",
+    ("data/measured", "sample_onto"): "arrays the package computes (a simulation's time base), not a user's input",
+}
+
+
+def _value_errors(tree: ast.AST) -> list[tuple[str, int]]:
+    """(enclosing function, line) of each ``raise ValueError(...)``."""
+    found = []
+
+    def visit(node, function):
+        for child in ast.iter_child_nodes(node):
+            name = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else function
+            if isinstance(child, ast.Raise) and child.exc is not None:
+                exc = child.exc.func if isinstance(child.exc, ast.Call) else child.exc
+                if isinstance(exc, ast.Name) and exc.id == "ValueError":
+                    found.append((function, child.lineno))
+            visit(child, name)
+
+    visit(tree, "<module>")
+    return found
+
+
+def test_no_value_error_reaches_a_user_from_the_rooms_their_input_enters():
+    """Issue 57: what a user's config, recording, record or call gets wrong is a
+    RapidCosimError that names it (the CLI prints those; a ValueError was a traceback)."""
+    found, used = [], set()
+    for path, parts in _modules():
+        if parts[0].removesuffix(".py") not in USER_ROOMS:
+            continue
+        module = "/".join(parts)
+        for function, line in _value_errors(ast.parse(path.read_text())):
+            if (module, function) in VALUE_ERRORS_LEFT:
+                used.add((module, function))
+            else:
+                found.append(f"{module}:{line} ({function})")
+    assert not found, found
+    assert used == set(VALUE_ERRORS_LEFT), f"VALUE_ERRORS_LEFT names what raises no ValueError now: {set(VALUE_ERRORS_LEFT) - used}"
+    assert _value_errors(ast.parse("def f():\n    raise ValueError('x')\n")) == [("f", 2)]

@@ -320,3 +320,23 @@ def test_noise_level_needs_samples():
         noise_level(d, "y", t_end=5.0)
     with pytest.raises(MissingColumn):
         noise_level(d, "pm", t_end=5.0)
+
+
+def test_arrays_a_user_builds_wrongly_are_refused_with_their_source():
+    """Issue 57: a DataError naming the recording, not a ValueError's traceback."""
+    import pandas as pd
+
+    from rapid_cosim import experiment_from_frame
+    from rapid_cosim.data import MeasuredData
+    from rapid_cosim.errors import DataError
+
+    t = np.arange(3.0)
+    with pytest.raises(DataError, match=r"my.csv: columns and valid need the same keys \(columns \['P'\], valid \[\]\)"):
+        MeasuredData("my.csv", t, {"P": np.ones(3)}, {})
+    with pytest.raises(DataError, match=r"my.csv: column 'P' is marked valid where it is not finite \(sample 2\)"):
+        MeasuredData("my.csv", t, {"P": np.array([1.0, np.nan, 1.0])}, {"P": np.ones(3, dtype=bool)})
+    frame = pd.DataFrame({"t": t, "P": np.ones(3)})
+    with pytest.raises(DataError, match="unit1: the frame has no time column 'time'; columns: t, P"):
+        experiment_from_frame("unit1", "iGrGen.TestBenches.StagedTest", frame)
+    with pytest.raises(DataError, match=r"unit1: the frame has no column\(s\) Q"):
+        experiment_from_frame("unit1", "iGrGen.TestBenches.StagedTest", frame, time="t", outputs={"pm": "Q"})

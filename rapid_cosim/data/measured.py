@@ -110,7 +110,8 @@ class MeasuredData:
         if bad is not None:
             raise DataError(f"sample {bad + 1}: {bad_time_reason(time, bad)}", self.source)
         if set(self.columns) != set(self.valid):
-            raise ValueError("columns and valid need the same keys")
+            raise DataError(f"columns and valid need the same keys (columns {sorted(self.columns)}, valid "
+                            f"{sorted(self.valid)})", self.source)
         columns, valid = {}, {}
         for name, values in self.columns.items():
             values = np.asarray(values, dtype=np.float64)
@@ -119,7 +120,8 @@ class MeasuredData:
                 raise DataError(f"column '{name}' has {values.size} samples and "
                                 f"{mask.size} mask entries; time has {time.size}", self.source)
             if np.any(mask & ~np.isfinite(values)):
-                raise ValueError(f"column '{name}' is marked valid where it is not finite")
+                raise DataError(f"column '{name}' is marked valid where it is not finite (sample "
+                                f"{int(np.argmax(mask & ~np.isfinite(values))) + 1})", self.source)
             columns[name], valid[name] = _readonly(values), _readonly(mask)
         object.__setattr__(self, "time", time)
         object.__setattr__(self, "columns", columns)

@@ -9,6 +9,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..data import MeasuredData
+from ..errors import DataError
 from .config import parse_experiment
 from .definition import CONFIG_NAME, IN_MEMORY, Experiment
 from .toml_writer import render_config
@@ -47,11 +48,12 @@ def experiment_from_frame(name: str, model: str, frame, *, time: str = "time",
     and ``outputs`` maps model outputs to columns (default: every other column, by
     its own name)."""
     if time not in frame.columns:
-        raise ValueError(f"the frame has no time column {time!r}; columns: {', '.join(map(str, frame.columns))}")
+        raise DataError(f"the frame has no time column {time!r}; columns: {', '.join(map(str, frame.columns))}",
+                        name)
     outputs = dict(outputs) if outputs is not None else {str(c): str(c) for c in frame.columns if c != time}
     missing = [c for c in outputs.values() if c not in frame.columns]
     if missing:
-        raise ValueError(f"the frame has no column(s) {', '.join(missing)}; columns: "
-                         f"{', '.join(map(str, frame.columns))}")
+        raise DataError(f"the frame has no column(s) {', '.join(missing)}; columns: "
+                        f"{', '.join(map(str, frame.columns))}", name)
     return experiment_from_arrays(name, model, frame[time].to_numpy(dtype=float),
                            {out: frame[col].to_numpy(dtype=float) for out, col in outputs.items()}, **kwargs)

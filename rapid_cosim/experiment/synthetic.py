@@ -16,6 +16,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..noise import RecorderNoise
 from ..simulator import Simulator, get_simulator
 
@@ -44,7 +45,7 @@ class NoiseModel:
         """``n`` noise values (at ``times`` when the slow part is continuous in time)."""
         if self.tau is not None:
             if times is None:
-                raise ValueError("a noise model with tau needs the sample times")
+                raise ParameterError("a noise model with tau (a slow part continuous in time) needs the sample times")
             comps = ((self.ar1_sigma, self.tau),) if self.ar1_sigma > 0 else ()
             if not comps and self.white_sigma == 0:
                 return np.full(n, self.offset)

@@ -238,7 +238,8 @@ def band_replicates(curve: Compared, test: ScoredTest, tolerances: Tolerances, r
     simulated = curve.simulated
     ok = np.isfinite(curve.measured - simulated)
     if int(ok.sum()) != test.times.size:
-        raise ValueError(f"{curve.test}: {int(ok.sum())} compared samples against {test.times.size} scored ones")
+        raise RuntimeError(f"{curve.test}: {int(ok.sum())} compared samples against {test.times.size} scored ones "
+                           "(a bug: the curve and the test disagree on what is scored)")
     draws = test.whitening.sample(with_extra([test.noise.model] * replicates, test.extra), rng)
     draws -= draws.mean(axis=1, keepdims=True)
     rows = []

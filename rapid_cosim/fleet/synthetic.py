@@ -54,6 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..compiler.source import ModelSource
 from ..structures.shipped import kind_files, standard_file
 
@@ -282,7 +283,7 @@ def event_frequency(experiments: Path, pre_event: float = PRE_EVENT_S) -> tuple[
     dt = (t[-1] - t[0]) / (t.size - 1)  # the file's stamps are rounded to 0.1 ms
     extra = int(round((pre_event - ANDES_PRE_EVENT_S) / dt))
     if extra < 0:
-        raise ValueError(f"pre_event {pre_event} s: at least ANDES's own {ANDES_PRE_EVENT_S} s")
+        raise ParameterError(f"pre_event {pre_event} s: allowed from ANDES's own {ANDES_PRE_EVENT_S} s up")
     return (np.concatenate([t[0] + dt * np.arange(extra), t + dt * extra]), np.concatenate([np.full(extra, f[0]), f]),
             round(float(t[0] + dt * extra + ANDES_PRE_EVENT_S), 4))
 

@@ -36,6 +36,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..calibration import RunOptions, best_run, inputs_from_experiments
 from ..compiler.source import ModelSource
 from ..experiment import EstimateSpec, Experiment
@@ -140,7 +141,8 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
     if calibrations is None:
         calibrations = Calibrations(structures, training, fitted_noise, options, workdir, searches, source)
     elif not calibrations.made_for(structures, training, options, workdir, searches, source):
-        raise ValueError("the calibrations given were started for other structures, tests or options")
+        raise ParameterError("the calibrations given were started for other structures, tests or options: start "
+                             "them with these (Calibrations(structures, training, ...))")
     runs = calibrations.runs()
     for s, (result, archive) in zip(structures, runs):
         exps = on_structure(s, training, fitted_noise)
