@@ -472,3 +472,28 @@ def test_no_value_error_reaches_a_user_from_the_rooms_their_input_enters():
     assert not found, found
     assert used == set(VALUE_ERRORS_LEFT), f"VALUE_ERRORS_LEFT names what raises no ValueError now: {set(VALUE_ERRORS_LEFT) - used}"
     assert _value_errors(ast.parse("def f():\n    raise ValueError('x')\n")) == [("f", 2)]
+
+
+def _maps_fits(tree: ast.AST) -> list[str]:
+    """``engine.make().map(...)`` and ``[np.array([k]) for k in ...]``: whole fits mapped by hand."""
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "map" \
+                and isinstance(node.func.value, ast.Call) and isinstance(node.func.value.func, ast.Attribute) \
+                and node.func.value.func.attr == "make":
+            found.append(ast.unparse(node))
+        elif isinstance(node, ast.ListComp) and ast.unparse(node.elt) == "np.array([k])":
+            found.append(ast.unparse(node))
+    return found
+
+
+def test_whole_fits_are_mapped_by_one_helper():
+    """Issue 57: the diagnosis's candidates and the standard structures are fitted whole on
+    local workers through fitting.engine.map_fits, one payload shape (WholeFits)."""
+    found = [f"{'/'.join(parts)}: {s}" for path, parts in _modules() if parts != ("fitting", "engine")
+             for s in _maps_fits(ast.parse(path.read_text()))]
+    assert not found, found
+    assert _maps_fits(ast.parse("parts = e.make().map(f, p, [np.array([k]) for k in range(3)])")) == [
+        "e.make().map(f, p, [np.array([k]) for k in range(3)])", "[np.array([k]) for k in range(3)]"]
+    uses = {"/".join(parts) for path, parts in _modules() if "map_fits(" in path.read_text()}
+    assert {"diagnose/context", "structures/select"} <= uses

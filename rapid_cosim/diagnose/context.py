@@ -19,7 +19,7 @@ import numpy as np
 
 from ..calibration import RunOptions
 from ..compiler.source import ModelSource
-from ..fitting.engine import EngineSpec
+from ..fitting.engine import EngineSpec, WholeFits, fit_here, map_fits
 from ..errors import ConfigError, RapidCosimError
 from ..data import close_matches
 from ..experiment import Experiment
@@ -83,12 +83,11 @@ def split_holdout(experiments: Sequence[Experiment], holdout: Sequence[str]) -> 
     return training, [e for e in experiments if e.name in holdout]
 
 
-def _fit_jobs(payload, chunk) -> list[CandidateFit]:
-    """Worker: fit the candidates ``chunk`` indexes (what :meth:`Context.fit_many` maps)."""
-    jobs, ctx, options = payload
-    return [fit_candidate(spec, ctx.training, ctx.workdir, options=options, start=start, source=ctx.source,
-                          fmus=ctx.fmus, searches=ctx.options.searches, noise=ctx.models)
-            for spec, start in (jobs[k] for k in chunk)]
+def _fit_job(job, ctx: "Context", options: RunOptions) -> CandidateFit:
+    """Worker: fit one candidate ``(spec, start)`` (what :meth:`Context.fit_many` maps)."""
+    spec, start = job
+    return fit_candidate(spec, ctx.training, ctx.workdir, options=options, start=start, source=ctx.source,
+                         fmus=ctx.fmus, searches=ctx.options.searches, noise=ctx.models)
 
 
 class Context:
@@ -149,12 +148,8 @@ class Context:
             options_engine = self.options.engine
             # built once, not per worker
             self.source.build(sorted({bench_name(spec.effects, b) for spec, _ in jobs for b in self.bases}))
-            payload = (jobs, self, replace(self.run_options, engine=options_engine.single()))
-            # one candidate a chunk, handed to whichever worker is free: candidates differ up to
-            # fourfold in their simulations, and chunks dealt round-robin left a worker idle for
-            # a fifth of a round (the payload, a few MB, then travels once per candidate)
-            parts = options_engine.make().map(_fit_jobs, payload, [np.array([k]) for k in range(len(jobs))])
-            fits = [f for part in parts for f in part]
+            payload = WholeFits(_fit_job, tuple(jobs), self, replace(self.run_options, engine=options_engine.single()))
+            fits = map_fits(options_engine, payload)
         else:
             run_options = self.run_options
             if self.parallel and len(jobs) == 1 and jobs[0][0].label == BASE:
@@ -162,7 +157,7 @@ class Context:
                 # by batch on workers that are still starting (a set's score does not depend
                 # on where it is computed, so the numbers are the same)
                 run_options = replace(run_options, engine=self.options.engine.single())
-            fits = _fit_jobs((jobs, self, run_options), np.arange(len(jobs)))
+            fits = fit_here(WholeFits(_fit_job, tuple(jobs), self, run_options))
         for fit in fits:
             self.fits[fit.spec.label] = fit
             reached = fit.reached_best()

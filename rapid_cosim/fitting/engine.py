@@ -368,3 +368,45 @@ class EngineSpec:
         """A dask client of the scheduler, or of a local cluster of ``n_jobs`` single-
         threaded workers (:func:`dask_client`), for work mapped unit by unit."""
         return dask_client(self.scheduler, self.workers())
+
+
+@dataclass(frozen=True)
+class WholeFits:
+    """What a worker fitting whole models takes (the diagnosis's candidates, the standard
+    structures): the ``items``, what every fit shares (``shared``), the run options (their
+    engine one worker, in that process) and ``fit``, a module-level function fitting one
+    item: ``fit(item, shared, options)``. The one payload shape of :func:`map_fits`."""
+
+    fit: Callable[[Any, Any, Any], Any]
+    items: tuple
+    shared: Any
+    options: Any
+
+
+def _fit_chunk(payload: WholeFits, chunk: np.ndarray) -> list:
+    return [payload.fit(payload.items[int(k)], payload.shared, payload.options) for k in chunk]
+
+
+def fit_here(payload: WholeFits) -> list:
+    """Every item fitted in this process, in order."""
+    return _fit_chunk(payload, np.arange(len(payload.items)))
+
+
+def map_fits(engine: EngineSpec, payload: WholeFits, *, first: Sequence[int] | None = None,
+             start: bool = False) -> list | Started | None:
+    """Whole fits over ``engine``'s workers, one item a chunk handed to whichever worker is
+    free: fits differ up to fourfold in their simulations, and chunks dealt round-robin left
+    a worker idle for a fifth of a round (the payload, a few MB, then travels once per
+    item). The results in item order. ``start``: begun now on a pool of their own
+    (:meth:`EngineSpec.start`; ``first`` the order they start in), collected by
+    :func:`collected`; None where the engine has no local workers to start them on."""
+    chunks = [np.array([k]) for k in range(len(payload.items))]
+    if start:
+        return engine.start(_fit_chunk, payload, chunks, first)
+    return [r for part in engine.make().map(_fit_chunk, payload, chunks) for r in part]
+
+
+def collected(started: Started) -> list | None:
+    """A started :func:`map_fits`'s results in item order, or None where its pool broke."""
+    parts = started.result()
+    return None if parts is None else [r for part in parts for r in part]

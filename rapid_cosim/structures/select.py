@@ -37,6 +37,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import ParameterError
+from ..fitting.engine import WholeFits, collected, fit_here, map_fits
 from ..calibration import RunOptions, best_run, inputs_from_experiments
 from ..compiler.source import ModelSource
 from ..experiment import EstimateSpec, Experiment
@@ -208,8 +209,7 @@ class Calibrations:
             payload = _worker_payload(*self._args)
             # the richest structures first: they take the most simulations
             first = sorted(range(len(self.structures)), key=lambda k: -len(self.structures[k].estimate))
-            self._started = options.engine.start(_calibrated, payload,
-                                                 [np.array([k]) for k in range(len(self.structures))], first)
+            self._started = map_fits(options.engine, payload, first=first, start=True)
 
     def made_for(self, structures, training, options: RunOptions, workdir, searches, source: ModelSource) -> bool:
         """Whether these are the calibrations of ``structures`` on ``training`` with these
@@ -218,10 +218,8 @@ class Calibrations:
 
     def runs(self) -> list[tuple]:
         started, self._started = self._started, None
-        parts = started.result() if started is not None else None
-        if parts is not None:
-            return [run for part in parts for run in part]
-        return _calibrate_all(*self._args)
+        runs = collected(started) if started is not None else None
+        return runs if runs is not None else _calibrate_all(*self._args)
 
     def close(self) -> None:
         if self._started is not None:
@@ -236,13 +234,13 @@ def _key(structures, training, options: RunOptions, workdir, searches, source: M
 
 
 def _worker_payload(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches,
-                    source: ModelSource) -> tuple:
+                    source: ModelSource) -> WholeFits:
     """What a worker fitting whole structures takes: their benches built here first (once,
     not per worker), the options' engine one worker in that process."""
     benches = sorted({b for s in structures for b in (s.bench, s.input_bench) if b})
     source.build(benches)
-    return (list(structures), list(training), fitted_noise, replace(options, engine=options.engine.single()),
-            workdir, tuple(searches), source)
+    return WholeFits(_calibrated, tuple(structures), (list(training), fitted_noise, workdir, tuple(searches), source),
+                     replace(options, engine=options.engine.single()))
 
 
 def _calibrate_all(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches,
@@ -253,22 +251,17 @@ def _calibrate_all(structures, training, fitted_noise, options: RunOptions, work
     sending each batch to a pool cost more than it saved (an identification of the
     electrical unit took 28 s on 2 workers, 15 s in one process)."""
     if not options.engine.processes or len(structures) < 2:
-        payload = (list(structures), list(training), fitted_noise, options, workdir, tuple(searches), source)
-        return _calibrated(payload, np.arange(len(structures)))
-    payload = _worker_payload(structures, training, fitted_noise, options, workdir, searches, source)
-    parts = options.engine.make().map(_calibrated, payload, [np.array([k]) for k in range(len(structures))])
-    return [run for part in parts for run in part]
+        return fit_here(WholeFits(_calibrated, tuple(structures),
+                                  (list(training), fitted_noise, workdir, tuple(searches), source), options))
+    return map_fits(options.engine, _worker_payload(structures, training, fitted_noise, options, workdir, searches,
+                                                    source))
 
 
-def _calibrated(payload, chunk) -> list[tuple]:
-    """Worker: the (result, archive) of the structures ``chunk`` indexes."""
-    structures, training, fitted_noise, options, workdir, searches, source = payload
-    out = []
-    for k in chunk:
-        s = structures[int(k)]
-        inputs = inputs_from_experiments(on_structure(s, training, fitted_noise), source=source)
-        out.append(best_run(inputs, options, workdir / f"{s.name}.h5", searches, replace_stale=True))
-    return out
+def _calibrated(s: Structure, shared: tuple, options: RunOptions) -> tuple:
+    """Worker: one structure's (result, archive)."""
+    training, fitted_noise, workdir, searches, source = shared
+    inputs = inputs_from_experiments(on_structure(s, training, fitted_noise), source=source)
+    return best_run(inputs, options, workdir / f"{s.name}.h5", searches, replace_stale=True)
 
 
 def _separating(a: Structure, b: Structure, fits: list[StructureFit], template: Experiment, noise,
