@@ -497,3 +497,13 @@ def test_whole_fits_are_mapped_by_one_helper():
         "e.make().map(f, p, [np.array([k]) for k in range(3)])", "[np.array([k]) for k in range(3)]"]
     uses = {"/".join(parts) for path, parts in _modules() if "map_fits(" in path.read_text()}
     assert {"diagnose/context", "structures/select"} <= uses
+
+
+def test_reasons_are_clauses_joined_once():
+    """Issue 57: a verdict's reason, a record's words, a time base's description are lists
+    of clauses joined where they are made, not strings grown by ``+=``."""
+    found = [f"{'/'.join(parts)}:{node.lineno}: {ast.unparse(node)}" for path, parts in _modules()
+             for node in ast.walk(ast.parse(path.read_text()))
+             if isinstance(node, ast.AugAssign) and isinstance(node.op, ast.Add) and isinstance(node.target, ast.Name)
+             and node.target.id in ("reason", "words", "said", "verdict", "explanation")]
+    assert not found, found

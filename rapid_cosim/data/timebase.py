@@ -71,21 +71,21 @@ class TimeBase:
 
     def describe(self) -> str:
         """One line, as the CLI and the report print it."""
-        words = f"{self.samples} samples every {_ms(self.step)} ms ({1.0 / self.step:.4g} per second); "
-        words += ("regular stamps (on one grid within 1 % of a step); " if self.jitter_max <= 0.01 * self.step else
-                  f"jitter {_ms(self.jitter_rms)} ms RMS, {_ms(self.jitter_max)} ms at most; ")
+        clauses = [f"{self.samples} samples every {_ms(self.step)} ms ({1.0 / self.step:.4g} per second)",
+                   "regular stamps (on one grid within 1 % of a step)" if self.jitter_max <= 0.01 * self.step else
+                   f"jitter {_ms(self.jitter_rms)} ms RMS, {_ms(self.jitter_max)} ms at most"]
         if self.dropped:
-            words += f"{self.dropped} frame(s) missing, at most {self.longest_drop} in a row"
             listed = ", ".join(f"{a:g}-{b:g} s ({n})" for a, b, n in self.holes[:_LISTED])
             more = f" and {len(self.holes) - _LISTED} more" if len(self.holes) > _LISTED else ""
-            words += f" (holes: {listed}{more})" if self.holes else ""
+            clauses.append(f"{self.dropped} frame(s) missing, at most {self.longest_drop} in a row"
+                           + (f" (holes: {listed}{more})" if self.holes else ""))
         else:
-            words += "no frame missing"
+            clauses.append("no frame missing")
         if self.repairs.repeated:
-            words += f"; {self.repairs.repeated} repeated stamp(s) dropped, their values agreeing"
+            clauses.append(f"{self.repairs.repeated} repeated stamp(s) dropped, their values agreeing")
         if self.repairs.reordered:
-            words += f"; {self.repairs.reordered} stamp(s) out of order, sorted"
-        return words
+            clauses.append(f"{self.repairs.reordered} stamp(s) out of order, sorted")
+        return "; ".join(clauses)
 
     def to_json(self) -> dict:
         return {"samples": self.samples, "step": self.step, "jitter_rms": self.jitter_rms,

@@ -79,13 +79,13 @@ def inadequate(ctx, verdict: Verdict, ranking, before_tests, after_tests, fit_af
         what = ("the base model" if not verdict.effects else
                 f"the model with {' + '.join(verdict.effects)} (removing {named_share:.0%} of the gap; "
                 f"{verdict.effects[0]} alone {first_share:.0%})")
-        reason = (f"{what} does not fit to the noise (variance ratio {fit_after.pooled_variance_ratio:.2f}, "
-                  f"tests {', '.join(fit_after.failing) or 'pooled'}) and no catalogue model does")
+        clauses = [f"{what} does not fit to the noise (variance ratio {fit_after.pooled_variance_ratio:.2f}, "
+                   f"tests {', '.join(fit_after.failing) or 'pooled'}) and no catalogue model does"]
         if partial is not None:
-            reason += (f"; the best partial explanation, {partial['candidate']}, removes "
-                       f"{partial['gap_share_removed']:.0%} of the gap")
-        reason += f"; misfit {where['summary']}"
-        return Verdict(UNEXPLAINED, candidates=list(verdict.candidates), reason=reason + f" ({verdict.said})"), info
+            clauses.append(f"the best partial explanation, {partial['candidate']}, removes "
+                           f"{partial['gap_share_removed']:.0%} of the gap")
+        clauses.append(f"misfit {where['summary']} ({verdict.said})")
+        return Verdict(UNEXPLAINED, candidates=list(verdict.candidates), reason="; ".join(clauses)), info
     verdict.note(f"the final model still misses structure (variance ratio "
                        f"{fit_after.pooled_variance_ratio:.2f}; {where['summary']})")
     return verdict, info

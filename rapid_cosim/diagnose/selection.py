@@ -206,11 +206,10 @@ def decide(ranking: Sequence[Ranked], *, threshold: float = THRESHOLD,
         return Verdict(AMBIGUOUS, candidates=[best.label, *rivals],
                        reason=f"{best.label} and {', '.join(rivals)} are within {threshold:g} of each other")
     second = ranking[1]
-    reason = (f"{best.label} beats none by {margin_none:.1f} and the next candidate ({second.label}) by "
-              f"{second.delta:.1f}")
-    if second.delta < threshold:
-        reason += f" (which does not itself beat none by {threshold:g})"
-    return Verdict(best.label, effects=[best.label], reason=reason)
+    caveat = f" (which does not itself beat none by {threshold:g})" if second.delta < threshold else ""
+    return Verdict(best.label, effects=[best.label],
+                   reason=f"{best.label} beats none by {margin_none:.1f} and the next candidate ({second.label}) by "
+                          f"{second.delta:.1f}{caveat}")
 
 
 def settle_on_heldout(verdict: Verdict, ranking: Sequence[Ranked], heldout_terms: Mapping[str, float],

@@ -223,32 +223,32 @@ def describe_recording(exp) -> str | None:
             return f"estimated in {bounds[name].min:g} to {bounds[name].max:g} {unit}"
         return default
 
-    words = (f"{exp.name}: {ELECTRICAL} is electrical power at the terminals, the governor's P_m less the "
-             f"rotor's inertial and damping power; H {constant(INERTIA, 's', '?')}, "
-             f"D {constant(DAMPING, 'pu', '0 pu (the bench default)')}; ")
+    clauses = [f"{exp.name}: {ELECTRICAL} is electrical power at the terminals, the governor's P_m less the "
+               f"rotor's inertial and damping power", f"H {constant(INERTIA, 's', '?')}, "
+               f"D {constant(DAMPING, 'pu', '0 pu (the bench default)')}"]
     column = next((s.column for s in exp.inputs if s.name == ROCOF and s.column), None)
     if column is not None:
-        words += f"ROCOF from the recording's column '{column}' (checked against the frequency's derivative)"
+        clauses.append(f"ROCOF from the recording's column '{column}' (checked against the frequency's derivative)")
     else:
         table = exp.input_table
         if table is None or FREQUENCY not in table.names:
-            return words + "no recorded frequency: the bench's own ROCOF"
+            return "; ".join([*clauses, "no recorded frequency: the bench's own ROCOF"])
         spec = next(s for s in exp.inputs if s.name == FREQUENCY)
         base = exp.source(spec).timebase
         stamps = ("on regular stamps it is the Savitzky-Golay derivative" if base.regular else
                   f"fitted on the stamps as recorded ({_jitter_words(base)}), never a raw difference")
-        words += (f"ROCOF derived from the frequency: the slope of a local least-squares quadratic over {WINDOW:g} s "
-                  f"({points(base.step)} samples at {1.0 / base.step:.3g} per second), zero-phase, split at the "
-                  f"event; {stamps}; band-limited like an IEEE C37.118.1 M-class PMU, without its delay (not a "
-                  "P-class estimate)")
+        clauses.append(f"ROCOF derived from the frequency: the slope of a local least-squares quadratic over "
+                       f"{WINDOW:g} s ({points(base.step)} samples at {1.0 / base.step:.3g} per second), zero-phase, "
+                       f"split at the event; {stamps}; band-limited like an IEEE C37.118.1 M-class PMU, without its "
+                       "delay (not a P-class estimate)")
     component = rocof_component(exp)
     if isinstance(component, DerivedNoise):
-        words += (f"; its noise in {ELECTRICAL}, {component_sigma(component):.2g} pu, is part of the noise model, "
-                  "exactly on these stamps")
+        clauses.append(f"its noise in {ELECTRICAL}, {component_sigma(component):.2g} pu, is part of the noise model, "
+                       "exactly on these stamps")
     elif component is not None:
-        words += (f"; its noise in {ELECTRICAL}, {component_sigma(component):.2g} pu, is part of the noise model "
-                  "(approximately: the frequency is recorded on another time base than the power)")
-    return words
+        clauses.append(f"its noise in {ELECTRICAL}, {component_sigma(component):.2g} pu, is part of the noise model "
+                       "(approximately: the frequency is recorded on another time base than the power)")
+    return "; ".join(clauses)
 
 
 def _jitter_words(base) -> str:

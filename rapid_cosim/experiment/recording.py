@@ -107,12 +107,12 @@ class Recording:
             longest = max(b.seconds for b in bridges)
             listed = ", ".join(f"{b.before:g}-{b.after:g} s" for b in bridges[:_LISTED])
             more = f" and {len(bridges) - _LISTED} more" if len(bridges) > _LISTED else ""
-            words = (f"input '{column}': {len(bridges)} hole(s) bridged by linear interpolation, the longest "
-                     f"{longest:.3g} s ({listed}{more})")
+            clauses = [f"input '{column}': {len(bridges)} hole(s) bridged by linear interpolation, the longest "
+                       f"{longest:.3g} s ({listed}{more})"]
             left = [b.excluded for b in bridges if b.excluded]
             if left:
-                words += "; outputs left out of the fit over " + ", ".join(f"{a:g}-{z:g} s" for a, z in left)
-            out.append(words)
+                clauses.append("outputs left out of the fit over " + ", ".join(f"{a:g}-{z:g} s" for a, z in left))
+            out.append("; ".join(clauses))
         if self.unfit:
             spans = ", ".join(f"{a:g}-{b:g} s ({n})" for a, b, n in self.unfit[:_LISTED])
             out.append(f"ROCOF: {sum(n for *_, n in self.unfit)} sample(s) whose window could not hold a fit "

@@ -318,24 +318,21 @@ def _recommend(records: list[StandardRecord]) -> tuple[str | None, str, str | No
     chosen = ties[0] if ties else first
     if chosen is first:
         runner = ranked[1] if len(ranked) > 1 else None
-        reason = (f"first by BIC ({first.fit}, {first.n_estimated} estimated parameters"
-                  + (f"; {runner.bic - first.bic:.1f} ahead of {runner.fit}" if runner else "") + ")")
+        clauses = [f"first by BIC ({first.fit}, {first.n_estimated} estimated parameters"
+                   + (f"; {runner.bic - first.bic:.1f} ahead of {runner.fit}" if runner else "") + ")"]
         if short:
-            reason += (f"; {', '.join(r.fit for r in short)} ties with it but cannot carry "
-                       f"{', '.join(short[0].cannot_carry)}")
+            clauses.append(f"{', '.join(r.fit for r in short)} ties with it but cannot carry "
+                           f"{', '.join(short[0].cannot_carry)}")
     else:
-        reason = (f"it ties with {first.fit}, the first by BIC ({chosen.bic - first.bic:.1f} behind, within "
-                  f"{THRESHOLD:g}), with fewer estimated parameters ({chosen.n_estimated} against "
-                  f"{first.n_estimated}): either record fits these tests as well; {first.model} is the richer one")
+        clauses = [f"it ties with {first.fit}, the first by BIC ({chosen.bic - first.bic:.1f} behind, within "
+                   f"{THRESHOLD:g}), with fewer estimated parameters ({chosen.n_estimated} against "
+                   f"{first.n_estimated}): either record fits these tests as well; {first.model} is the richer one"]
     for r in held:  # passed over, whichever record was chosen
         why = (f"its {', '.join(n.split(' ')[0] for n in r.at_bounds)} on their bounds" if r.at_bounds
                and not first.at_bounds else "it is not within the noise")
-        reason += f"; {r.fit} ties with {first.fit} but {why}"
-    if chosen.adequate:
-        reason += "; within the noise on every test"
-    else:
-        reason += f"; NOT within the noise ({chosen.words})"
-    return chosen.model, reason, None if chosen is first else first.fit, tying
+        clauses.append(f"{r.fit} ties with {first.fit} but {why}")
+    clauses.append("within the noise on every test" if chosen.adequate else f"NOT within the noise ({chosen.words})")
+    return chosen.model, "; ".join(clauses), None if chosen is first else first.fit, tying
 
 
 def _explanation(d: Diagnosis) -> dict:

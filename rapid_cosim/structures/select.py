@@ -312,14 +312,14 @@ def _verdict(fits: list[StructureFit], threshold: float) -> StructureVerdict:
                                 f"{best.name} and {', '.join(rivals)}, as simple, are within {threshold:g} in BIC",
                                 fits)
     beaten = [f for f in others if f.name not in richer]
-    reason = (f"{best.name} beats {beaten[0].name} by {beaten[0].delta - best.delta:.1f} in BIC" if beaten
-              else f"{best.name} is the only structure tried" if len(fits) == 1 else f"{best.name} is first")
+    clauses = [f"{best.name} beats {beaten[0].name} by {beaten[0].delta - best.delta:.1f} in BIC" if beaten
+               else f"{best.name} is the only structure tried" if len(fits) == 1 else f"{best.name} is first"]
     if best is not top:
-        reason = (f"{best.name} ties with {top.name} ({best.delta:.1f} behind it in BIC, within {threshold:g}, with "
-                  "fewer estimated parameters, which it names); " + reason)
+        clauses.insert(0, f"{best.name} ties with {top.name} ({best.delta:.1f} behind it in BIC, within {threshold:g}, "
+                          "with fewer estimated parameters, which it names)")
     if richer:
-        reason += (f"; {', '.join(richer)} come within {threshold:g} with more estimated parameters, "
-                   "which they do not earn")
+        clauses.append(f"{', '.join(richer)} come within {threshold:g} with more estimated parameters, "
+                       "which they do not earn")
     runner = others[0] if others else None
     if best.heldout_score is not None and runner is not None and runner.heldout_score is not None:
         # The held-out tests are more evidence of the same kind (the criterion's data term
@@ -329,7 +329,7 @@ def _verdict(fits: list[StructureFit], threshold: float) -> StructureVerdict:
         held = runner.heldout_score - best.heldout_score  # positive: the held-out tests agree
         gap = runner.delta - best.delta  # training evidence for best over the runner (negative in a tie)
         if held > 0:
-            reason += f"; confirmed on the held-out tests ({held:+.1f})"
+            clauses.append(f"confirmed on the held-out tests ({held:+.1f})")
         elif runner.name in richer and gap + held <= -threshold:
             return StructureVerdict(runner.name, [runner.name, best.name],
                                     f"{runner.name} beats {best.name} by {-(gap + held):.1f} over training and "
@@ -337,13 +337,14 @@ def _verdict(fits: list[StructureFit], threshold: float) -> StructureVerdict:
                                     "which earns its extra parameters", fits)
         elif runner.name not in richer and gap + held < threshold:
             return StructureVerdict(AMBIGUOUS, [best.name, runner.name],
-                                    reason + f", but predicts the held-out tests worse than {runner.name} "
-                                             f"({held:+.1f}), which leaves {gap + held:.1f} over all tests",
+                                    "; ".join(clauses) + f", but predicts the held-out tests worse than "
+                                    f"{runner.name} ({held:+.1f}), which leaves {gap + held:.1f} over all tests",
                                     fits)
         else:
-            reason += (f"; the held-out tests favour {runner.name} by {-held:.1f}, less than the training "
-                       f"evidence ({gap + held:.1f} left over all tests)")
+            clauses.append(f"the held-out tests favour {runner.name} by {-held:.1f}, less than the training "
+                           f"evidence ({gap + held:.1f} left over all tests)")
     if not best.adequate:
-        reason += f"; it does not fit to the noise (variance ratio {best.variance_ratio:.2f}): an unexplained remainder"
+        clauses.append(f"it does not fit to the noise (variance ratio {best.variance_ratio:.2f}): an unexplained "
+                       "remainder")
     ties = [best.name, top.name] if best is not top else [best.name]
-    return StructureVerdict(best.name, ties, reason, fits)
+    return StructureVerdict(best.name, ties, "; ".join(clauses), fits)
