@@ -210,7 +210,7 @@ def test_the_api_functions_stay_functions_once_their_subpackages_are_imported():
 # -- modules short or saying why
 
 RESULT_NAMES = ("Result", "Verdict", "Judgement", "Recommendation", "Identification", "Calibration", "Diagnosis",
-                "Fit", "Playback", "Delivery", "Report", "Fidelity")
+                "Fit", "Playback", "Delivery", "Report", "Fidelity", "Explanation")
 # Untyped fields still on a result, each with why it stays (the rule keeps new ones out).
 UNTYPED_LEFT = {
     # the diagnosis: its verdict, adequacy and ranking are typed; the evidence below is written into
@@ -228,7 +228,8 @@ UNTYPED_LEFT = {
     "Diagnosis.noise": "each recorder's noise model with its uncertainty, written as it is",
     "Diagnosis.residuals": "per test, the residual arrays by name, as diagnosis.h5 holds them for the figures",
     "Diagnosis.timing": "the stamps' jitter and the variance it could add (jitter_share), written as it is",
-    "Identification.explanation": "the diagnosis flattened for identification.json, as the report reads it",
+    "Explanation.noise": "each recorder's noise model with its uncertainty, as diagnosis.json holds it",
+    "Explanation.separating_test": "the separating test's design, as diagnosis.json holds it",
     "Identification.recordings": "Recording.summary(), a JSON summary the report and the story print",
     "Verdict.held_out": "the held-out check's figures, written into diagnosis.json as they are",
     "StructureVerdict.effects": "the effect catalogue's diagnosis on the winner, as its JSON",

@@ -57,7 +57,7 @@ def test_one_unit_is_identified_from_two_grid_events_recorded_as_electrical_powe
                          source=ModelSource(package=repo / "modelica" / "iGrGen", fmu_dir=fmus["FrequencyInput"].parent), pdf=False,
                          log=lambda *_: None)
     truth = {"gov.R": 0.05, "gov.Ts": 0.8, "gov.T5": 7.0}
-    found = result.explanation["parameters"]
+    found = result.explanation.parameters
     assert abs(found["gov.R"] / truth["gov.R"] - 1) < 0.02
     assert all(abs(found[k] / truth[k] - 1) < 0.15 for k in ("gov.Ts", "gov.T5"))
     record = result.record(result.recommended)

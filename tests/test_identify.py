@@ -25,7 +25,7 @@ from rapid_cosim.errors import ConfigError
 from rapid_cosim.exchange import read_record
 from rapid_cosim.identify import Identification, Unit
 from rapid_cosim.report.pdf import unavailable
-from rapid_cosim.identify.result import cannot_carry
+from rapid_cosim.identify.result import Explanation, cannot_carry
 from rapid_cosim.compiler.source import ModelSource
 
 REPO = Path(__file__).resolve().parents[1]
@@ -219,7 +219,7 @@ def test_with_no_record_recommended_an_earlier_runs_files_are_gone_and_the_notes
         (out / name).write_text("an earlier run's")
     why = "no standard record reproduces the tests within the noise"
     monkeypatch.setattr(identify_package, "identify", lambda spec, **_: Identification(
-        spec.name, spec.mva, spec.bus, spec.machine_id, ["t1"], [], {}, [], None, why, "unexplained", 0.0))
+        spec.name, spec.mva, spec.bus, spec.machine_id, ["t1"], [], Explanation(), [], None, why, "unexplained", 0.0))
     result = rc.identify(unit, workdir=out, log=lambda *_: None)
     assert not any(out.iterdir()) and not result.files
     assert result.notes == {kind: f"no record recommended: {why}" for kind in ("dyr", "dyd", "report")}
@@ -276,8 +276,8 @@ def test_an_explanation_with_a_remainder_counts_as_unexplained():
     """What the fleet flags 'unexplained': nothing known explains the unit, or what the
     explanation names leaves a remainder ('rate_limit + unexplained remainder')."""
     def ident(effect, adequate):
-        return Identification("u", None, 1, "1", ["t1"], [], {"effect": effect, "adequate": adequate}, [], None, "",
-                              "", 0.0)
+        return Identification("u", None, 1, "1", ["t1"], [], Explanation(effect=effect, adequate=adequate), [], None,
+                              "", "", 0.0)
 
     assert ident("unexplained", False).unexplained and ident("rate_limit", False).unexplained
     assert not ident("rate_limit", True).unexplained and not ident("none", True).unexplained
@@ -290,7 +290,7 @@ def test_a_unit_without_a_held_out_test_is_told_what_that_means():
 
     record = _record("TGOV1", 0.0, 4)
     record.tests = {"t1": type("F", (), {"rmse_over_noise": 1.0, "adequate": True})()}
-    explanation = {"verdict": "none", "adequate": True, "p": 0.5, "effect": "none"}
+    explanation = Explanation(p=0.5)
     ident = Identification("u", None, 1, "1", ["t1"], [], explanation, [record], "TGOV1", "first by BIC", "TGOV1",
                            0.0)
     assert f"note: {NO_HOLDOUT}" in ident.story() and "held out:" not in ident.story()
@@ -305,7 +305,7 @@ def test_the_reports_record_note_says_each_clause_once():
     record = _record("TGOV1", 0.0, 4)
     record.cautions = ["it cannot carry deadband"]
     record.words += "; it cannot carry deadband"
-    ident = Identification("u", None, 1, "1", [], [], {}, [record], "TGOV1",
+    ident = Identification("u", None, 1, "1", [], [], Explanation(), [record], "TGOV1",
                            "first by BIC (TGOV1, 4 estimated parameters); within the noise on every test", "TGOV1", 0.0)
     note = record_note(ident)
     assert note.count("within the noise on every test") == 1 and note.count("cannot carry deadband") == 1, note

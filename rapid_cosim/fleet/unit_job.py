@@ -117,7 +117,7 @@ def _run(entry: UnitEntry, options: FleetOptions, result: UnitResult, work: Path
     ident = identify(entry.folder, workdir=work, seed=options.seed, engine=EngineSpec(), source=options.source,
                      report=True, pdf=options.pdf, log=lambda *_: None)
     result.route = Route.IDENTIFIED
-    result.explanation = str(ident.explanation["verdict"])
+    result.explanation = ident.explanation.verdict
     result.unexplained = ident.unexplained
     root = Path(options.results)
     result.files = {k: str(Path(v).resolve().relative_to(root.resolve())) for k, v in ident.files.items()}

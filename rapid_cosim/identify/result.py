@@ -8,7 +8,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
 
-from ..diagnose.catalogue import VerdictKind
+from ..diagnose.adequacy import TestAdequacy
+from ..diagnose.catalogue import NONE, VerdictKind
 from .unit import NO_HOLDOUT
 
 # What each standard structure can represent of the effect catalogue, as its own
@@ -120,6 +121,37 @@ class StandardRecord:
                          for t in tests if t in self.tests)
 
 
+@dataclass(frozen=True)
+class Explanation:
+    """The explanation (TG Type I and the effect catalogue) in short: its verdict (the
+    sentence, the effect or kind's word, the effects named), whether its final model fits
+    to the noise (campaign ``p``, each test's adequacy), that model's parameters with their
+    90 % intervals, what no test excluded at a material size and the staged test that would
+    separate it. identification.json holds it as :meth:`to_json` writes it."""
+
+    verdict: str = NONE
+    effect: str = NONE
+    effects: tuple[str, ...] = ()
+    adequate: bool = True
+    p: float = 1.0
+    parameters: dict[str, float] = field(default_factory=dict)
+    intervals: dict[str, list[float]] = field(default_factory=dict)
+    tests: dict[str, TestAdequacy] = field(default_factory=dict)
+    noise: dict = field(default_factory=dict)
+    not_excluded: tuple[str, ...] = ()
+    separating_test: dict | None = None
+
+    @property
+    def kind(self) -> VerdictKind:
+        return VerdictKind.of(self.effect)
+
+    def to_json(self) -> dict:
+        return {"verdict": self.verdict, "effect": self.effect, "effects": list(self.effects),
+                "adequate": self.adequate, "parameters": self.parameters, "intervals": self.intervals,
+                "noise": self.noise, "p": self.p, "tests": {k: t.to_json() for k, t in self.tests.items()},
+                "not_excluded": list(self.not_excluded), "separating_test": self.separating_test}
+
+
 @dataclass
 class Identification:
     unit: str
@@ -128,7 +160,7 @@ class Identification:
     machine_id: str
     training: list[str]
     heldout: list[str]
-    explanation: dict
+    explanation: Explanation
     records: list[StandardRecord]
     recommended: str | None
     reason: str
@@ -152,11 +184,10 @@ class Identification:
         """Whether the explanation leaves something unexplained: nothing it knows explains
         the unit, or what it names leaves a remainder (its final model not within the
         noise: the verdict's "+ unexplained remainder")."""
-        return VerdictKind.of(self.explanation["effect"]) is VerdictKind.UNEXPLAINED \
-            or not self.explanation["adequate"]
+        return self.explanation.kind is VerdictKind.UNEXPLAINED or not self.explanation.adequate
 
     def to_json(self) -> dict:
-        return json.loads(json.dumps(asdict(self), default=float))
+        return json.loads(json.dumps({**asdict(self), "explanation": self.explanation.to_json()}, default=float))
 
     def markdown(self) -> str:
         e = self.explanation
@@ -164,10 +195,10 @@ class Identification:
                  f"Trained on {', '.join(self.training)}"
                  + (f"; held out: {', '.join(self.heldout)}." if self.heldout else f"; {NO_HOLDOUT}."), "",
                  "## The explanation (TG Type I and the effect catalogue)", "",
-                 f"**{e['verdict']}** (campaign p-value {e['p']:.2g}).", "",
+                 f"**{e.verdict}** (campaign p-value {e.p:.2g}).", "",
                  "| parameter | value | 90 % interval |", "|---|---:|---|"]
-        for name, value in e["parameters"].items():
-            lo_hi = e["intervals"].get(name)
+        for name, value in e.parameters.items():
+            lo_hi = e.intervals.get(name)
             lines.append(f"| {name} | {value:.4g} | {f'[{lo_hi[0]:.4g}, {lo_hi[1]:.4g}]' if lo_hi else '-'} |")
         lines += ["", "## The standard records", "",
                   "| record | fit | estimated | dBIC | pooled variance ratio | within the noise | in words |",
@@ -177,13 +208,13 @@ class Identification:
             lines.append(f"| {r.model} | {r.fit} | {r.n_estimated} | {r.bic - best:.1f} | {r.variance_ratio:.3f} | "
                          f"{'yes' if r.adequate else 'no'} | {r.words} |")
         lines += ["", "Fidelity per test (RMSE over the noise level; the explanation's in the last column):", ""]
-        tests = list(e["tests"])
+        tests = list(e.tests)
         lines.append("| test | " + " | ".join(r.model for r in self.records) + " | explanation |")
         lines.append("|---|" + "---:|" * (len(self.records) + 1))
         for t in tests:
             cells = [f"{r.tests[t].rmse_over_noise:.2f}{'' if r.tests[t].adequate else ' (fails)'}"
                      if t in r.tests else "-" for r in self.records]
-            lines.append(f"| {t} | " + " | ".join(cells) + f" | {e['tests'][t]['rmse_over_noise']:.2f} |")
+            lines.append(f"| {t} | " + " | ".join(cells) + f" | {e.tests[t].rmse_over_noise:.2f} |")
         lines += ["", "## The recommended record", "", f"**{self.recommended or 'none'}**: {self.reason}."]
         if self.recommended:
             r = self.record(self.recommended)
@@ -205,11 +236,11 @@ class Identification:
         record with its fidelity per test, what was delivered (and why not, where not),
         then ``also`` (the identification's own files)."""
         e = self.explanation
-        lines = [f"explanation (TG Type I and the effect catalogue): {e['verdict']}, "
-                 f"{'adequate' if e['adequate'] else 'not adequate'} (campaign p {e['p']:.2g})"]
-        if VerdictKind.of(e["effect"]) is VerdictKind.NONE and e.get("not_excluded"):
-            test = e.get("separating_test")
-            lines[0] += (f"; not excluded at a material size: {', '.join(e['not_excluded'])}"
+        lines = [f"explanation (TG Type I and the effect catalogue): {e.verdict}, "
+                 f"{'adequate' if e.adequate else 'not adequate'} (campaign p {e.p:.2g})"]
+        if e.kind is VerdictKind.NONE and e.not_excluded:
+            test = e.separating_test
+            lines[0] += (f"; not excluded at a material size: {', '.join(e.not_excluded)}"
                          + (f" ({test['advice']})" if test else ""))
         if self.recommended:
             r = self.record(self.recommended)

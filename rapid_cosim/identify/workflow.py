@@ -52,7 +52,7 @@ from ..fitting.engine import EngineSpec
 from ..noise import NoiseFit, campaign_noise
 from .check import check_unit, say, unsaid
 from .deliver import write_configs
-from .result import CARRIES, NEUTRAL, Identification, StandardRecord, TestFidelity, cannot_carry
+from .result import CARRIES, NEUTRAL, Explanation, Identification, StandardRecord, TestFidelity, cannot_carry
 from .unit import Unit
 
 
@@ -335,9 +335,8 @@ def _recommend(records: list[StandardRecord]) -> tuple[str | None, str, str | No
     return chosen.model, "; ".join(clauses), None if chosen is first else first.fit, tying
 
 
-def _explanation(d: Diagnosis) -> dict:
-    n, after = d.named, d.adequacy.after.to_json()
-    return {"verdict": n.verdict, "effect": n.effect, "effects": list(n.effects), "adequate": d.adequate,
-            "parameters": d.parameters_after, "intervals": d.parameter_intervals, "noise": d.noise,
-            "p": after["p"], "tests": after["tests"],
-            "not_excluded": list(n.not_excluded), "separating_test": n.separating_test}
+def _explanation(d: Diagnosis) -> Explanation:
+    n, after = d.named, d.adequacy.after
+    return Explanation(n.verdict, n.effect, tuple(n.effects), d.adequate, after.p, d.parameters_after,
+                       d.parameter_intervals, {t.test: t for t in after.tests}, d.noise, tuple(n.not_excluded),
+                       n.separating_test)
