@@ -98,3 +98,17 @@ def test_each_set_of_a_batch_has_its_own_delay(delayed_bench):
         onset = batch.time >= 5.0 + row[1]
         np.testing.assert_allclose(batch.values[i, ~onset, 0], batch.values[i, 0, 0], atol=1e-12)  # nothing before it arrives
         assert batch.values[i, -1, 0] > batch.values[i, 0, 0] + 0.05  # then the governor opens
+
+
+def test_fmpy_runs_the_delayed_bench_as_the_compiled_runner_does(delayed_bench):
+    """The delayed bench's FMU read by another program (fmpy's own loop, runner "python")
+    through the path a user takes: each set's delayed recording, a step among them, gives
+    the compiled runner's response."""
+    time = np.array([0.0, 5.0, 5.0, 30.0])
+    f = np.array([0.0, 0.0, -0.2, -0.2])
+    values = np.array([[0.8, 0.2], [2.0, 1.4]])
+    kwargs = dict(output_times=np.arange(0.0, 30.0, 0.1), input_time=time, inputs={"f_dev": f}, outputs=["pm"])
+    ours = delayed_bench.simulate_batch(["gov.Ts", "dly.T"], values, runner="compiled", **kwargs)
+    fmpy = delayed_bench.simulate_batch(["gov.Ts", "dly.T"], values, runner="python", **kwargs)
+    assert fmpy.ok.all() and np.max(np.abs(fmpy.values - ours.values)) < 1e-4
+    assert np.ptp(ours.values[:, :, 0], axis=1).min() > 0.05
