@@ -51,7 +51,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..errors import ParameterError, SimulationError, SimulationTimeout
+from ..errors import FmuError, ParameterError, SimulationError, SimulationTimeout
 from . import compiled
 from .fmu import FmuRef, LoadedFmu, ParameterInfo, cache_key
 from .inputs import InputTable
@@ -256,6 +256,9 @@ class Simulator:
             return lambda values: self._run_reference(run, names, values, record, types, start_time, times, table)
 
         if table is not None and DELAYED_FREQUENCY in table.names:
+            if DELAY not in self.fmu.parameters:
+                raise FmuError(f"{self.name}: an input {DELAYED_FREQUENCY} and no parameter {DELAY} to delay it by "
+                               "(iGrGen.Effects.TransportDelay dly)")
             call = _set_by_set(prepared, table, names, self.fmu.parameters[DELAY].start)
         else:
             call = prepared(table)
