@@ -1,10 +1,10 @@
-"""Which staged test would tell two candidate explanations apart?
+"""Which staged test would tell two fitted models apart, their fits held?
 
-Both fitted candidates (two effects, or two governor structures) are simulated on a menu
-of feasible staged tests (step sizes and directions, with a return), at the dispatch of
-the data; the test whose responses differ most, relative to the noise, is the one to run
-next, if what it would add to their BIC difference reaches the threshold; otherwise no
-step separates them.
+Both fitted models (two governor structures) are simulated on a menu of feasible staged
+tests (step sizes and directions, with a return), at the dispatch of the data; the test
+whose responses differ most, relative to the noise, is the one to run next, if what it
+would add to their BIC difference reaches the threshold; otherwise no step separates
+them. The diagnosis's advice also counts the refit and the noise (:mod:`.advice`).
 """
 
 from __future__ import annotations
@@ -12,9 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..experiment import Experiment
-from ..simulator import Simulator, get_simulator
-from .candidates import CandidateFit
-from .catalogue import CATALOGUE
+from ..simulator import Simulator
 from .selection import THRESHOLD, NoiseFloor
 
 STEPS_HZ = (-0.4, -0.2, -0.1, -0.05, 0.05, 0.1, 0.2, 0.4)
@@ -25,21 +23,6 @@ def _response(sim: Simulator, parameters: dict, t_step: float, df: float, dt: fl
     """The response sampled as the recorder would (every ``dt`` s)."""
     params = {**parameters, "src.df": df, "src.t_step": t_step, "src.t_return": t_step + HOLD_S}
     return sim.simulate(params, stop_time=t_step + 2 * HOLD_S, output_interval=dt, outputs=["pm"])["pm"]
-
-
-def _relative(name: str) -> bool:
-    return any(e.relative and any(p.name == name for p in e.parameters) for e in CATALOGUE.values())
-
-
-def separating_test(a: CandidateFit, b: CandidateFit, template: Experiment, noise: NoiseFloor) -> dict:
-    """The menu test with the largest RMS difference between ``a`` and ``b`` (in noise units)."""
-    def parameters(fit: CandidateFit) -> dict:
-        held = {k: v * (template.fixed.get(k, 1.0) if _relative(k) else 1.0) for k, v in fit.spec.held}
-        return {**template.fixed, **held, **fit.parameters}
-
-    # each fit carries the FMU it was calibrated with
-    return separating_menu((a.spec.label, get_simulator(a.inputs.fmus[a.model]), parameters(a)),
-                           (b.spec.label, get_simulator(b.inputs.fmus[b.model]), parameters(b)), template, noise)
 
 
 def separating_menu(a: tuple[str, Simulator, dict], b: tuple[str, Simulator, dict], template: Experiment,

@@ -35,7 +35,7 @@ from .intervals import exchanged, intervals
 from .limits import check_material, inadequate, verdict_text
 from .result import AdequacyJudgement, Diagnosis, DiagnosisVerdict, SearchReport
 from .selection import Ranked, Verdict, bic, decide, decisive, gap, rank, score, settle_on_heldout
-from .separate import separating_test
+from .advice import advise
 from .variants import check_variants
 
 MIN_REACHED = 3  # starts that must end at a candidate's best for its optimum to count as certified
@@ -282,7 +282,7 @@ def _separating(ctx: Context, labels: Sequence[str], not_excluded: Sequence[str]
             ctx.log("  no separating staged test proposed: no training experiment is a staged test to design "
                     "it from")
         return None
-    return separating_test(a, b, staged[0], ctx.noise[staged[0].name])
+    return advise(a, b, staged[0], ctx.noise[staged[0].name], seed=ctx.options.seed or 0)
 
 
 def written_into(ctx) -> tuple[Path, str]:

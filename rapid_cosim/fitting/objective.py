@@ -163,6 +163,11 @@ class ProblemObjective:
         scale = np.ones(len(blocks)) / len(blocks) if self.weights is None else self.weights / self.weights.sum()
         return ev, np.concatenate([b * np.sqrt(w) for b, w in zip(blocks, scale)], axis=1)
 
+    def residual_blocks(self, X: np.ndarray) -> list[np.ndarray]:
+        """Per experiment, its residual rows (sets x valid samples) as its own fitness
+        scores them (whitened for whitened experiments), unscaled by the combination."""
+        return self._evaluate(X, residuals=True)[1]
+
     def _evaluate(self, X: np.ndarray, residuals: bool):
         X = np.atleast_2d(np.asarray(X, dtype=float))
         t0 = time.perf_counter()

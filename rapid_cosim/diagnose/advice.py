@@ -1,0 +1,301 @@
+"""Which staged test settles an ambiguity, and how likely is it to, once it is recorded?
+
+Comparing the two rivals' fitted responses on a proposed test (:mod:`.separate`) says
+how far apart they are today. The user sees something else: the test recorded with the
+recorder's noise, and both rivals refitted on all the tests, the new one included. A
+wrong rival refitted to the new test absorbs part of the difference; a noise draw can
+hide the rest. So each proposed test is judged by Monte Carlo over that loop:
+
+* the new test is simulated from the rival assumed true, at its fitted parameters, and
+  the recorder's fitted noise is added. In the whitened space where the criterion is
+  computed that noise is independent standard normal (the noise model's standardised
+  innovations), so it is drawn there directly, each test's offset profiled out;
+* both rivals are refitted on the old tests and the new one, linearised about their
+  present fits: the old tests' whitened residuals and Jacobians (the diagnosis's own)
+  and the new test's sensitivities by finite differences. The refit minimises the
+  criterion (sum over tests of n log of the mean squared whitened residual) by
+  reweighted Gauss-Newton steps, clipped into the bounds, never worse than no step;
+* the truth's lead in BIC must clear the decision threshold. The probability is that
+  of clearing it, whichever rival is true (the smaller of the two).
+
+The menu: step sizes and signs, how long each step is held before its return, repeats
+and a pair of opposite steps, and the dispatch (the data's, or another level within the
+documented ``pmin``..``pmax``). The smallest test (step size first, then the time it
+takes, then no re-dispatch) reaching ``TARGET`` is proposed.
+
+What the linearisation cannot see: a rival whose refit moves far from its present fit,
+into another basin, on the new test. ``make bench-advice`` measures how well the stated
+probability holds against the full loop (a new recording, a new diagnosis).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import product
+
+import numpy as np
+
+from ..fitting.objective import ProblemObjective
+from ..simulator import get_simulator
+from .candidates import CandidateFit, experiment_blocks
+from .selection import THRESHOLD, NoiseFloor
+
+MAGNITUDES_HZ = (0.05, 0.1, 0.2, 0.4)
+HOLDS_S = (25.0, 50.0, 100.0)
+PATTERNS = ((-1,), (1,), (-1, -1), (1, 1), (-1, 1), (-1, -1, -1), (1, 1, 1), (-1, 1, -1, 1))
+DISPATCH_SHARES = (0.4, 0.6, 0.8)  # of the documented range, besides the data's own dispatch
+TARGET = 0.9
+DRAWS = 400
+FD_STEP = 1e-3  # in unit coordinates, as the diagnosis's Jacobians
+
+
+@dataclass(frozen=True)
+class ProposedTest:
+    """One or more staged steps of ``magnitude_hz``, each held ``hold_s`` and returned."""
+
+    signs: tuple[int, ...]
+    magnitude_hz: float
+    hold_s: float
+    p_ref: float
+    redispatch: bool
+    t_step_s: float
+
+    @property
+    def seconds(self) -> float:
+        return len(self.signs) * (self.t_step_s + 2 * self.hold_s)
+
+    @property
+    def size(self) -> tuple:
+        return self.magnitude_hz, self.seconds, self.redispatch
+
+    def describe(self) -> str:
+        steps = [f"{1000 * s * self.magnitude_hz:+.0f} mHz" for s in self.signs]
+        if len(set(steps)) == 1:
+            what = f"a staged test with df = {steps[0]}" + ("" if len(steps) == 1 else f", {_times(len(steps))}")
+        else:
+            what = "staged tests with df = " + ", then ".join(steps)
+        at = f" at a dispatch of {self.p_ref:.2f} pu" if self.redispatch else ""
+        return f"{what}{at}, {'each ' if len(steps) > 1 else ''}held {self.hold_s:.0f} s and returned"
+
+
+def _times(n: int) -> str:
+    return {2: "twice", 3: "three times"}.get(n, f"{n} times")
+
+
+@dataclass(frozen=True)
+class _Old:
+    """A rival's old tests, linearised: whitened residuals and Jacobians in unit coordinates."""
+
+    n: np.ndarray  # samples per test
+    rr: np.ndarray  # per test r'r
+    Jr: np.ndarray  # (tests, d) J'r
+    JJ: np.ndarray  # (tests, d, d) J'J
+    u0: np.ndarray  # the fit in unit coordinates
+    k: int  # parameters counted by BIC (estimated + one offset per test)
+
+
+def _linearised(fit: CandidateFit) -> _Old:
+    problem = fit.inputs.problem
+    space = problem.space
+    x = np.array([fit.parameters[n] for n in problem.names])
+    u = np.clip(space.to_unit(x), 0.0, 1.0)
+    steps = np.where(u + FD_STEP <= 1.0, FD_STEP, -FD_STEP)
+    U = np.tile(u, (space.dim + 1, 1))
+    U[1:][np.arange(space.dim), np.arange(space.dim)] += steps
+    blocks = ProblemObjective(problem, fit.inputs.fmus).residual_blocks(space.clip(space.from_unit(U)))
+    n, rr, Jr, JJ = [], [], [], []
+    for (exp, _), block in zip(experiment_blocks(problem), blocks):
+        r = np.nan_to_num(block[0])
+        J = np.nan_to_num((block[1:] - block[0]).T / steps)
+        n.append(r.size), rr.append(r @ r), Jr.append(J.T @ r), JJ.append(J.T @ J)
+    return _Old(np.array(n, float), np.array(rr), np.array(Jr), np.array(JJ), u,
+                fit.n_estimated + len(problem.experiments))
+
+
+class _Rival:
+    """A fitted rival on the menu's tests: its whitened responses and sensitivities."""
+
+    def __init__(self, fit: CandidateFit, template_name: str, noise: NoiseFloor):
+        self.fit, self.label = fit, fit.spec.label
+        problem = fit.inputs.problem
+        self.index = problem.experiment_index(template_name)
+        self.old = _linearised(fit)
+        self.sim = get_simulator(fit.inputs.fmus[fit.model])
+        self.noise = noise
+        self.shared = np.array(["@" not in n for n in problem.names])
+
+    def responses(self, test: ProposedTest, sign: int) -> tuple[np.ndarray, np.ndarray]:
+        """Whitened response at the fit (n,) and its sensitivities (n, d) to the unit coordinates."""
+        problem, space, u = self.fit.inputs.problem, self.fit.inputs.problem.space, self.old.u0
+        d = space.dim
+        steps = np.where(u + FD_STEP <= 1.0, FD_STEP, -FD_STEP) * self.shared
+        U = np.tile(u, (d + 1, 1))
+        U[1:][np.arange(d), np.arange(d)] += steps
+        X = space.clip(space.from_unit(U))
+        rows = [{**problem.parameters_for(x, self.index), "src.df": sign * test.magnitude_hz,
+                 "src.t_step": test.t_step_s, "src.t_return": test.t_step_s + test.hold_s, "gov.p_ref": test.p_ref}
+                for x in X]
+        names = list(rows[0])
+        out = self.sim.simulate_batch(names, np.array([[r[n] for n in names] for r in rows]),
+                                      stop_time=test.t_step_s + 2 * test.hold_s, output_interval=self.noise.model.dt,
+                                      outputs=["pm"])
+        y = self.noise.fit.model.whiten(out.values[:, :, 0])
+        g = y[0]
+        G = np.where(self.shared, (y[1:] - y[0]).T / np.where(steps == 0, 1.0, steps), 0.0)
+        return g, G
+
+
+def _project(noise: NoiseFloor, n: int):
+    """The offset's profile in whitened units: x minus its projection on whitened ones."""
+    o = noise.fit.model.whiten(np.ones((1, n)))[0]
+    o = o / np.linalg.norm(o)
+    return lambda x: x - np.multiply.outer(x @ o, o) if x.ndim > 1 else x - (x @ o) * o
+
+
+def _refit(old: _Old, blocks: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """The criterion (sum n log s2) after the linearised refit, per draw. ``blocks``: the
+    new tests' whitened residuals at the fit (draws, n) with their Jacobians (n, d)."""
+    draws = blocks[0][0].shape[0]
+    d = old.u0.size
+    ee = np.stack([(e * e).sum(1) for e, _ in blocks], 1)  # (draws, tests)
+    Ge = np.stack([e @ G for e, G in blocks], 1)  # (draws, tests, d)
+    GG = np.stack([G.T @ G for _, G in blocks])  # (tests, d, d)
+    nn = np.array([G.shape[0] for _, G in blocks], float)
+
+    def criterion(delta):
+        s_old = (old.rr + 2 * delta @ old.Jr.T + np.einsum("ri,tij,rj->rt", delta, old.JJ, delta)) / old.n
+        s_new = (ee + 2 * np.einsum("rtd,rd->rt", Ge, delta) + np.einsum("ri,tij,rj->rt", delta, GG, delta)) / nn
+        c = (old.n * np.log(np.maximum(s_old, 1e-300))).sum(1) + (nn * np.log(np.maximum(s_new, 1e-300))).sum(1)
+        return c, s_old, s_new
+
+    delta = np.zeros((draws, d))
+    best, s_old, s_new = criterion(delta)
+    for _ in range(4):  # reweighted Gauss-Newton: the criterion's stationary point weighs each test by 1/s2
+        A = np.einsum("rt,tij->rij", 1 / s_old, old.JJ) + np.einsum("rt,tij->rij", 1 / s_new, GG)
+        g = (1 / s_old) @ old.Jr + np.einsum("rt,rtd->rd", 1 / s_new, Ge)
+        A += (1e-9 * np.trace(A, axis1=1, axis2=2)[:, None, None] + 1e-12) * np.eye(d)
+        delta = np.clip(old.u0 - np.linalg.solve(A, g[..., None])[..., 0], 0.0, 1.0) - old.u0
+        c, s_old, s_new = criterion(delta)
+        best = np.minimum(best, c)
+    return best
+
+
+def _menu(template, t_step: float) -> list[ProposedTest]:
+    fixed = template.fixed
+    p_ref = float(fixed.get("gov.p_ref", np.nan))
+    levels = [(p_ref, False)]
+    if "gov.pmin" in fixed and "gov.pmax" in fixed:
+        lo, hi = float(fixed["gov.pmin"]), float(fixed["gov.pmax"])
+        levels += [(lo + s * (hi - lo), True) for s in DISPATCH_SHARES if abs(lo + s * (hi - lo) - p_ref) > 0.05]
+    tests = [ProposedTest(signs, m, h, p, re, t_step)
+             for m, h, signs, (p, re) in product(MAGNITUDES_HZ, HOLDS_S, PATTERNS, levels)]
+    return sorted(tests, key=lambda t: t.size)
+
+
+@dataclass(frozen=True)
+class Settling:
+    """A proposed test's chance of settling the choice, each rival assumed true in turn."""
+
+    test: ProposedTest
+    probability: dict[str, float]  # label -> P(its lead clears the threshold | it is true)
+    median_lead: dict[str, float]
+
+    @property
+    def worst(self) -> float:
+        return min(self.probability.values())
+
+
+def settling(rivals: tuple[_Rival, _Rival], test: ProposedTest, rng: np.random.Generator,
+             cache: dict, draws: int = DRAWS, threshold: float = THRESHOLD) -> Settling:
+    """Monte Carlo of ``test`` recorded from each rival and both refitted."""
+    probability, median = {}, {}
+    for truth in rivals:
+        z = {}  # one noise draw per recorded test, shared by both rivals' refits
+        criteria = []
+        for rival in rivals:
+            blocks = []
+            for i, sign in enumerate(test.signs):
+                g_t, _ = _cached(cache, truth, test, sign)
+                g, G = _cached(cache, rival, test, sign)
+                proj = _project(rival.noise, g.size)
+                if i not in z:
+                    z[i] = rng.standard_normal((draws, g.size))
+                blocks.append((proj(g_t - g + z[i]), -proj(G.T).T))
+            criteria.append(_refit(rival.old, blocks))
+        other = rivals[1] if truth is rivals[0] else rivals[0]
+        n_total = float(truth.old.n.sum()) + sum(b.shape[1] for b in z.values())
+        c_truth, c_other = criteria[rivals.index(truth)], criteria[rivals.index(other)]
+        lead = (c_other + other.old.k * np.log(n_total)) - (c_truth + truth.old.k * np.log(n_total))
+        probability[truth.label] = float(np.mean(lead >= threshold))
+        median[truth.label] = float(np.median(lead))
+    return Settling(test, probability, median)
+
+
+def _cached(cache: dict, rival: _Rival, test: ProposedTest, sign: int):
+    key = (id(rival), sign, test.magnitude_hz, test.hold_s, test.p_ref)
+    if key not in cache:
+        cache[key] = rival.responses(test, sign)
+    return cache[key]
+
+
+SCREEN_DRAWS = 100  # every menu test; those within 0.1 of the target are judged on DRAWS
+
+
+def advise(a: CandidateFit, b: CandidateFit, template, noise: NoiseFloor, *, seed: int = 0,
+           target: float = TARGET, threshold: float = THRESHOLD) -> dict:
+    """The smallest menu test that settles ``a`` against ``b`` with probability ``target``
+    (or the likeliest, said to fall short), as diagnosis.json holds it."""
+    rivals = (_Rival(a, template.name, noise), _Rival(b, template.name, noise))
+    rng = np.random.default_rng(seed)
+    cache: dict = {}
+    menu, chosen, best = [], None, None
+    for test in _menu(template, float(template.fixed.get("src.t_step", 10.0))):
+        s = settling(rivals, test, rng, cache, draws=SCREEN_DRAWS, threshold=threshold)
+        menu.append(s)
+        if s.worst >= target - 0.1:
+            s = settling(rivals, test, rng, cache, draws=DRAWS, threshold=threshold)
+            if s.worst >= target:
+                chosen = s
+                break
+        best = s if best is None or s.worst > best.worst else best
+    if chosen is None:
+        best = settling(rivals, best.test, rng, cache, draws=DRAWS, threshold=threshold)
+    return _record(rivals, chosen or best, chosen is not None, menu, cache, target, threshold)
+
+
+def _record(rivals, s: Settling, found: bool, menu: list[Settling], cache: dict, target: float,
+            threshold: float) -> dict:
+    (ra, rb), t = rivals, s.test
+    la, lb = ra.label, rb.label
+    # today's difference on the test, the fits held: what the advice said before refits were counted
+    evidence, sq, n = 0.0, 0.0, 0
+    for sign in t.signs:
+        d = _cached(cache, ra, t, sign)[0] - _cached(cache, rb, t, sign)[0]
+        d = _project(ra.noise, d.size)(d)
+        evidence, sq, n = evidence + float(d @ d), sq + float(d @ d), n + d.size
+    chance = (f"recorded with this recorder's noise and both refitted on all the tests (linearised about "
+              f"today's fits, {DRAWS} simulated recordings), the true one leads by {threshold:g} in BIC or more "
+              f"with probability {s.probability[la]:.2f} if {la} is true and {s.probability[lb]:.2f} if {lb} is")
+    if found:
+        advice = (f"{t.describe()} separates {la} from {lb} with probability {s.worst:.2f}: {chance}. "
+                  f"Then: {la} ahead by {threshold:g} or more names {la}; {lb} ahead names {lb}; neither ahead "
+                  f"happens {1 - s.worst:.0%} of the time or less when one of them is the plant, and with a remainder "
+                  "on the new test it says that neither is")
+    else:
+        advice = (f"no staged test of the menu (steps of {1000 * MAGNITUDES_HZ[0]:.0f} to "
+                  f"{1000 * MAGNITUDES_HZ[-1]:.0f} mHz held {HOLDS_S[0]:.0f} to {HOLDS_S[-1]:.0f} s, up to "
+                  f"{max(map(len, PATTERNS))} of them, at the data's dispatch or another within the documented "
+                  f"range) separates {la} from {lb} with probability {target:g}; the best, {t.describe()}: {chance}; "
+                  "the documentation of the unit must decide")
+    return {
+        "between": [la, lb],
+        "test": {"df_hz": t.signs[0] * t.magnitude_hz, "steps_hz": [s_ * t.magnitude_hz for s_ in t.signs],
+                 "hold_s": t.hold_s, "t_step_s": t.t_step_s, "t_return_s": t.t_step_s + t.hold_s,
+                 "p_ref": t.p_ref, "redispatch": t.redispatch},
+        "rms_over_noise": float(np.sqrt(sq / max(n, 1))),
+        "expected_bic": evidence,
+        "probability": s.worst, "probability_if": s.probability, "median_lead": s.median_lead,
+        "target": target, "found": found, "draws": DRAWS,
+        "advice": advice,
+        "menu": [{"test": m.test.describe(), "probability": m.worst} for m in menu],
+    }
