@@ -22,7 +22,7 @@ T0           := $(shell date +%s)
 comma        := ,
 
 .DEFAULT_GOAL := help
-.PHONY: help install fmus demo test test-slow test-faults bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay bench-identify profile-identify records-diff stories-diff fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-deadband identify-gas identify-png fleet-png bench-speed bench-delay report-example event-electrical $(STAGED_TESTS)
+.PHONY: help install fmus demo test test-slow test-faults bench bench-diagnose bench-structures bench-electrical bench-timebase bench-fleet bench-replay bench-identify profile-identify records-diff stories-diff fleet clean table1 figures rerun event1 joint diagnose structures identify identify-electrical identify-steam identify-deadband identify-gas identify-png fleet-png bench-speed bench-delay bench-advice report-example event-electrical $(STAGED_TESTS)
 
 help:  ## list the targets
 	@grep -E '^[a-zA-Z0-9_%$$()-]+:.*## ' $(MAKEFILE_LIST) | sed 's/^$$(STAGED_TESTS)/test1..test10/' \
@@ -169,6 +169,9 @@ bench-speed: fmus  ## where a diagnosis spends its time: field, four-test and ev
 
 bench-delay: fmus  ## what the exact transport delay costs: a delayed recorded-frequency bench against one without, per set, both runners
 	$(PY) benchmarks/delay_cost.py
+
+bench-advice: fmus  ## does the advised next test settle an ambiguity as often as it says? first diagnosis, advised test recorded, second diagnosis
+	$(PY) benchmarks/advice_study.py
 
 bench: fmus  ## print the performance figures
 	$(PY) benchmarks/run.py

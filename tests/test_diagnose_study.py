@@ -69,8 +69,14 @@ def test_one_step_size_cannot_exclude_a_deadband_so_none_carries_it_as_a_caveat(
     assert d.effect == "none", (d.effect, d.reason)
     assert any(c.startswith("deadband") for c in d.not_excluded), d.not_excluded
     # and it says which test would separate them: another step size than the one in the data
-    assert d.separating_test is not None
-    assert abs(d.separating_test["test"]["df_hz"]) != pytest.approx(0.2)
+    sep = d.separating_test
+    assert sep is not None
+    assert abs(sep["test"]["df_hz"]) != pytest.approx(0.2)
+    # with the chance it settles the choice once recorded and both refitted, said in the advice
+    p = sep["probability"]
+    assert 0.0 <= p <= 1.0 and p == min(sep["probability_if"].values())
+    assert f"probability {p:.2f}" in sep["advice"] and (p >= 0.9) == sep["found"]
+    assert all(label in sep["advice"] for label in sep["between"])
 
 
 def test_named_effect_is_written_compiled_recalibrated_through_the_cli(study, tmp_path):

@@ -277,3 +277,23 @@ def write_campaign(case: Case, folder: Path, *, source: ModelSource) -> list[Pat
             estimate=ESTIMATE, fitness={"offset": True, "noise": "pre-step", "pre_step_end": T_STEP},
             description=f"synthetic: {case.truth} hidden, df = {1000 * df:+.0f} mHz"))
     return paths
+
+
+def write_advised(case: Case, test: dict, folder: Path, *, source: ModelSource) -> list[Path]:
+    """Configs of an advised test (``test`` as the diagnosis's advice holds it: its steps,
+    hold and dispatch), its data recorded from the case's plant with fresh noise: what the
+    user of the advice does next."""
+    fmu = _bench_fmu(case.effects, source, case.kind)
+    rng = np.random.default_rng([case.seed, 104729, zlib.crc32(case.truth.encode())])
+    t_step, hold = test["t_step_s"], test["hold_s"]
+    paths = []
+    for k, df in enumerate(test["steps_hz"]):
+        fixed = {"gov.p_ref": test["p_ref"], "src.df": df, "src.t_step": t_step, "src.t_return": t_step + hold,
+                 **DOCUMENTED}
+        t, y = synthesize(fmu, {**case.plant, **case.effect_values, **fixed}, duration=t_step + 2 * hold,
+                          rate=RATE_HZ, jitter=case.jitter, noise=case.noise, rng=rng)
+        paths.append(write_experiment(
+            folder / f"advised{k + 1}", model="iGrGen.TestBenches.StagedTest", time=t, values=y, fixed=fixed,
+            estimate=ESTIMATE, fitness={"offset": True, "noise": "pre-step", "pre_step_end": t_step},
+            description=f"synthetic: the advised test, df = {1000 * df:+.0f} mHz held {hold:.0f} s"))
+    return paths
