@@ -25,6 +25,7 @@ the second diagnosis.
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 import tempfile
@@ -101,7 +102,7 @@ def report(rows: list[dict], elapsed: float) -> None:
     for r in rows:
         line = f"  {r['label']:<28} first {r['first']:<36}"
         if "stated" in r:
-            line += f" stated {r['stated']:.2f} -> second {r.get('second', '?')}" + (
+            line += f" ({' / '.join(r['between'])}) stated {r['stated']:.2f} -> second {r.get('second', '?')}" + (
                 " SETTLED" if r.get("settled") else "") + (" +remainder" if r.get("remainder") else "")
         print(line)
     followed = [r for r in rows if "settled" in r]
@@ -116,7 +117,12 @@ def report(rows: list[dict], elapsed: float) -> None:
           f"({'within' if abs(k / n - stated) <= 2 * se else 'OUTSIDE'} two of them)")
     print(f"advice reached the target (0.9): {sum(r['found'] for r in followed)} of {n}; "
           f"truth among the two rivals: {sum(r['truth'] in r['between'] for r in followed)} of {n}")
-    print(f"second diagnosis with an unexplained remainder: {sum(r['remainder'] for r in followed)} of {n}")
+    print(f"second diagnosis with an unexplained remainder: {sum(r['remainder'] for r in followed)} of {n}; "
+          f"unexplained: {sum(r['second_kind'] == 'unexplained' for r in followed)} of {n}")
+    among = [r for r in followed if r["truth"] in r["between"]]
+    if among:
+        print(f"where the truth was one of the two rivals: settled {sum(r['settled'] for r in among)} of {len(among)}, "
+              f"stated {np.mean([r['stated'] for r in among]):.2f} on average")
 
 
 def main(argv: list[str]) -> int:
@@ -142,6 +148,7 @@ def main(argv: list[str]) -> int:
     print(f"{len(cases)} cases ({len(drawn) - len(cases)} seeds drew no visible effect), {args.n_jobs} in parallel; work folder {work}", flush=True)
     rows = joblib.Parallel(n_jobs=args.n_jobs)(joblib.delayed(one)(c, work / "cases", source) for c in cases)
     report(rows, time.perf_counter() - t0)
+    (work / "rows.json").write_text(json.dumps(rows, indent=1, default=float))
     if not args.keep:
         shutil.rmtree(work, ignore_errors=True)
     return 0
