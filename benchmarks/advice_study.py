@@ -35,6 +35,7 @@ from pathlib import Path
 
 import joblib
 import numpy as np
+from diagnose_study import _seeds  # this folder: the scripts run from it
 
 ROOT = Path(__file__).resolve().parents[1]
 SIZES = {
@@ -43,14 +44,6 @@ SIZES = {
     "load_controller": lambda g: {"gov.K_lc": g.uniform(0.004, 0.012)},
     "doc_T5": lambda g: {"gov.T5": 6.0 * float(g.choice([0.6, 1.6]))},
 }
-
-
-def _seeds(spec: str) -> list[int]:
-    out = []
-    for part in filter(None, spec.split(",")):
-        a, _, b = part.partition("-")
-        out += list(range(int(a), int(b or a) + 1))
-    return out
 
 
 def draw(truth: str, seed: int, source):
