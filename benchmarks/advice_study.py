@@ -76,7 +76,11 @@ def one(case, work: Path, source) -> dict:
     sep = first.named.separating_test
     if first.kind is not VerdictKind.AMBIGUOUS or not sep:
         return out
-    out.update(between=sep["between"], stated=sep["probability"], found=sep["found"], advice=sep["advice"])
+    out.update(between=sep["between"], stated=sep["probability"], found=sep["found"], advice=sep["advice"],
+               stated_if_truth=sep["probability_if"].get(case.truth))
+    if sep["test"] is None:  # the rivals are one model on every test of the menu: nothing to record
+        out.update(second="(no test advised)", second_kind="-", adequate=None, settled=False, remainder=False)
+        return out
     folder = work / case.label
     paths = sorted((folder / "data").glob("step*/config.toml"))
     new = write_advised(case, sep["test"], folder / "advised", source=source)
@@ -109,13 +113,21 @@ def report(rows: list[dict], elapsed: float) -> None:
           f"stated {stated:.2f} on average, sampling error of the measured rate at that probability {se:.2f} "
           f"({'within' if abs(k / n - stated) <= 2 * se else 'OUTSIDE'} two of them)")
     print(f"advice reached the target (0.9): {sum(r['found'] for r in followed)} of {n}; "
-          f"truth among the two rivals: {sum(r['truth'] in r['between'] for r in followed)} of {n}")
+          f"truth among the rivals: {sum(r['truth'] in r['between'] for r in followed)} of {n}")
     print(f"second diagnosis with an unexplained remainder: {sum(r['remainder'] for r in followed)} of {n}; "
           f"unexplained: {sum(r['second_kind'] == 'unexplained' for r in followed)} of {n}")
     among = [r for r in followed if r["truth"] in r["between"]]
     if among:
-        print(f"where the truth was one of the two rivals: settled {sum(r['settled'] for r in among)} of {len(among)}, "
-              f"stated {np.mean([r['stated'] for r in among]):.2f} on average")
+        print(f"where the truth was one of the rivals: settled {sum(r['settled'] for r in among)} of {len(among)}, "
+              f"stated {np.mean([r['stated'] for r in among]):.2f} on average (the smallest over the rivals)")
+    told = [r for r in followed if r.get("stated_if_truth") is not None]
+    if told:
+        p = float(np.mean([r["stated_if_truth"] for r in told]))
+        se = float(np.sqrt(max(p * (1 - p), 1e-9) / len(told)))
+        k = sum(r["settled"] for r in told)
+        print(f"the advice's probability for the plant's own effect: {p:.2f} on average over {len(told)}; settled "
+              f"{k} of {len(told)} ({k / len(told):.0%}; sampling error {se:.2f}, "
+              f"{'within' if abs(k / len(told) - p) <= 2 * se else 'OUTSIDE'} two of them)")
 
 
 def main(argv: list[str]) -> int:

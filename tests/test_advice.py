@@ -78,7 +78,7 @@ def test_the_stated_probability_is_the_share_of_brute_force_refits_that_settle()
     b = _Linear("b", 0.0 * shape, G, _old(old_r, old_J, u0, 4))
     test = ProposedTest((-1, 1), 0.1, 25.0, 0.6, False, 10.0)
     draws = 40
-    s = settling((a, b), test, np.random.default_rng(11), {}, draws=draws, threshold=3.0)
+    s = settling([[a], [b]], test, np.random.default_rng(11), {}, draws=draws, threshold=3.0)
     # brute force with the same draws (drawn per truth, per recorded test, in that order)
     z_rng = np.random.default_rng(11)
     ones = np.ones(n) / np.sqrt(n)

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import product
+from typing import Sequence
 
 import numpy as np
 
@@ -197,7 +198,7 @@ class Settling:
     """A proposed test's chance of settling the choice, each rival assumed true in turn."""
 
     test: ProposedTest
-    probability: dict[str, float]  # label -> P(its lead clears the threshold | it is true)
+    probability: dict[str, float]  # label -> P(it leads every other by the threshold | it is true)
     median_lead: dict[str, float]
 
     @property
@@ -205,13 +206,16 @@ class Settling:
         return min(self.probability.values())
 
 
-def settling(rivals: tuple[_Rival, _Rival], test: ProposedTest, rng: np.random.Generator,
+def settling(groups: Sequence[Sequence[_Rival]], test: ProposedTest, rng: np.random.Generator,
              cache: dict, draws: int = DRAWS, threshold: float = THRESHOLD) -> Settling:
-    """Monte Carlo of ``test`` recorded from each rival and both refitted."""
+    """Monte Carlo of ``test`` recorded from each group's first rival and every rival
+    refitted; the truth must lead every rival outside its group."""
+    rivals = [r for g in groups for r in g]
     probability, median = {}, {}
-    for truth in rivals:
-        z = {}  # one noise draw per recorded test, shared by both rivals' refits
-        criteria = []
+    for group in groups:
+        truth = group[0]
+        z = {}  # one noise draw per recorded test, shared by all rivals' refits
+        criteria = {}
         for rival in rivals:
             blocks = []
             for i, sign in enumerate(test.signs):
@@ -221,11 +225,10 @@ def settling(rivals: tuple[_Rival, _Rival], test: ProposedTest, rng: np.random.G
                 if i not in z:
                     z[i] = rng.standard_normal((draws, g.size))
                 blocks.append((proj(g_t - g + z[i]), -proj(G.T).T))
-            criteria.append(_refit(rival.old, blocks))
-        other = rivals[1] if truth is rivals[0] else rivals[0]
-        n_total = float(truth.old.n.sum()) + sum(b.shape[1] for b in z.values())
-        c_truth, c_other = criteria[rivals.index(truth)], criteria[rivals.index(other)]
-        lead = (c_other + other.old.k * np.log(n_total)) - (c_truth + truth.old.k * np.log(n_total))
+            criteria[rival.label] = _refit(rival.old, blocks)
+        log_n = np.log(float(truth.old.n.sum()) + sum(b.shape[1] for b in z.values()))
+        bic = {r.label: criteria[r.label] + r.old.k * log_n for r in rivals}
+        lead = np.min([bic[r.label] for r in rivals if r not in group], axis=0) - bic[truth.label]
         probability[truth.label] = float(np.mean(lead >= threshold))
         median[truth.label] = float(np.median(lead))
     return Settling(test, probability, median)
@@ -238,64 +241,102 @@ def _cached(cache: dict, rival: _Rival, test: ProposedTest, sign: int):
     return cache[key]
 
 
+def _evidence(cache: dict, a: _Rival, b: _Rival, test: ProposedTest) -> tuple[float, float]:
+    """What ``test`` adds to the BIC difference of ``a`` and ``b`` with their fits held, and
+    the RMS of their whitened difference: what the advice said before refits were counted."""
+    evidence, n = 0.0, 0
+    for sign in test.signs:
+        d = _cached(cache, a, test, sign)[0] - _cached(cache, b, test, sign)[0]
+        d = _project(a.noise, d.size)(d)
+        evidence, n = evidence + float(d @ d), n + d.size
+    return evidence, float(np.sqrt(evidence / max(n, 1)))
+
+
+def _groups(rivals: Sequence[_Rival], largest: ProposedTest, cache: dict, threshold: float) -> list[list[_Rival]]:
+    """Rivals joined where even the menu's largest test, their fits held, differs by less
+    than the threshold: the same model on every test of the menu (lags in series on a
+    linear stretch, say), which no staged test tells apart."""
+    groups: list[list[_Rival]] = []
+    for r in rivals:  # in the verdict's order: each group's first is its best-ranked
+        home = next((g for g in groups if any(_evidence(cache, r, o, largest)[0] < threshold for o in g)), None)
+        if home is None:
+            groups.append([r])
+        else:
+            home.append(r)
+    return groups
+
+
 SCREEN_DRAWS = 100  # every menu test; those within 0.1 of the target are judged on DRAWS
 
 
-def advise(a: CandidateFit, b: CandidateFit, template, noise: NoiseFloor, *, seed: int = 0,
+def advise(fits: Sequence[CandidateFit], template, noise: NoiseFloor, *, seed: int = 0,
            target: float = TARGET, threshold: float = THRESHOLD) -> dict:
-    """The smallest menu test that settles ``a`` against ``b`` with probability ``target``
-    (or the likeliest, said to fall short), as diagnosis.json holds it."""
-    rivals = (_Rival(a, template.name, noise), _Rival(b, template.name, noise))
+    """The smallest menu test after which the true one of ``fits`` (the rivals an ambiguous
+    verdict names, best first) leads every other with probability ``target``, or the
+    likeliest, said to fall short; as diagnosis.json holds it."""
+    rivals = [_Rival(f, template.name, noise) for f in fits]
     rng = np.random.default_rng(seed)
     cache: dict = {}
+    menu_tests = _menu(template, float(template.fixed.get("src.t_step", 10.0)))
+    groups = _groups(rivals, max(menu_tests, key=lambda t: (t.magnitude_hz, t.seconds)), cache, threshold)
     menu, chosen, best = [], None, None
-    for test in _menu(template, float(template.fixed.get("src.t_step", 10.0))):
-        s = settling(rivals, test, rng, cache, draws=SCREEN_DRAWS, threshold=threshold)
+    for test in menu_tests if len(groups) > 1 else []:
+        s = settling(groups, test, rng, cache, draws=SCREEN_DRAWS, threshold=threshold)
         menu.append(s)
         if s.worst >= target - 0.1:
-            s = settling(rivals, test, rng, cache, draws=DRAWS, threshold=threshold)
+            s = settling(groups, test, rng, cache, draws=DRAWS, threshold=threshold)
             if s.worst >= target:
                 chosen = s
                 break
         best = s if best is None or s.worst > best.worst else best
-    if chosen is None:
-        best = settling(rivals, best.test, rng, cache, draws=DRAWS, threshold=threshold)
-    return _record(rivals, chosen or best, chosen is not None, menu, cache, target, threshold)
+    if best is not None and chosen is None:
+        best = settling(groups, best.test, rng, cache, draws=DRAWS, threshold=threshold)
+    return _record(groups, chosen or best, chosen is not None, menu, cache, target, threshold)
 
 
-def _record(rivals, s: Settling, found: bool, menu: list[Settling], cache: dict, target: float,
+def _named(group: Sequence[_Rival]) -> str:
+    return group[0].label + (f" (or its equal{'s' if len(group) > 2 else ''}, "
+                             f"{', '.join(r.label for r in group[1:])})" if len(group) > 1 else "")
+
+
+def _record(groups, s: Settling | None, found: bool, menu: list[Settling], cache: dict, target: float,
             threshold: float) -> dict:
-    (ra, rb), t = rivals, s.test
-    la, lb = ra.label, rb.label
-    # today's difference on the test, the fits held: what the advice said before refits were counted
-    evidence, sq, n = 0.0, 0.0, 0
-    for sign in t.signs:
-        d = _cached(cache, ra, t, sign)[0] - _cached(cache, rb, t, sign)[0]
-        d = _project(ra.noise, d.size)(d)
-        evidence, sq, n = evidence + float(d @ d), sq + float(d @ d), n + d.size
-    chance = (f"recorded with this recorder's noise and both refitted on all the tests (linearised about "
-              f"today's fits, {DRAWS} simulated recordings), the true one leads by {threshold:g} in BIC or more "
-              f"with probability {s.probability[la]:.2f} if {la} is true and {s.probability[lb]:.2f} if {lb} is")
+    labels = [r.label for g in groups for r in g]
+    same = [f"{' and '.join(r.label for r in g)} are the same model on every test of the menu (less than "
+            f"{threshold:g} apart in BIC even on the largest, their fits held): the documentation of the unit "
+            "must decide between them" for g in groups if len(g) > 1]
+    menu_words = (f"steps of {1000 * MAGNITUDES_HZ[0]:.0f} to {1000 * MAGNITUDES_HZ[-1]:.0f} mHz held "
+                  f"{HOLDS_S[0]:.0f} to {HOLDS_S[-1]:.0f} s, up to {max(map(len, PATTERNS))} of them, at the data's "
+                  "dispatch or another within the documented range")
+    record = {"between": labels, "groups": [[r.label for r in g] for g in groups], "target": target,
+              "found": found, "draws": DRAWS, "menu": [{"test": m.test.describe(), "probability": m.worst}
+                                                       for m in menu]}
+    if s is None:  # one group: nothing to test
+        return {**record, "test": None, "rms_over_noise": 0.0, "expected_bic": 0.0, "probability": 0.0,
+                "probability_if": {}, "median_lead": {},
+                "advice": f"no staged test of the menu ({menu_words}) separates them: " + "; ".join(same)}
+    t = s.test
+    reps = [g[0] for g in groups]
+    evidence, rms = min((_evidence(cache, a, b, t) for a in reps for b in reps if a is not b), key=lambda e: e[0])
+    chance = (f"recorded with this recorder's noise and every rival refitted on all the tests (linearised about "
+              f"today's fits, {DRAWS} simulated recordings), the true one leads every other by {threshold:g} in BIC "
+              "or more with probability " + ", ".join(f"{s.probability[g[0].label]:.2f} if {g[0].label} is true"
+                                                      for g in groups))
+    between = ", ".join(_named(g) for g in groups[:-1]) + f" and {_named(groups[-1])}"
     if found:
-        advice = (f"{t.describe()} separates {la} from {lb} with probability {s.worst:.2f}: {chance}. "
-                  f"Then: {la} ahead by {threshold:g} or more names {la}; {lb} ahead names {lb}; neither ahead "
-                  f"happens {1 - s.worst:.0%} of the time or less when one of them is the plant, and with a remainder "
-                  "on the new test it says that neither is")
+        advice = (f"{t.describe()} separates {between} with probability {s.worst:.2f}: {chance}. Then: "
+                  + "; ".join(f"{g[0].label} ahead of every other by {threshold:g} or more names {g[0].label}"
+                              for g in groups)
+                  + f"; none ahead happens {1 - s.worst:.0%} of the time or less when one of them is the plant, "
+                  "and with a remainder on the new test it says that none is")
     else:
-        advice = (f"no staged test of the menu (steps of {1000 * MAGNITUDES_HZ[0]:.0f} to "
-                  f"{1000 * MAGNITUDES_HZ[-1]:.0f} mHz held {HOLDS_S[0]:.0f} to {HOLDS_S[-1]:.0f} s, up to "
-                  f"{max(map(len, PATTERNS))} of them, at the data's dispatch or another within the documented "
-                  f"range) separates {la} from {lb} with probability {target:g}; the best, {t.describe()}: {chance}; "
-                  "the documentation of the unit must decide")
-    return {
-        "between": [la, lb],
-        "test": {"df_hz": t.signs[0] * t.magnitude_hz, "steps_hz": [s_ * t.magnitude_hz for s_ in t.signs],
-                 "hold_s": t.hold_s, "t_step_s": t.t_step_s, "t_return_s": t.t_step_s + t.hold_s,
-                 "p_ref": t.p_ref, "redispatch": t.redispatch},
-        "rms_over_noise": float(np.sqrt(sq / max(n, 1))),
-        "expected_bic": evidence,
-        "probability": s.worst, "probability_if": s.probability, "median_lead": s.median_lead,
-        "target": target, "found": found, "draws": DRAWS,
-        "advice": advice,
-        "menu": [{"test": m.test.describe(), "probability": m.worst} for m in menu],
-    }
+        advice = (f"no staged test of the menu ({menu_words}) separates {between} with probability {target:g}; the "
+                  f"best, {t.describe()}: {chance}; the documentation of the unit must decide")
+    advice += "".join(f". {c}" for c in same)
+    return {**record,
+            "test": {"df_hz": t.signs[0] * t.magnitude_hz, "steps_hz": [s_ * t.magnitude_hz for s_ in t.signs],
+                     "hold_s": t.hold_s, "t_step_s": t.t_step_s, "t_return_s": t.t_step_s + t.hold_s,
+                     "p_ref": t.p_ref, "redispatch": t.redispatch},
+            "rms_over_noise": rms, "expected_bic": evidence,
+            "probability": s.worst, "probability_if": s.probability, "median_lead": s.median_lead,
+            "advice": advice}

@@ -267,22 +267,24 @@ def _second_effect(ctx: Context, chosen: CandidateFit, verdict: Verdict, options
 
 
 def _separating(ctx: Context, labels: Sequence[str], not_excluded: Sequence[str]) -> dict | None:
+    """The advice on the next test among ``labels`` (best first); a caveat not excluded,
+    or an effect against the base model, is taken at its material size."""
     if len(labels) < 2:
         return None
-    a = ctx.fits.get(labels[0])
-    other = labels[1]
-    b = None
-    if other in not_excluded or (labels[0] == BASE and other in CATALOGUE):
-        held = tuple((p.name, p.material) for p in CATALOGUE[other].parameters)
-        b = ctx.fits.get(CandidateSpec((other,), held).label)  # at its material size
-    b = b or ctx.fits.get(other)
+    fits = [ctx.fits.get(labels[0])]
+    for other in labels[1:]:
+        b = None
+        if other in not_excluded or (labels[0] == BASE and other in CATALOGUE):
+            held = tuple((p.name, p.material) for p in CATALOGUE[other].parameters)
+            b = ctx.fits.get(CandidateSpec((other,), held).label)  # at its material size
+        fits.append(b or ctx.fits.get(other))
     staged = [e for e in ctx.training if is_staged(e.model)]
-    if a is None or b is None or not staged:
+    if any(f is None for f in fits) or not staged:
         if not staged:
             ctx.log("  no separating staged test proposed: no training experiment is a staged test to design "
                     "it from")
         return None
-    return advise(a, b, staged[0], ctx.noise[staged[0].name], seed=ctx.options.seed or 0)
+    return advise(fits, staged[0], ctx.noise[staged[0].name], seed=ctx.options.seed or 0)
 
 
 def written_into(ctx) -> tuple[Path, str]:
