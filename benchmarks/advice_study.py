@@ -76,14 +76,14 @@ def one(case, work: Path, source) -> dict:
     sep = first.named.separating_test
     if first.kind is not VerdictKind.AMBIGUOUS or not sep:
         return out
-    out.update(between=sep["between"], stated=sep["probability"], found=sep["found"], advice=sep["advice"],
-               stated_if_truth=sep["probability_if"].get(case.truth))
-    if sep["test"] is None:  # the rivals are one model on every test of the menu: nothing to record
+    out.update(between=list(sep.between), stated=sep.probability, found=sep.found, advice=sep.words,
+               stated_if_truth=sep.probability_if.get(case.truth))
+    if sep.test is None:  # the rivals are one model on every test of the menu: nothing to record
         out.update(second="(no test advised)", second_kind="-", adequate=None, settled=False, remainder=False)
         return out
     folder = work / case.label
     paths = sorted((folder / "data").glob("step*/config.toml"))
-    new = write_advised(case, sep["test"], folder / "advised", source=source)
+    new = write_advised(case, sep.test, folder / "advised", source=source)
     exps = [load_experiment(p) for p in paths]
     second = diagnose([*exps[:-1], *(load_experiment(p) for p in new)], exps[-1:], workdir=folder / "second",
                       options=options, source=source, log=lambda *_: None)

@@ -268,7 +268,7 @@ def report(results, single_result) -> None:
         d = single_result.diagnosis.named
         print(f"single step size, deadband hidden: verdict {d.effect}"
               + (f" between {' and '.join(d.candidates)}" if d.effect == "ambiguous" else "")
-              + (f"; next: {d.separating_test['advice']}" if d.separating_test else ""))
+              + (f"; next: {d.separating_test.words}" if d.separating_test else ""))
     for r in results:
         if not r.correct:
             print(f"  missed {r.case.label}: {r.diagnosis.named.verdict} {r.diagnosis.named.candidates} "

@@ -210,12 +210,11 @@ def test_the_api_functions_stay_functions_once_their_subpackages_are_imported():
 # -- modules short or saying why
 
 RESULT_NAMES = ("Result", "Verdict", "Judgement", "Recommendation", "Identification", "Calibration", "Diagnosis",
-                "Fit", "Playback", "Delivery", "Report", "Fidelity", "Explanation")
+                "Fit", "Playback", "Delivery", "Report", "Fidelity", "Explanation", "Advice", "AdvisedTest")
 # Untyped fields still on a result, each with why it stays (the rule keeps new ones out).
 UNTYPED_LEFT = {
     # the diagnosis: its verdict, adequacy and ranking are typed; the evidence below is written into
     # diagnosis.json as it is built, and only the report reads it back (from the JSON, not these fields)
-    "DiagnosisVerdict.separating_test": "the separating test's design, as diagnosis.json holds it",
     "DiagnosisVerdict.held_out": "the held-out check's figures (Verdict.held_out), written as they are",
     "AdequacyJudgement.unexplained": "where the remainder lies (misfit_locations), written as it is",
     "AdequacyJudgement.materiality": "each named effect's gap and size shares, written as they are",
@@ -229,7 +228,6 @@ UNTYPED_LEFT = {
     "Diagnosis.residuals": "per test, the residual arrays by name, as diagnosis.h5 holds them for the figures",
     "Diagnosis.timing": "the stamps' jitter and the variance it could add (jitter_share), written as it is",
     "Explanation.noise": "each recorder's noise model with its uncertainty, as diagnosis.json holds it",
-    "Explanation.separating_test": "the separating test's design, as diagnosis.json holds it",
     "Identification.recordings": "Recording.summary(), a JSON summary the report and the story print",
     "Verdict.held_out": "the held-out check's figures, written into diagnosis.json as they are",
     "StructureVerdict.effects": "the effect catalogue's diagnosis on the winner, as its JSON",

@@ -71,12 +71,12 @@ def test_one_step_size_cannot_exclude_a_deadband_so_none_carries_it_as_a_caveat(
     # and it says which test would separate them: another step size than the one in the data
     sep = d.separating_test
     assert sep is not None
-    assert abs(sep["test"]["df_hz"]) != pytest.approx(0.2)
+    assert abs(sep.test.steps_hz[0]) != pytest.approx(0.2)
     # with the chance it settles the choice once recorded and both refitted, said in the advice
-    p = sep["probability"]
-    assert 0.0 <= p <= 1.0 and p == min(sep["probability_if"].values())
-    assert f"probability {p:.2f}" in sep["advice"] and (p >= 0.9) == sep["found"]
-    assert all(label in sep["advice"] for label in sep["between"])
+    p = sep.probability
+    assert 0.0 <= p <= 1.0 and p == min(sep.probability_if.values())
+    assert f"probability {p:.2f}" in sep.words and (p >= 0.9) == sep.found
+    assert all(label in sep.words for label in sep.between)
 
 
 def test_named_effect_is_written_compiled_recalibrated_through_the_cli(study, tmp_path):
@@ -145,12 +145,12 @@ def test_following_the_advice_once_settles_a_lag_the_four_tests_leave_ambiguous(
     first = run_case(case, tmp_path, options=options, source=source).diagnosis
     assert first.kind is VerdictKind.AMBIGUOUS, first.named.reason
     sep = first.named.separating_test
-    assert "measurement_lag" in sep["between"] and sep["found"] and sep["probability"] >= 0.9
-    for outcome in (*(f"names {label}" for label in sep["between"]), "neither"):  # what each outcome would mean
-        assert outcome in sep["advice"], sep["advice"]
+    assert "measurement_lag" in sep.between and sep.found and sep.probability >= 0.9
+    for outcome in (*(f"names {label}" for label in sep.between), "none ahead"):  # what each outcome would mean
+        assert outcome in sep.words, sep.words
     exps = [load_experiment(p) for p in sorted((tmp_path / case.label / "data").glob("step*/config.toml"))]
-    new = [load_experiment(p) for p in write_advised(case, sep["test"], tmp_path / "advised", source=source)]
-    assert len(new) == len(sep["test"]["steps_hz"])
+    new = [load_experiment(p) for p in write_advised(case, sep.test, tmp_path / "advised", source=source)]
+    assert len(new) == len(sep.test.steps_hz)
     second = diagnose([*exps[:-1], *new], exps[-1:], workdir=tmp_path / "second", options=options, source=source)
     assert second.kind is VerdictKind.NAMED and second.named.effects == ["measurement_lag"], second.named.reason
     assert second.adequate

@@ -31,6 +31,7 @@ probability holds against the full loop (a new recording, a new diagnosis).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from itertools import product
 from typing import Sequence
 
@@ -39,6 +40,7 @@ import numpy as np
 from ..fitting.objective import ProblemObjective
 from ..simulator import get_simulator
 from .candidates import CandidateFit, experiment_blocks
+from .result import Advice, AdvisedTest
 from .selection import THRESHOLD, NoiseFloor
 
 MAGNITUDES_HZ = (0.05, 0.1, 0.2, 0.4)
@@ -270,10 +272,10 @@ SCREEN_DRAWS = 100  # every menu test; those within 0.1 of the target are judged
 
 
 def advise(fits: Sequence[CandidateFit], template, noise: NoiseFloor, *, seed: int = 0,
-           target: float = TARGET, threshold: float = THRESHOLD) -> dict:
+           target: float = TARGET, threshold: float = THRESHOLD) -> Advice:
     """The smallest menu test after which the true one of ``fits`` (the rivals an ambiguous
     verdict names, best first) leads every other with probability ``target``, or the
-    likeliest, said to fall short; as diagnosis.json holds it."""
+    likeliest, said to fall short."""
     rivals = [_Rival(f, template.name, noise) for f in fits]
     rng = np.random.default_rng(seed)
     cache: dict = {}
@@ -300,21 +302,18 @@ def _named(group: Sequence[_Rival]) -> str:
 
 
 def _record(groups, s: Settling | None, found: bool, menu: list[Settling], cache: dict, target: float,
-            threshold: float) -> dict:
-    labels = [r.label for g in groups for r in g]
+            threshold: float) -> Advice:
     same = [f"{' and '.join(r.label for r in g)} are the same model on every test of the menu (less than "
             f"{threshold:g} apart in BIC even on the largest, their fits held): the documentation of the unit "
             "must decide between them" for g in groups if len(g) > 1]
     menu_words = (f"steps of {1000 * MAGNITUDES_HZ[0]:.0f} to {1000 * MAGNITUDES_HZ[-1]:.0f} mHz held "
                   f"{HOLDS_S[0]:.0f} to {HOLDS_S[-1]:.0f} s, up to {max(map(len, PATTERNS))} of them, at the data's "
                   "dispatch or another within the documented range")
-    record = {"between": labels, "groups": [[r.label for r in g] for g in groups], "target": target,
-              "found": found, "draws": DRAWS, "menu": [{"test": m.test.describe(), "probability": m.worst}
-                                                       for m in menu]}
+    record = partial(Advice, tuple(r.label for g in groups for r in g), tuple(tuple(r.label for r in g) for g in groups),
+                     found=found, target=target, draws=DRAWS, menu=tuple((m.test.describe(), m.worst) for m in menu))
     if s is None:  # one group: nothing to test
-        return {**record, "test": None, "rms_over_noise": 0.0, "expected_bic": 0.0, "probability": 0.0,
-                "probability_if": {}, "median_lead": {},
-                "advice": f"no staged test of the menu ({menu_words}) separates them: " + "; ".join(same)}
+        return record(None, 0.0, {}, {}, 0.0, 0.0,
+                      words=f"no staged test of the menu ({menu_words}) separates them: " + "; ".join(same))
     t = s.test
     reps = [g[0] for g in groups]
     evidence, rms = min((_evidence(cache, a, b, t) for a in reps for b in reps if a is not b), key=lambda e: e[0])
@@ -324,19 +323,13 @@ def _record(groups, s: Settling | None, found: bool, menu: list[Settling], cache
                                                       for g in groups))
     between = ", ".join(_named(g) for g in groups[:-1]) + f" and {_named(groups[-1])}"
     if found:
-        advice = (f"{t.describe()} separates {between} with probability {s.worst:.2f}: {chance}. Then: "
-                  + "; ".join(f"{g[0].label} ahead of every other by {threshold:g} or more names {g[0].label}"
-                              for g in groups)
-                  + f"; none ahead happens {1 - s.worst:.0%} of the time or less when one of them is the plant, "
-                  "and with a remainder on the new test it says that none is")
+        said = (f"{t.describe()} separates {between} with probability {s.worst:.2f}: {chance}. Then: "
+                + "; ".join(f"{g[0].label} ahead of every other by {threshold:g} or more names {g[0].label}"
+                            for g in groups)
+                + f"; none ahead happens {1 - s.worst:.0%} of the time or less when one of them is the plant, "
+                "and with a remainder on the new test it says that none is")
     else:
-        advice = (f"no staged test of the menu ({menu_words}) separates {between} with probability {target:g}; the "
-                  f"best, {t.describe()}: {chance}; the documentation of the unit must decide")
-    advice += "".join(f". {c}" for c in same)
-    return {**record,
-            "test": {"df_hz": t.signs[0] * t.magnitude_hz, "steps_hz": [s_ * t.magnitude_hz for s_ in t.signs],
-                     "hold_s": t.hold_s, "t_step_s": t.t_step_s, "t_return_s": t.t_step_s + t.hold_s,
-                     "p_ref": t.p_ref, "redispatch": t.redispatch},
-            "rms_over_noise": rms, "expected_bic": evidence,
-            "probability": s.worst, "probability_if": s.probability, "median_lead": s.median_lead,
-            "advice": advice}
+        said = (f"no staged test of the menu ({menu_words}) separates {between} with probability {target:g}; the "
+                f"best, {t.describe()}: {chance}; the documentation of the unit must decide")
+    test = AdvisedTest(tuple(sign * t.magnitude_hz for sign in t.signs), t.hold_s, t.t_step_s, t.p_ref, t.redispatch)
+    return record(test, s.worst, s.probability, s.median_lead, evidence, rms, words=". ".join([said, *same]))

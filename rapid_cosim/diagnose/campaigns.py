@@ -56,6 +56,7 @@ from ..simulator import get_simulator
 from ..experiment.synthetic import NoiseModel, synthesize, synthesize_event, under_frequency_event, write_event_experiment, \
     write_experiment
 from .catalogue import EFFECTS, INPUT_BENCH, NONE, bench_name, check_effects, write_bench
+from .result import AdvisedTest
 
 # (df in Hz, return time in s or None); the last one is held out to confirm the verdict.
 CAMPAIGN = ((-0.2, 60.0), (-0.1, 60.0), (0.1, 60.0), (0.2, 60.0))
@@ -279,16 +280,15 @@ def write_campaign(case: Case, folder: Path, *, source: ModelSource) -> list[Pat
     return paths
 
 
-def write_advised(case: Case, test: dict, folder: Path, *, source: ModelSource) -> list[Path]:
-    """Configs of an advised test (``test`` as the diagnosis's advice holds it: its steps,
-    hold and dispatch), its data recorded from the case's plant with fresh noise: what the
+def write_advised(case: Case, test: AdvisedTest, folder: Path, *, source: ModelSource) -> list[Path]:
+    """Configs of an advised test (its steps, hold and dispatch), its data recorded from the case's plant with fresh noise: what the
     user of the advice does next."""
     fmu = _bench_fmu(case.effects, source, case.kind)
     rng = np.random.default_rng([case.seed, 104729, zlib.crc32(case.truth.encode())])
-    t_step, hold = test["t_step_s"], test["hold_s"]
+    t_step, hold = test.t_step_s, test.hold_s
     paths = []
-    for k, df in enumerate(test["steps_hz"]):
-        fixed = {"gov.p_ref": test["p_ref"], "src.df": df, "src.t_step": t_step, "src.t_return": t_step + hold,
+    for k, df in enumerate(test.steps_hz):
+        fixed = {"gov.p_ref": test.p_ref, "src.df": df, "src.t_step": t_step, "src.t_return": t_step + hold,
                  **DOCUMENTED}
         t, y = synthesize(fmu, {**case.plant, **case.effect_values, **fixed}, duration=t_step + 2 * hold,
                           rate=RATE_HZ, jitter=case.jitter, noise=case.noise, rng=rng)

@@ -16,6 +16,52 @@ from .selection import Ranked
 
 
 @dataclass(frozen=True)
+class AdvisedTest:
+    """The staged steps an advice proposes: each held ``hold_s`` and returned."""
+
+    steps_hz: tuple[float, ...]
+    hold_s: float
+    t_step_s: float
+    p_ref: float
+    redispatch: bool  # at another dispatch than the data's
+
+    def to_json(self) -> dict:
+        return {"df_hz": self.steps_hz[0], "steps_hz": list(self.steps_hz), "hold_s": self.hold_s,
+                "t_step_s": self.t_step_s, "t_return_s": self.t_step_s + self.hold_s, "p_ref": self.p_ref,
+                "redispatch": self.redispatch}
+
+
+@dataclass(frozen=True)
+class Advice:
+    """The next test of an ambiguous verdict (:mod:`.advice`): the rivals, grouped where no
+    test of the menu tells them apart; the test proposed (None: nothing to test); the
+    chance it settles the choice, the smallest over the rivals and for each (``found``: it
+    reaches ``target``); and the words the story says."""
+
+    between: tuple[str, ...]
+    groups: tuple[tuple[str, ...], ...]
+    test: AdvisedTest | None
+    probability: float
+    probability_if: dict[str, float]
+    median_lead: dict[str, float]
+    expected_bic: float  # what the test adds to the first two groups' BIC difference, fits held
+    rms_over_noise: float
+    found: bool
+    target: float
+    draws: int
+    menu: tuple[tuple[str, float], ...]  # each test screened, with its probability
+    words: str
+
+    def to_json(self) -> dict:
+        return {"between": list(self.between), "groups": [list(g) for g in self.groups],
+                "test": self.test.to_json() if self.test else None, "probability": self.probability,
+                "probability_if": self.probability_if, "median_lead": self.median_lead,
+                "expected_bic": self.expected_bic, "rms_over_noise": self.rms_over_noise, "found": self.found,
+                "target": self.target, "draws": self.draws,
+                "menu": [{"test": t, "probability": p} for t, p in self.menu], "advice": self.words}
+
+
+@dataclass(frozen=True)
 class DiagnosisVerdict:
     """What was named: ``effect`` is a catalogue name, ``none``, ``ambiguous`` or
     ``unexplained``; ``effects`` the effects named; ``candidates`` those the data could not
@@ -29,7 +75,7 @@ class DiagnosisVerdict:
     reason: str
     verdict: str
     not_excluded: list[str]
-    separating_test: dict | None
+    separating_test: Advice | None
     held_out: dict | None
 
     @property
@@ -119,7 +165,8 @@ class Diagnosis:
                 "unexplained": a.unexplained, "materiality": a.materiality,
                 "ranking": [asdict(r) for r in s.ranking],
                 "second_effect_ranking": [asdict(r) for r in s.second_effect_ranking],
-                "not_excluded": n.not_excluded, "separating_test": n.separating_test, "held_out": n.held_out,
+                "not_excluded": n.not_excluded,
+                "separating_test": n.separating_test.to_json() if n.separating_test else None, "held_out": n.held_out,
                 "features": self.features, "gap_before": self.gap_before, "gap_after": self.gap_after,
                 "parameters_before": self.parameters_before, "parameters_after": self.parameters_after,
                 "parameter_intervals": self.parameter_intervals, "noise": self.noise, "search": s.search,

@@ -33,7 +33,7 @@ from .null import KeptReplicates
 from .features import Features, residual_features
 from .intervals import exchanged, intervals
 from .limits import check_material, inadequate, verdict_text
-from .result import AdequacyJudgement, Diagnosis, DiagnosisVerdict, SearchReport
+from .result import AdequacyJudgement, Advice, Diagnosis, DiagnosisVerdict, SearchReport
 from .selection import Ranked, Verdict, bic, decide, decisive, gap, rank, score, settle_on_heldout
 from .advice import advise
 from .variants import check_variants
@@ -145,7 +145,7 @@ class _Named:
     second: list[Ranked]
     variants: dict
     story: CandidateFit | None  # the simpler of two stories the data cannot tell apart
-    separating: dict | None
+    separating: Advice | None
     materiality: dict
 
 
@@ -181,7 +181,7 @@ def _name(ctx: Context, base: CandidateFit, ranking: list[Ranked], options: Diag
     elif verdict.kind is VerdictKind.NONE and not_excluded:  # the staged test that would tell none from the caveat
         separating = _separating(ctx, [BASE, not_excluded[0]], not_excluded)
         if separating:
-            verdict.note(separating['advice'])
+            verdict.note(separating.words)
     materiality = {}
     if chosen is not None:
         chosen, verdict, materiality = check_material(ctx, base, chosen, verdict)
@@ -266,7 +266,7 @@ def _second_effect(ctx: Context, chosen: CandidateFit, verdict: Verdict, options
     return fit, verdict, ranked
 
 
-def _separating(ctx: Context, labels: Sequence[str], not_excluded: Sequence[str]) -> dict | None:
+def _separating(ctx: Context, labels: Sequence[str], not_excluded: Sequence[str]) -> Advice | None:
     """The advice on the next test among ``labels`` (best first); a caveat not excluded,
     or an effect against the base model, is taken at its material size."""
     if len(labels) < 2:

@@ -10,6 +10,7 @@ from typing import Mapping, Sequence
 
 from ..diagnose.adequacy import TestAdequacy
 from ..diagnose.catalogue import NONE, VerdictKind
+from ..diagnose.result import Advice
 from .unit import NO_HOLDOUT
 
 # What each standard structure can represent of the effect catalogue, as its own
@@ -139,7 +140,7 @@ class Explanation:
     tests: dict[str, TestAdequacy] = field(default_factory=dict)
     noise: dict = field(default_factory=dict)
     not_excluded: tuple[str, ...] = ()
-    separating_test: dict | None = None
+    separating_test: Advice | None = None
 
     @property
     def kind(self) -> VerdictKind:
@@ -149,7 +150,8 @@ class Explanation:
         return {"verdict": self.verdict, "effect": self.effect, "effects": list(self.effects),
                 "adequate": self.adequate, "parameters": self.parameters, "intervals": self.intervals,
                 "noise": self.noise, "p": self.p, "tests": {k: t.to_json() for k, t in self.tests.items()},
-                "not_excluded": list(self.not_excluded), "separating_test": self.separating_test}
+                "not_excluded": list(self.not_excluded),
+                "separating_test": self.separating_test.to_json() if self.separating_test else None}
 
 
 @dataclass
@@ -241,7 +243,7 @@ class Identification:
         if e.kind is VerdictKind.NONE and e.not_excluded:
             test = e.separating_test
             lines[0] += (f"; not excluded at a material size: {', '.join(e.not_excluded)}"
-                         + (f" ({test['advice']})" if test else ""))
+                         + (f" ({test.words})" if test else ""))
         if self.recommended:
             r = self.record(self.recommended)
             lines.append(f"recommended record: {r.model}" + (f" ({r.fit})" if r.fit != r.model else "")
