@@ -88,7 +88,7 @@ def one(case, work: Path, source) -> dict:
     second = diagnose([*exps[:-1], *(load_experiment(p) for p in new)], exps[-1:], workdir=folder / "second",
                       options=options, source=source, log=lambda *_: None)
     named = second.named
-    out.update(second=second.effect, second_kind=second.kind.value, adequate=second.adequate,
+    out.update(second=second.effect, second_kind=second.kind.value, adequate=second.adequate, reason=named.reason,
                settled=second.kind is VerdictKind.NAMED and named.effects[:1] == [case.truth] and second.adequate,
                remainder=second.kind is VerdictKind.NAMED and not second.adequate)
     return out

@@ -98,3 +98,33 @@ def test_the_stated_probability_is_the_share_of_brute_force_refits_that_settle()
         lead = crit[other.label] - crit[truth.label]  # equal k: the penalty cancels
         assert s.probability[truth.label] == pytest.approx(np.mean(lead >= 3.0), abs=1.5 / draws)
     assert 0.0 < s.worst < 1.0  # a case the test does not settle every time: the comparison means something
+
+
+def test_an_advised_test_is_recorded_from_the_plant_not_from_its_documentation(study, tmp_path):
+    """A plant whose reheat constant is truly 12 s where its documentation says 6 s: the
+    advised test's recording must be that plant's (the documented value only in its config)."""
+    from rapid_cosim.compiler.source import ModelSource
+    from rapid_cosim.diagnose.campaigns import CAMPAIGN, Case, write_advised
+    from rapid_cosim.diagnose.result import AdvisedTest
+    from rapid_cosim.experiment import load_experiment
+    from rapid_cosim.experiment.synthetic import NoiseModel
+    from rapid_cosim.simulator import get_simulator
+
+    _, package, fmu_dir = study
+    source = ModelSource(package, fmu_dir)
+    plant = {"gov.R": 0.05, "gov.Ts": 2.0, "gov.p_ref": 0.6}
+    case = Case("doc_T5", 1, plant, {"gov.T5": 12.0}, CAMPAIGN, NoiseModel(white_sigma=1e-6), "staged", 0.0)
+    test = AdvisedTest((-0.2, 0.2), 25.0, 10.0, 0.7, True)
+    paths = write_advised(case, test, tmp_path, source=source)
+    assert len(paths) == 2
+    exp = load_experiment(paths[0])
+    assert exp.fixed["gov.T5"] == 6.0 and exp.fixed["gov.p_ref"] == 0.7 and exp.fixed["src.df"] == -0.2
+    t = exp.data.time
+    y = exp.data.columns["pm"]
+    sim = get_simulator(source.fmu("iGrGen.TestBenches.StagedTest"))
+
+    def rms(t5):
+        traj = sim.simulate({**exp.fixed, **plant, "gov.p_ref": 0.7, "gov.T5": t5}, output_times=t, outputs=["pm"])
+        return float(np.sqrt(np.mean((traj["pm"] - y) ** 2)))
+
+    assert rms(12.0) < 1e-4 < rms(6.0)

@@ -18,6 +18,10 @@ hide the rest. So each proposed test is judged by Monte Carlo over that loop:
 * the truth's lead in BIC must clear the decision threshold. The probability is that
   of clearing it, whichever rival is true (the smaller of the two).
 
+Rivals that even the menu's largest test cannot tell apart so (neither leads the other
+in half the draws) are one group: the truth need only lead the rivals outside its group,
+and the story says that the documentation must decide within it.
+
 The menu: step sizes and signs, how long each step is held before its return, repeats
 and a pair of opposite steps, and the dispatch (the data's, or another level within the
 documented ``pmin``..``pmax``). The smallest test (step size first, then the time it
@@ -254,13 +258,19 @@ def _evidence(cache: dict, a: _Rival, b: _Rival, test: ProposedTest) -> tuple[fl
     return evidence, float(np.sqrt(evidence / max(n, 1)))
 
 
-def _groups(rivals: Sequence[_Rival], largest: ProposedTest, cache: dict, threshold: float) -> list[list[_Rival]]:
-    """Rivals joined where even the menu's largest test, their fits held, differs by less
-    than the threshold: the same model on every test of the menu (lags in series on a
-    linear stretch, say), which no staged test tells apart."""
+def _groups(rivals: Sequence[_Rival], largest: ProposedTest, cache: dict, rng: np.random.Generator,
+            threshold: float) -> list[list[_Rival]]:
+    """Rivals joined where even the menu's largest test, recorded from either and both
+    refitted, lets neither lead the other by the threshold in half the draws: one model on
+    every test of the menu (lags in series on a linear stretch, say), which no staged
+    test tells apart."""
+    def alike(a: _Rival, b: _Rival) -> bool:
+        return max(settling([[a], [b]], largest, rng, cache, draws=SCREEN_DRAWS,
+                            threshold=threshold).probability.values()) < SAME
+
     groups: list[list[_Rival]] = []
     for r in rivals:  # in the verdict's order: each group's first is its best-ranked
-        home = next((g for g in groups if any(_evidence(cache, r, o, largest)[0] < threshold for o in g)), None)
+        home = next((g for g in groups if any(alike(r, o) for o in g)), None)
         if home is None:
             groups.append([r])
         else:
@@ -269,6 +279,7 @@ def _groups(rivals: Sequence[_Rival], largest: ProposedTest, cache: dict, thresh
 
 
 SCREEN_DRAWS = 100  # every menu test; those within 0.1 of the target are judged on DRAWS
+SAME = 0.5  # rivals that even the largest test settles less often than this are one model to the menu
 
 
 def advise(fits: Sequence[CandidateFit], template, noise: NoiseFloor, *, seed: int = 0,
@@ -280,7 +291,7 @@ def advise(fits: Sequence[CandidateFit], template, noise: NoiseFloor, *, seed: i
     rng = np.random.default_rng(seed)
     cache: dict = {}
     menu_tests = _menu(template, float(template.fixed.get("src.t_step", 10.0)))
-    groups = _groups(rivals, max(menu_tests, key=lambda t: (t.magnitude_hz, t.seconds)), cache, threshold)
+    groups = _groups(rivals, max(menu_tests, key=lambda t: (t.magnitude_hz, t.seconds)), cache, rng, threshold)
     menu, chosen, best = [], None, None
     for test in menu_tests if len(groups) > 1 else []:
         s = settling(groups, test, rng, cache, draws=SCREEN_DRAWS, threshold=threshold)
@@ -290,10 +301,15 @@ def advise(fits: Sequence[CandidateFit], template, noise: NoiseFloor, *, seed: i
             if s.worst >= target:
                 chosen = s
                 break
-        best = s if best is None or s.worst > best.worst else best
+        best = s if best is None or _rank(s) > _rank(best) else best
     if best is not None and chosen is None:
         best = settling(groups, best.test, rng, cache, draws=DRAWS, threshold=threshold)
     return _record(groups, chosen or best, chosen is not None, menu, cache, target, threshold)
+
+
+def _rank(s: Settling) -> tuple[float, float]:
+    """The likeliest test to settle it: the smallest probability over the rivals, then the mean."""
+    return s.worst, float(np.mean(list(s.probability.values())))
 
 
 def _named(group: Sequence[_Rival]) -> str:
@@ -303,9 +319,9 @@ def _named(group: Sequence[_Rival]) -> str:
 
 def _record(groups, s: Settling | None, found: bool, menu: list[Settling], cache: dict, target: float,
             threshold: float) -> Advice:
-    same = [f"{' and '.join(r.label for r in g)} are the same model on every test of the menu (less than "
-            f"{threshold:g} apart in BIC even on the largest, their fits held): the documentation of the unit "
-            "must decide between them" for g in groups if len(g) > 1]
+    same = [f"{' and '.join(r.label for r in g)} are one model to every test of the menu (even the largest, "
+            f"recorded from either and both refitted, lets neither lead by {threshold:g} in half the draws): the "
+            "documentation of the unit must decide between them" for g in groups if len(g) > 1]
     menu_words = (f"steps of {1000 * MAGNITUDES_HZ[0]:.0f} to {1000 * MAGNITUDES_HZ[-1]:.0f} mHz held "
                   f"{HOLDS_S[0]:.0f} to {HOLDS_S[-1]:.0f} s, up to {max(map(len, PATTERNS))} of them, at the data's "
                   "dispatch or another within the documented range")

@@ -290,7 +290,9 @@ def write_advised(case: Case, test: AdvisedTest, folder: Path, *, source: ModelS
     for k, df in enumerate(test.steps_hz):
         fixed = {"gov.p_ref": test.p_ref, "src.df": df, "src.t_step": t_step, "src.t_return": t_step + hold,
                  **DOCUMENTED}
-        t, y = synthesize(fmu, {**case.plant, **case.effect_values, **fixed}, duration=t_step + 2 * hold,
+        # the plant's hidden values over the documented ones (a doc_* case), at the advised dispatch
+        plant = {**fixed, **case.plant, **case.effect_values, "gov.p_ref": test.p_ref}
+        t, y = synthesize(fmu, plant, duration=t_step + 2 * hold,
                           rate=RATE_HZ, jitter=case.jitter, noise=case.noise, rng=rng)
         paths.append(write_experiment(
             folder / f"advised{k + 1}", model="iGrGen.TestBenches.StagedTest", time=t, values=y, fixed=fixed,
