@@ -262,7 +262,7 @@ def _groups(rivals: Sequence[_Rival], largest: ProposedTest, cache: dict, rng: n
             threshold: float) -> list[list[_Rival]]:
     """Rivals joined where even the menu's largest test, recorded from either and both
     refitted, lets neither lead the other by the threshold in half the draws: one model on
-    every test of the menu (lags in series on a linear stretch, say), which no staged
+    every test of the menu (two lags in series on a linear stretch, say), which no staged
     test tells apart."""
     def alike(a: _Rival, b: _Rival) -> bool:
         return max(settling([[a], [b]], largest, rng, cache, draws=SCREEN_DRAWS,
