@@ -218,7 +218,6 @@ UNTYPED_LEFT = {
     "DiagnosisVerdict.held_out": "the held-out check's figures (Verdict.held_out), written as they are",
     "AdequacyJudgement.unexplained": "where the remainder lies (misfit_locations), written as it is",
     "AdequacyJudgement.materiality": "each named effect's gap and size shares, written as they are",
-    "SearchReport.search": "each candidate's multistart waterfall and warning, written as it is",
     "SearchReport.profiles": "the named effects' profile likelihoods, written as they are",
     "SearchReport.variants": "the effect's variants tried, written as they are",
     "Diagnosis.features": "the recordings' features (Features.to_json), written as they are",

@@ -82,9 +82,9 @@ def test_diagnose_names_what_is_hidden_in_a_recorded_event(repo, package, tmp_pa
     # decided (binding at 0.007 or free at 0.2 are 2 apart in BIC). Fewer than three starts
     # reaching the best must then be said in the verdict, with the point it competes with.
     search, reason = result.searched.search, result.named.reason
-    for label in search["uncertain"]:
+    for label in search.uncertain:
         assert label in reason and "next basin" in reason, reason
-        assert search["candidates"][label]["reached"] < 3
+        assert search.candidates[label].reached < 3
     notes = result.features["tests"][0]["notes"]
     assert any("recorded input f_dev" in n and "-71 mHz" in n for n in notes), notes
     after = result.gap_after["event1"]["rmse_over_noise"]

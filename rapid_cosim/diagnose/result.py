@@ -16,6 +16,45 @@ from .selection import Ranked
 
 
 @dataclass(frozen=True)
+class NextBasin:
+    """A multistart's runner-up basin: how much worse, and where."""
+
+    delta_bic: float
+    parameters: dict[str, float]
+
+
+@dataclass(frozen=True)
+class CandidateSearch:
+    """One candidate's multistart: its starts, how many reached the best, each start's end
+    above the best (in BIC), and, for an uncertain one, its next basin."""
+
+    starts: int
+    reached: int
+    waterfall_dbic: list[float]
+    next_basin: NextBasin | None = None
+
+    def to_json(self) -> dict:
+        row = {"starts": self.starts, "reached": self.reached, "waterfall_dbic": self.waterfall_dbic}
+        return row | ({"next_basin": asdict(self.next_basin)} if self.next_basin else {})
+
+
+@dataclass(frozen=True)
+class SearchCertainty:
+    """How sure each candidate's optimum is (:mod:`.starts`): the winner and close rivals
+    reached by fewer than ``min_reached`` starts are ``uncertain``, said in ``warning``."""
+
+    candidates: dict[str, CandidateSearch]
+    uncertain: list[str]
+    warning: str
+    min_reached: int
+    margin_bic: float
+
+    def to_json(self) -> dict:
+        return {"candidates": {k: c.to_json() for k, c in self.candidates.items()}, "uncertain": self.uncertain,
+                "warning": self.warning, "min_reached": self.min_reached, "margin_bic": self.margin_bic}
+
+
+@dataclass(frozen=True)
 class AdvisedTest:
     """The staged steps an advice proposes: each held ``hold_s`` and returned."""
 
@@ -110,7 +149,7 @@ class SearchReport:
 
     ranking: list[Ranked]
     second_effect_ranking: list[Ranked]
-    search: dict
+    search: SearchCertainty
     profiles: dict
     variants: dict
 
@@ -169,7 +208,7 @@ class Diagnosis:
                 "separating_test": n.separating_test.to_json() if n.separating_test else None, "held_out": n.held_out,
                 "features": self.features, "gap_before": self.gap_before, "gap_after": self.gap_after,
                 "parameters_before": self.parameters_before, "parameters_after": self.parameters_after,
-                "parameter_intervals": self.parameter_intervals, "noise": self.noise, "search": s.search,
+                "parameter_intervals": self.parameter_intervals, "noise": self.noise, "search": s.search.to_json(),
                 "profiles": s.profiles, "timing": self.timing, "variants": s.variants,
                 "candidate_adequacy": {label: {"adequate": j.adequate, "p": j.p,
                                                "pooled_variance_ratio": j.pooled_variance_ratio}

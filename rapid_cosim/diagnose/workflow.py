@@ -36,10 +36,9 @@ from .limits import check_material, inadequate, verdict_text
 from .result import AdequacyJudgement, Advice, Diagnosis, DiagnosisVerdict, SearchReport
 from .selection import Ranked, Verdict, bic, decide, decisive, gap, rank, score, settle_on_heldout
 from .advice import advise
+from .starts import search_certainty
 from .variants import check_variants
 
-MIN_REACHED = 3  # starts that must end at a candidate's best for its optimum to count as certified
-REACHED_MARGIN_BIC = 2.0
 
 
 def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (), *, workdir: str | Path,
@@ -83,9 +82,9 @@ def diagnose(training: Sequence[Experiment], heldout: Sequence[Experiment] = (),
         fit_after = ctx.adequacy(final_fit)
     judged = {label: ctx.adequacy(ctx.fits[label]) for label in options.judge if label in ctx.fits}
     judged.update({"final": fit_after, "base": fit_before})
-    search = _search_report(ctx, verdict, ranking, second, options)
-    if search["uncertain"]:
-        verdict.note(search["warning"])
+    search = search_certainty(ctx.fits, verdict, [*ranking, *second], options.threshold)
+    if search.uncertain:
+        verdict.note(search.warning)
     gap_before = _gaps(ctx, before_tests)
     gap_after = _gaps(ctx, after_tests)
     bands = intervals(final_fit, engine=ctx.options.engine.local(), log=ctx.log)
@@ -375,41 +374,6 @@ def _noise_report(ctx: Context) -> dict:
     return {"recorders": [f.to_json() for f in recorders.values()],
             "tests": {name: {"sigma": floor.sigma, "phi": floor.phi, "recorder": list(recorders).index(id(floor.fit))}
                       for name, floor in ctx.noise.items()}}
-
-
-def _search_report(ctx: Context, verdict: Verdict, ranking, second, options: DiagnoseOptions) -> dict:
-    """How sure each candidate's optimum is: the starts that reached it (within
-    :data:`REACHED_MARGIN_BIC`), and a warning when the winner or a close rival (within
-    the threshold of it) was reached by fewer than :data:`MIN_REACHED`."""
-    rows = {}
-    for label, fit in ctx.fits.items():
-        reached = fit.reached_best(REACHED_MARGIN_BIC)
-        if reached is None:
-            continue
-        f = fit.waterfall[np.isfinite(fit.waterfall)]
-        delta = (fit.n_samples * np.log(np.sort(f) / np.min(f))).tolist() if f.size else []
-        rows[label] = {"starts": int(fit.waterfall.size), "reached": reached, "waterfall_dbic": delta}
-    named = "+".join(verdict.effects) if verdict.effects else verdict.effect
-    close = [r.label for r in [*ranking, *second] if r.label == named or r.label in verdict.candidates
-             or r.delta < options.threshold]
-    uncertain = sorted({label for label in close if label in rows and rows[label]["reached"] < MIN_REACHED})
-    notes = []
-    for label in uncertain:
-        fit, r = ctx.fits[label], rows[label]
-        note = f"{label}: its best reached by {r['reached']} of {r['starts']} starts"
-        runner_up = fit.next_basin(REACHED_MARGIN_BIC)
-        if runner_up is not None:
-            delta, point = runner_up
-            moved = [n for n in point if abs(point[n] - fit.parameters[n]) > 0.1 * max(abs(point[n]),
-                                                                                    abs(fit.parameters[n]), 1e-12)]
-            note += (f"; the next basin, {delta:.1f} worse in BIC, has " + ", ".join(
-                f"{n} = {point[n]:.4g} (best {fit.parameters[n]:.4g})" for n in moved or point))
-            r["next_basin"] = {"delta_bic": delta, "parameters": point}
-        notes.append(note)
-    warning = ("the search is uncertain for " + "; ".join(notes) + ": the tests may not decide between these points, "
-               "or a better one may exist") if uncertain else ""
-    return {"candidates": rows, "uncertain": uncertain, "warning": warning, "min_reached": MIN_REACHED,
-            "margin_bic": REACHED_MARGIN_BIC}
 
 
 __all__ = ["DiagnoseOptions", "Diagnosis", "Features", "diagnose", "split_holdout"]
