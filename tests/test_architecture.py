@@ -231,7 +231,6 @@ UNTYPED_LEFT = {
     "Verdict.held_out": "the held-out check's figures, written into diagnosis.json as they are",
     "StructureVerdict.effects": "the effect catalogue's diagnosis on the winner, as its JSON",
     "StructureVerdict.separating_test": "the separating test's design, as structures.json holds it",
-    "StructureFit.identifiability": "identifiability()'s report, written into structures.json as it is",
     "StructureFit.separating_step": "best_separating_step()'s design, written as it is",
 }
 

@@ -322,6 +322,7 @@ def test_a_part_the_data_lean_to_is_said_where_it_moves_the_record():
     import numpy as np
 
     from rapid_cosim.identify.workflow import _moved_by
+    from rapid_cosim.structures.identifiability import Identifiability
     from rapid_cosim.structures.select import StructureFit
     from rapid_cosim.structures.shipped import standard_file
     from rapid_cosim.structures.structure import Structure
@@ -329,7 +330,7 @@ def test_a_part_the_data_lean_to_is_said_where_it_moves_the_record():
     tgov1 = Structure.load(standard_file("TGOV1"))
 
     def fit(name, bic, **values):  # 2400 samples: the data term is the BIC less k ln n
-        return StructureFit(name, bic, 0.0, 1.0, values, len(values), True, 1.0, None, {}, None, "",
+        return StructureFit(name, bic, 0.0, 1.0, values, len(values), True, 1.0, None, None, None, "",
                             data_term=bic - len(values) * np.log(2400))
 
     plain = {"gov.R": 0.0538, "gov.T1": 0.77, "gov.T2": 2.14, "gov.T3": 4.96}
@@ -345,7 +346,8 @@ def test_a_part_the_data_lean_to_is_said_where_it_moves_the_record():
     assert _moved_by(tgov1, fits, "deadband") == {}  # kept: the record carries it
     fits["TGOV1+deadband"] = fit("TGOV1+deadband", 107.8, **{**plain, "gov.R": 0.0540, "gov.db": 1e-6})
     assert _moved_by(tgov1, fits, None) == {}  # freed, it stays where the plain fit is
-    fits["TGOV1"].identifiability["parameters"] = {"gov.R": {"relative_se": 0.01}, "gov.T3": {"relative_se": 0.9}}
+    fits["TGOV1"] = replace(fits["TGOV1"], identifiability=Identifiability(
+        ("gov.R", "gov.T3"), np.array([0.01, 0.9]), np.eye(2), 1.0, np.eye(2)))
     fits["TGOV1+deadband"] = fit("TGOV1+deadband", 101.6, **{**plain, "gov.T3": 9.0, "gov.db": 0.00053})
     assert _moved_by(tgov1, fits, None) == {}  # T3 moves, but the plain fit does not determine it either
     ieeeg1 = Structure.load(standard_file("IEEEG1"))

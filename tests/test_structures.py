@@ -211,7 +211,7 @@ def test_two_ggov1_time_constants_the_tests_cannot_separate(repo, tmp_path):
 
 
 def _fit(name, bic, n_estimated, adequate=True):
-    return StructureFit(name, bic, 0.0, 0.0, {}, n_estimated, adequate, 1.0, None, {}, None, "")
+    return StructureFit(name, bic, 0.0, 0.0, {}, n_estimated, adequate, 1.0, None, None, None, "")
 
 
 @pytest.mark.parametrize("rival_parameters,verdict", [(4, "TGTypeI"), (2, "ambiguous"), (1, "IEEEG1")])

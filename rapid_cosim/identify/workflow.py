@@ -164,7 +164,7 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
     per_test = {name: TestFidelity(t.rmse_over_noise, t.variance_ratio, t.p_holm, t.adequate,
                                    explained[name].rmse_over_noise if name in explained else None)
                 for name, t in use.tests.items()}
-    relative_se = {k: v["relative_se"] for k, v in use.identifiability.get("parameters", {}).items()}
+    relative_se = use.identifiability.relative_se_by_name if use.identifiability else {}
     failing = [n for n, t in per_test.items() if not t.adequate]
     clauses = ["within the noise on every test" if use.adequate else
                f"not within the noise on {', '.join(failing)} (pooled variance ratio {use.variance_ratio:.2f})"]
@@ -176,7 +176,7 @@ def _record(structure: Structure, fits: dict[str, StructureFit], explanation: Di
     clauses += _carrying(structure, missing, open_, kept, use.parameters, relative_se, moved=list(moved))
     clauses += moved.values()
     undetermined += moved
-    swaps = [f"{x['a']} and {x['b']}" for x in use.identifiability.get("exchanges", [])]
+    swaps = [f"{a} and {b}" for a, b, _ in (use.identifiability.exchanges if use.identifiability else ())]
     if swaps:
         clauses.append(f"the tests fit {', '.join(swaps)} either way round: which is which is not the data's to say")
     return StandardRecord(model=structure.name, fit=use.name, optional_freed=use is freed,
@@ -213,7 +213,7 @@ def _moved_by(structure: Structure, fits: dict[str, StructureFit], kept: str | N
         p = float(chi2.sf(plain.data_term - best.data_term, max(best.n_estimated - plain.n_estimated, 1)))
         if p >= LEANING:
             continue
-        se = {n: v["relative_se"] for n, v in plain.identifiability.get("parameters", {}).items()}
+        se = plain.identifiability.relative_se_by_name if plain.identifiability else {}
         moves = {n: best.parameters[n] / v - 1 for n, v in plain.parameters.items()
                  if n in structure.estimate and n in best.parameters and v and se.get(n, 0.0) <= WEAK_SE}
         moved = [f"{n.removeprefix('gov.')} from {plain.parameters[n]:.4g} to {best.parameters[n]:.4g} "

@@ -52,6 +52,10 @@ class Identifiability:
     information: np.ndarray  # F, per relative change of each parameter
     exchanges: tuple[tuple[str, str, float], ...] = ()  # pairs whose swap leaves the fit (change of the sum of squares)
 
+    @property
+    def relative_se_by_name(self) -> dict[str, float]:
+        return {n: float(self.relative_se[k]) for k, n in enumerate(self.names)}
+
     def status(self, k: int) -> str:
         r = self.relative_se[k]
         return ("determined" if r < REL_DETERMINED else "weakly determined" if r < REL_WEAK

@@ -46,7 +46,7 @@ from ..noise import campaign_noise
 from ..diagnose.adequacy import TestAdequacy, adequacy
 from ..diagnose.catalogue import AMBIGUOUS, UNEXPLAINED, VerdictKind
 from ..diagnose.candidates import jacobian_at, residuals_at
-from .identifiability import best_separating_step, identifiability
+from .identifiability import Identifiability, best_separating_step, identifiability
 from .structure import Structure, on_structure
 from ..diagnose.null import KeptReplicates, replicates_for
 from ..diagnose.selection import THRESHOLD, noise_floors, score
@@ -63,7 +63,7 @@ class StructureFit:
     adequate: bool
     variance_ratio: float
     heldout_score: float | None
-    identifiability: dict
+    identifiability: Identifiability | None  # at the optimum (None: not computed)
     separating_step: dict | None
     archive: str
     at_bounds: list[str] = field(default_factory=list)  # estimates that ended on a bound of their range
@@ -72,7 +72,8 @@ class StructureFit:
 
     def to_json(self) -> dict:
         """As structures.json holds it (each test's adequacy under its name)."""
-        return {**asdict(self), "tests": {name: t.to_json() for name, t in self.tests.items()}}
+        return {**asdict(self), "identifiability": self.identifiability.to_json() if self.identifiability else {},
+                "tests": {name: t.to_json() for name, t in self.tests.items()}}
 
 
 @dataclass
@@ -170,7 +171,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         step = best_separating_step(inputs, np.asarray(result.x), ident, noise)
         fits.append(StructureFit(s.name, data_term + k * np.log(n), 0.0, float(result.fun), result.best(),
                                  len(result.names), fit_ok.adequate, fit_ok.pooled_variance_ratio, held_score,
-                                 ident.to_json(), step, str(archive),
+                                 ident, step, str(archive),
                                  _at_bounds(s.estimate, result.best()), {t.test: t for t in fit_ok.tests},
                                  float(data_term)))
         log(f"  {s.name} ({', '.join(s.estimate)}): BIC {fits[-1].bic:.1f}, variance ratio "
