@@ -146,7 +146,9 @@ def test_following_the_advice_once_settles_a_lag_the_four_tests_leave_ambiguous(
     assert first.kind is VerdictKind.AMBIGUOUS, first.named.reason
     sep = first.named.separating_test
     assert "measurement_lag" in sep.between and sep.found and sep.probability >= 0.9
-    for outcome in (*(f"names {label}" for label in sep.between), "none ahead"):  # what each outcome would mean
+    # what each outcome would mean: a group of rivals no test splits is named as one, the documentation deciding
+    for outcome in (*("names " + " or ".join(g) for g in sep.groups), "none ahead",
+                    *("the documentation of the unit must decide between them" for g in sep.groups if len(g) > 1)):
         assert outcome in sep.words, sep.words
     exps = [load_experiment(p) for p in sorted((tmp_path / case.label / "data").glob("step*/config.toml"))]
     new = [load_experiment(p) for p in write_advised(case, sep.test, tmp_path / "advised", source=source)]

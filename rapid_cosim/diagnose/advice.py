@@ -340,8 +340,8 @@ def _record(groups, s: Settling | None, found: bool, menu: list[Settling], cache
     between = ", ".join(_named(g) for g in groups[:-1]) + f" and {_named(groups[-1])}"
     if found:
         said = (f"{t.describe()} separates {between} with probability {s.worst:.2f}: {chance}. Then: "
-                + "; ".join(f"{g[0].label} ahead of every other by {threshold:g} or more names {g[0].label}"
-                            for g in groups)
+                + "; ".join(f"{g[0].label} ahead of every other by {threshold:g} or more names "
+                            + " or ".join(r.label for r in g) for g in groups)
                 + f"; none ahead happens {1 - s.worst:.0%} of the time or less when one of them is the plant, "
                 "and with a remainder on the new test it says that none is")
     else:
