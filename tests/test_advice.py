@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from rapid_cosim.diagnose.advice import ProposedTest, _Old, _refit, settling
+from rapid_cosim.diagnose.advice import _Old, _refit, settling
+from rapid_cosim.diagnose.result import AdvisedTest
 
 
 def _criterion(old_r, old_J, blocks, u0):
@@ -76,7 +77,7 @@ def test_the_stated_probability_is_the_share_of_brute_force_refits_that_settle()
     u0 = np.array([0.5, 0.5])
     a = _Linear("a", 0.9 * shape, G, _old(old_r, old_J, u0, 4))
     b = _Linear("b", 0.0 * shape, G, _old(old_r, old_J, u0, 4))
-    test = ProposedTest((-1, 1), 0.1, 25.0, 0.6, False, 10.0)
+    test = AdvisedTest((-0.1, 0.1), 25.0, 10.0, 0.6, False)
     draws = 40
     s = settling([[a], [b]], test, np.random.default_rng(11), {}, draws=draws, threshold=3.0)
     # brute force with the same draws (drawn per truth, per recorded test, in that order)

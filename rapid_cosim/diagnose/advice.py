@@ -57,39 +57,6 @@ FD_STEP = 1e-3  # in unit coordinates, as the diagnosis's Jacobians
 
 
 @dataclass(frozen=True)
-class ProposedTest:
-    """One or more staged steps of ``magnitude_hz``, each held ``hold_s`` and returned."""
-
-    signs: tuple[int, ...]
-    magnitude_hz: float
-    hold_s: float
-    p_ref: float
-    redispatch: bool
-    t_step_s: float
-
-    @property
-    def seconds(self) -> float:
-        return len(self.signs) * (self.t_step_s + 2 * self.hold_s)
-
-    @property
-    def size(self) -> tuple:
-        return self.magnitude_hz, self.seconds, self.redispatch
-
-    def describe(self) -> str:
-        steps = [f"{1000 * s * self.magnitude_hz:+.0f} mHz" for s in self.signs]
-        if len(set(steps)) == 1:
-            what = f"a staged test with df = {steps[0]}" + ("" if len(steps) == 1 else f", {_times(len(steps))}")
-        else:
-            what = "staged tests with df = " + ", then ".join(steps)
-        at = f" at a dispatch of {self.p_ref:.2f} pu" if self.redispatch else ""
-        return f"{what}{at}, {'each ' if len(steps) > 1 else ''}held {self.hold_s:.0f} s and returned"
-
-
-def _times(n: int) -> str:
-    return {2: "twice", 3: "three times"}.get(n, f"{n} times")
-
-
-@dataclass(frozen=True)
 class _Old:
     """A rival's old tests, linearised: whitened residuals and Jacobians in unit coordinates."""
 
@@ -131,7 +98,7 @@ class _Rival:
         self.noise = noise
         self.shared = np.array(["@" not in n for n in problem.names])
 
-    def responses(self, test: ProposedTest, sign: int) -> tuple[np.ndarray, np.ndarray]:
+    def responses(self, test: AdvisedTest, sign: int) -> tuple[np.ndarray, np.ndarray]:
         """Whitened response at the fit (n,) and its sensitivities (n, d) to the unit coordinates."""
         problem, space, u = self.fit.inputs.problem, self.fit.inputs.problem.space, self.old.u0
         d = space.dim
@@ -187,14 +154,14 @@ def _refit(old: _Old, blocks: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray
     return best
 
 
-def _menu(template, t_step: float) -> list[ProposedTest]:
+def _menu(template, t_step: float) -> list[AdvisedTest]:
     fixed = template.fixed
     p_ref = float(fixed.get("gov.p_ref", np.nan))
     levels = [(p_ref, False)]
     if "gov.pmin" in fixed and "gov.pmax" in fixed:
         lo, hi = float(fixed["gov.pmin"]), float(fixed["gov.pmax"])
         levels += [(lo + s * (hi - lo), True) for s in DISPATCH_SHARES if abs(lo + s * (hi - lo) - p_ref) > 0.05]
-    tests = [ProposedTest(signs, m, h, p, re, t_step)
+    tests = [AdvisedTest(tuple(sign * m for sign in signs), h, t_step, p, re)
              for m, h, signs, (p, re) in product(MAGNITUDES_HZ, HOLDS_S, PATTERNS, levels)]
     return sorted(tests, key=lambda t: t.size)
 
@@ -203,7 +170,7 @@ def _menu(template, t_step: float) -> list[ProposedTest]:
 class Settling:
     """A proposed test's chance of settling the choice, each rival assumed true in turn."""
 
-    test: ProposedTest
+    test: AdvisedTest
     probability: dict[str, float]  # label -> P(it leads every other by the threshold | it is true)
     median_lead: dict[str, float]
 
@@ -212,7 +179,7 @@ class Settling:
         return min(self.probability.values())
 
 
-def settling(groups: Sequence[Sequence[_Rival]], test: ProposedTest, rng: np.random.Generator,
+def settling(groups: Sequence[Sequence[_Rival]], test: AdvisedTest, rng: np.random.Generator,
              cache: dict, draws: int = DRAWS, threshold: float = THRESHOLD) -> Settling:
     """Monte Carlo of ``test`` recorded from each group's first rival and every rival
     refitted; the truth must lead every rival outside its group."""
@@ -240,14 +207,14 @@ def settling(groups: Sequence[Sequence[_Rival]], test: ProposedTest, rng: np.ran
     return Settling(test, probability, median)
 
 
-def _cached(cache: dict, rival: _Rival, test: ProposedTest, sign: int):
+def _cached(cache: dict, rival: _Rival, test: AdvisedTest, sign: int):
     key = (id(rival), sign, test.magnitude_hz, test.hold_s, test.p_ref)
     if key not in cache:
         cache[key] = rival.responses(test, sign)
     return cache[key]
 
 
-def _evidence(cache: dict, a: _Rival, b: _Rival, test: ProposedTest) -> tuple[float, float]:
+def _evidence(cache: dict, a: _Rival, b: _Rival, test: AdvisedTest) -> tuple[float, float]:
     """What ``test`` adds to the BIC difference of ``a`` and ``b`` with their fits held, and
     the RMS of their whitened difference: what the advice said before refits were counted."""
     evidence, n = 0.0, 0
@@ -258,7 +225,7 @@ def _evidence(cache: dict, a: _Rival, b: _Rival, test: ProposedTest) -> tuple[fl
     return evidence, float(np.sqrt(evidence / max(n, 1)))
 
 
-def _groups(rivals: Sequence[_Rival], largest: ProposedTest, cache: dict, rng: np.random.Generator,
+def _groups(rivals: Sequence[_Rival], largest: AdvisedTest, cache: dict, rng: np.random.Generator,
             threshold: float) -> list[list[_Rival]]:
     """Rivals joined where even the menu's largest test, recorded from either and both
     refitted, lets neither lead the other by the threshold in half the draws: one model on
@@ -347,5 +314,4 @@ def _record(groups, s: Settling | None, found: bool, menu: list[Settling], cache
     else:
         said = (f"no staged test of the menu ({menu_words}) separates {between} with probability {target:g}; the "
                 f"best, {t.describe()}: {chance}; the documentation of the unit must decide")
-    test = AdvisedTest(tuple(sign * t.magnitude_hz for sign in t.signs), t.hold_s, t.t_step_s, t.p_ref, t.redispatch)
-    return record(test, s.worst, s.probability, s.median_lead, evidence, rms, words=". ".join([said, *same]))
+    return record(t, s.worst, s.probability, s.median_lead, evidence, rms, words=". ".join([said, *same]))

@@ -64,6 +64,33 @@ class AdvisedTest:
     p_ref: float
     redispatch: bool  # at another dispatch than the data's
 
+    @property
+    def magnitude_hz(self) -> float:
+        return abs(self.steps_hz[0])
+
+    @property
+    def signs(self) -> tuple[int, ...]:
+        return tuple(1 if s > 0 else -1 for s in self.steps_hz)
+
+    @property
+    def seconds(self) -> float:
+        return len(self.steps_hz) * (self.t_step_s + 2 * self.hold_s)
+
+    @property
+    def size(self) -> tuple:
+        """What makes one test larger than another: its step, then its time, then a re-dispatch."""
+        return self.magnitude_hz, self.seconds, self.redispatch
+
+    def describe(self) -> str:
+        steps = [f"{1000 * s:+.0f} mHz" for s in self.steps_hz]
+        if len(set(steps)) == 1:
+            times = {1: "", 2: ", twice", 3: ", three times"}.get(len(steps), f", {len(steps)} times")
+            what = f"a staged test with df = {steps[0]}{times}"
+        else:
+            what = "staged tests with df = " + ", then ".join(steps)
+        at = f" at a dispatch of {self.p_ref:.2f} pu" if self.redispatch else ""
+        return f"{what}{at}, {'each ' if len(steps) > 1 else ''}held {self.hold_s:.0f} s and returned"
+
     def to_json(self) -> dict:
         return {"df_hz": self.steps_hz[0], "steps_hz": list(self.steps_hz), "hold_s": self.hold_s,
                 "t_step_s": self.t_step_s, "t_return_s": self.t_step_s + self.hold_s, "p_ref": self.p_ref,
