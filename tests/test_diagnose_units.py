@@ -190,7 +190,7 @@ def test_an_unexplained_or_ambiguous_diagnosis_is_saved_and_said_in_words(tmp_pa
 
     from rapid_cosim.diagnose.catalogue import AMBIGUOUS, UNEXPLAINED, VerdictKind
     from rapid_cosim.diagnose.adequacy import Adequacy
-    from rapid_cosim.diagnose.result import AdequacyJudgement, Diagnosis, DiagnosisVerdict, SearchReport
+    from rapid_cosim.diagnose.result import AdequacyJudgement, Diagnosis, DiagnosisVerdict, SearchCertainty, SearchReport
     from rapid_cosim.diagnose.limits import verdict_text
     from rapid_cosim.diagnose.selection import Verdict
 
@@ -200,7 +200,7 @@ def test_an_unexplained_or_ambiguous_diagnosis_is_saved_and_said_in_words(tmp_pa
         assert said in ("unexplained", "ambiguous + unexplained remainder") and "VerdictKind" not in said
         unfit = Adequacy(False, 2.0, 0.001, 0.05, 100, ())
         d = Diagnosis(DiagnosisVerdict(effect, [], list(v.candidates), v.said, said, [], None, None),
-                      AdequacyJudgement(unfit, unfit, {"final": unfit}, None, {}), SearchReport([], [], {}, {}, {}),
+                      AdequacyJudgement(unfit, unfit, {"final": unfit}, None, {}), SearchReport([], [], SearchCertainty({}, [], "", 3, 2.0), {}, {}),
                       {}, {}, {}, {}, {}, {}, {}, {}, None, None, {}, ["t1"], [], "now")
         js, h5 = d.save(tmp_path / effect)
         with h5py.File(h5) as f:
