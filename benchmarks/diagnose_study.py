@@ -255,9 +255,9 @@ def report(results, single_result) -> None:
     pairs = [r for r in results if "+" in r.case.truth]
     if pairs:
         print(f"pairs, both named: {sum(r.correct for r in pairs)}/{len(pairs)}")
-    uncertain = [r for r in results if r.diagnosis.searched.search["uncertain"]]
+    uncertain = [r for r in results if r.diagnosis.searched.search.uncertain]
     print(f"campaigns whose verdict says the search was uncertain: {len(uncertain)}"
-          + "".join(f"\n  {r.case.label}: {r.diagnosis.searched.search['warning']}" for r in uncertain))
+          + "".join(f"\n  {r.case.label}: {r.diagnosis.searched.search.warning}" for r in uncertain))
     checked = [r for r in results if getattr(r, "check", None) is not None]
     if checked:
         missed = [r for r in checked if r.check > 2.0]
