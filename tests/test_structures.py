@@ -206,8 +206,9 @@ def test_two_ggov1_time_constants_the_tests_cannot_separate(repo, tmp_path):
     assert ident.trade_offs and ident.trade_offs[0][:2] == ("gov.Tact", "gov.Tb")
     assert ident.trade_offs[0][2] < -0.9
     step = best_separating_step(inputs, x, ident, noise)
-    assert abs(step["df_hz"]) == pytest.approx(0.4) and step["relative_se"] < ident.relative_se.max() / 10
-    assert "staged test with df" in step["advice"]
+    assert abs(step.df_hz) == pytest.approx(0.4) and step.relative_se < ident.relative_se.max() / 10
+    assert "staged test with df" in step.advice
+    assert step.to_json()["menu"][0] == {"df_hz": step.menu[0][0], "relative_se": step.menu[0][1]}
 
 
 def _fit(name, bic, n_estimated, adequate=True):

@@ -23,14 +23,14 @@ from ..fitting.engine import EngineSpec, WholeFits, fit_here, map_fits
 from ..errors import ConfigError, RapidCosimError
 from ..data import close_matches
 from ..experiment import Experiment
-from ..noise import campaign_noise
 from ..simulator import DEFAULT_RUNNER
-from .adequacy import Adequacy, adequacy
-from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, jacobian_at, \
+from .adequacy import Adequacy
+from .candidates import CandidateFit, CandidateSpec, candidate_inputs, default_start, fit_candidate, \
     residuals_at
 from .catalogue import BASE, BASES, CATALOGUE, bench_name, is_generated, write_bench
-from .null import REPLICATES, KeptReplicates, NoiseReplicates, replicates_for
-from .selection import THRESHOLD, bic, noise_floors
+from .judging import Judge, jacobians_at
+from .null import REPLICATES, KeptReplicates
+from .selection import THRESHOLD, bic
 
 # Multistart least squares from a Sobol design (rapid_cosim.estimators.multistart): the
 # waterfall certifies each candidate's optimum. It replaced PF10+NM with a second search
@@ -107,14 +107,13 @@ class Context:
         self.source = replace(source, package=self.workdir / "package" / source.package_path.name,
                               fmu_dir=self.workdir / "fmus")
         shutil.copytree(source.package_path, self.source.package, dirs_exist_ok=True)  # refreshed on every run
-        self.noise_fits = noise_fits or campaign_noise(self.training + self.heldout)
-        self.noise = noise_floors(self.training + self.heldout, self.noise_fits)
+        self.judging = Judge.of(self.training + self.heldout, noise_fits)
+        self.noise_fits, self.noise = self.judging.noise_fits, self.judging.floors
         self.models = {name: fit.model for name, fit in self.noise_fits.items()}
         self.fits: dict[str, CandidateFit] = {}
         self.fmus: dict = {}  # FMUs by model, built or loaded once for all candidates
         self._predictions: dict[tuple, tuple] = {}
         self._adequacy: dict[tuple, Adequacy] = {}
-        self.null: NoiseReplicates | None = None
         self.kept = kept  # replicates made before (an identification's other part), taken where the same
         self.run_options = RunOptions(method=options.method, seed=options.seed, engine=options.engine,
                                       estimator_options=options.estimator_options, runner=options.runner).check()
@@ -164,7 +163,7 @@ class Context:
             self.log(f"    {fit.spec.label}: fitness {fit.fitness:.4g}, BIC {bic(fit, self.noise):.1f}, "
                      f"{fit.nfev} simulations" + (f", best reached by {reached} of {fit.waterfall.size} starts"
                                                   if reached is not None else ""))
-            if self.null is None:
+            if self.judging.null is None:
                 self._make_null(fit)
         return [self.fits[spec.label] for spec, _ in items]
 
@@ -177,8 +176,8 @@ class Context:
         exps = list(fit.inputs.experiments)
         if self.heldout:
             exps += list(self._heldout_inputs(fit).experiments)
-        self.null = replicates_for(exps, self.noise_fits, self.options.replicates, seed=self.options.seed,
-                                   kept=self.kept, engine=self.options.engine)
+        self.judging.replicate(exps, self.options.replicates, seed=self.options.seed, kept=self.kept,
+                               engine=self.options.engine)
 
     def base_parameters(self) -> dict[str, float] | None:
         base = self.fits.get(BASE)
@@ -218,14 +217,12 @@ class Context:
         null computed for its own fitted parameters (:mod:`.adequacy`)."""
         key = self._key(fit)
         if key not in self._adequacy:
-            if self.null is None:
+            if self.judging.null is None:
                 self._make_null(fit)
-            x = np.array([fit.parameters[n] for n in fit.inputs.problem.names])
-            jac = jacobian_at(fit.inputs, x)
+            parts = [(fit.inputs, [fit.parameters[n] for n in fit.inputs.problem.names])]
             if self.heldout:
                 _, inputs, xh = self._prediction(fit)
-                jac.update(jacobian_at(inputs, xh))
-            jac = {k: np.nan_to_num(v) for k, v in jac.items()}
-            self._adequacy[key] = adequacy(self.tests(fit), self.noise, self.null, jac,
-                                           [e.name for e in self.training])
+                parts.append((inputs, xh))
+            self._adequacy[key] = self.judging.judge(self.tests(fit), jacobians_at(*parts),
+                                                     [e.name for e in self.training])
         return self._adequacy[key]

@@ -48,18 +48,16 @@ import numpy as np
 
 from ..calibration import inputs_from_experiments
 from ..compiler.source import ModelSource
-from ..diagnose.adequacy import ALPHA, adequacy, score_test
+from ..diagnose.adequacy import ALPHA, score_test
 from ..diagnose.candidates import residuals_at, experiment_blocks
-from ..diagnose.null import ScoredTest, replicates_for, with_extra
-from ..diagnose.selection import noise_floors
+from ..diagnose.judging import Judge
+from ..diagnose.null import ScoredTest, with_extra
 from ..fitting.objective import ProblemObjective
 from ..structures.structure import Structure, on_structure
 from ..errors import ConfigError
 from ..exchange import Record
-from ..noise import campaign_noise
-from ..report.archives import curves_at
 from ..validation.tolerances import Tolerances, judge
-from ..report.validation import compared
+from ..validation.curves import compared, curves_at
 from ..validation.metrics import Compared, metrics_of
 
 BAND_REPLICATES = 200  # noise replicates the bands' false-alarm rate is read from (its SE ~ 0.015 at 5 %)
@@ -126,15 +124,15 @@ def play_back(record: Record, experiments: list, structures: list[Path], toleran
     """``record`` (iGrGen values of its model) on ``experiments`` (module docstring)."""
     structure = structure_for(record.block, structures)
     as_read, values = structure.playing(record.values)
-    noise_fits = noise_fits or campaign_noise(experiments)
-    inputs = inputs_from_experiments(on_structure(as_read, experiments, noise_fits), source=source)
+    judging = Judge.of(experiments, noise_fits)
+    inputs = inputs_from_experiments(on_structure(as_read, experiments, judging.noise_fits), source=source)
     scored = inputs.problem.experiments
-    floors = noise_floors(scored, noise_fits)
+    floors = judging.floors
     names = inputs.problem.names
     x = np.array([values[n] for n in names])
-    null = replicates_for(scored, noise_fits, NULL_REPLICATES, seed=seed)
+    null = judging.replicate(scored, NULL_REPLICATES, seed=seed)
     at_x = residuals_at(inputs, x)
-    variance = adequacy(at_x, floors, null, None, [])
+    variance = judging.judge(at_x)  # nothing fitted: no Jacobian, no training tests
     residuals, jacobians, kept = _linearised(inputs, x, structure, at_x)
     score = score_test(residuals, jacobians, null) if kept else None  # None: no parameter could be moved
     held = _held_at_bounds(x, names, kept, structure, score)

@@ -56,7 +56,7 @@ from ..experiment.synthetic import synthesize, write_experiment
 from ..diagnose.campaigns import recorder
 from ..diagnose.candidates import residuals_at
 from ..diagnose.context import METHOD
-from ..diagnose.selection import noise_floors
+from ..diagnose.judging import Judge
 from ..structures.structure import Structure, on_structure
 from ..structures.select import StructureVerdict
 
@@ -215,7 +215,7 @@ def record_fidelity(structure: Structure, record: dict[str, float], tests: list[
     values (iGrGen names without ``gov.``; :meth:`Structure.playing`), offset profiled as in the fitness;
     ``fitted_noise``: the selection's noise fits of these tests."""
     as_read, values = structure.playing(record)
-    floors = noise_floors(tests, fitted_noise)
+    floors = Judge.of(tests, fitted_noise).floors
     inputs = inputs_from_experiments(on_structure(as_read, tests, fitted_noise), source=source)
     residuals = residuals_at(inputs, np.array([values[n] for n in inputs.problem.names]))
     return {name: float(np.sqrt(np.nanmean(r.residual ** 2)) / floors[name].sigma) for name, r in residuals.items()}

@@ -1,5 +1,6 @@
-"""What reports read from archives: one finished run as plain numbers, the staged test
-it fitted, and the paper-style caption of that test. Nothing here estimates."""
+"""What reports read from archives: one finished run as plain numbers, its curves at its
+best point (:func:`~rapid_cosim.validation.curves.curves_at` on the archived inputs), and
+the paper-style caption of a staged test. Nothing here estimates or judges."""
 
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ from ..calibration import RunInputs, inputs_from_archive
 from ..archive import RunArchive
 from ..errors import ArchiveError
 from ..estimators.base import EstimationResult
-from ..fitting.objective import ExperimentResult, evaluate_in_detail, evaluate_one, simulate_experiment
+from ..fitting.objective import evaluate_in_detail
 from ..experiment import Experiment
-from ..simulator import Trajectory
+from ..validation.curves import FitCurves, curves_at
 
 
 @dataclass(frozen=True)
@@ -51,43 +52,11 @@ def load_run(path: str | Path) -> ArchivedRun:
     return ArchivedRun(path, result, inputs)
 
 
-@dataclass(frozen=True)
-class FitCurves:
-    """One experiment at a run's best point: fine-grid simulation (offset added, so it
-    overlays the measurements) and the residuals on the measured time base."""
-
-    detail: ExperimentResult
-    fine: Trajectory
-    output: str
-
-    @property
-    def offset(self) -> float:
-        return self.detail.fit.offsets[self.output]
-
-    @property
-    def simulated(self) -> np.ndarray:
-        return np.asarray(self.fine[self.output]) + self.offset
-
-    @property
-    def residual(self) -> np.ndarray:
-        return self.detail.fit.residuals[self.output]
-
-
 def fit_curves(run: ArchivedRun, experiment: int | str = 0, x=None) -> FitCurves:
     """Simulate the archived FMU at the run's best point (or ``x``) on the archived data."""
     problem = run.inputs.problem
     i = problem.experiment_index(experiment) if isinstance(experiment, str) else experiment
     return curves_at(run.inputs, run.result.x if x is None else x, i)
-
-
-def curves_at(inputs: RunInputs, x, i: int) -> FitCurves:
-    """Experiment ``i`` of a run's inputs simulated at ``x``."""
-    problem = inputs.problem
-    exp = problem.experiments[i]
-    detail = evaluate_one(problem, inputs.fmus, np.asarray(x, dtype=float), i)
-    fine = simulate_experiment(exp, inputs.fmus[exp.model], detail.parameters, fine=True)
-    output = next(o for o in exp.outputs if exp.weights[o] > 0)
-    return FitCurves(detail, fine, output)
 
 
 def caption(exp: Experiment) -> str:

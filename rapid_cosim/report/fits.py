@@ -13,7 +13,8 @@ from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from .archives import ArchivedRun, FitCurves, caption, curves_at, fit_curves, load_run
+from ..validation.curves import FitCurves, curves_at
+from .archives import ArchivedRun, caption, fit_curves, load_run
 from .figures import plt, save
 
 COLORS = {"PSO10+NM": "tab:blue", "PF10+NM": "tab:red"}
@@ -158,7 +159,7 @@ def plot_calibration(inputs, x, labels: Sequence[str], *, path: str | Path | Non
 
 
 def plot_experiment(exp, c: FitCurves, *, title: str = "", path: str | Path | None = None, dpi: int = 100):
-    """One experiment's curves (:func:`~.archives.curves_at`) in a figure of its own."""
+    """One experiment's curves (:func:`~rapid_cosim.validation.curves.curves_at`) in a figure of its own."""
     fig = plt.figure(figsize=(8.5, 5.6 if exp.inputs else 4.6))
     draw_experiment(fig, fig.add_gridspec(1, 1)[0], exp, c, title=title or caption(exp))
     if path is not None:

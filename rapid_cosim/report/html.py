@@ -27,7 +27,8 @@ from ..estimators.uncertainty import Uncertainty
 from ..experiment import Experiment
 from ..experiment.electrical import describe_recording
 from ..fitting.engine import EngineSpec
-from .archives import ArchivedRun, FitCurves, caption, curves_at
+from ..validation.curves import FitCurves, curves_at, metrics
+from .archives import ArchivedRun, caption
 from .fits import plot_experiment
 from .htmlkit import STYLE, e, mark, png
 from .provenance import provenance
@@ -36,7 +37,6 @@ from .sections import (diagnosis_section, failures_section, metrics_table, noise
 from ..validation.tolerances import Check, Tolerances, judge, verdict
 from .unit import DeliveredRecord, DiagnosisSummary, delivered_record, noise_summary
 from ..validation.metrics import ValidationMetrics
-from .validation import metrics
 
 TRAINING, HELD_OUT = "training", "held out"
 

@@ -130,7 +130,27 @@ STEPS_HZ = (-0.4, -0.2, -0.1, 0.1, 0.2, 0.4)
 HOLD_S = 50.0
 
 
-def best_separating_step(inputs, x: np.ndarray, ident: Identifiability, noise) -> dict | None:
+@dataclass(frozen=True)
+class DeterminingStep:
+    """The staged step that most determines a structure's least determined parameter:
+    that parameter, its relative error now and with the step's test added, the step's
+    size, the advice in words, and every step tried (``menu``: (df_hz, relative_se))."""
+
+    parameter: str
+    relative_se_now: float
+    df_hz: float
+    relative_se: float
+    advice: str
+    menu: tuple[tuple[float, float], ...]
+
+    def to_json(self) -> dict:
+        """As structures.json holds it."""
+        return {"parameter": self.parameter, "relative_se_now": self.relative_se_now, "df_hz": self.df_hz,
+                "relative_se": self.relative_se, "advice": self.advice,
+                "menu": [{"df_hz": df, "relative_se": se} for df, se in self.menu]}
+
+
+def best_separating_step(inputs, x: np.ndarray, ident: Identifiability, noise) -> DeterminingStep | None:
     """The staged step (size, held HOLD_S and returned, at the first test's dispatch and
     sampling) that most reduces the least determined parameter's relative error once
     added to the tests; None when every parameter is determined."""
@@ -160,16 +180,15 @@ def best_separating_step(inputs, x: np.ndarray, ident: Identifiability, noise) -
             d = (ys[0] - ys[1]) / width * (abs(x[j]) if x[j] != 0 else 1.0)
             cols.append(floor.whiten(d - d.mean()))  # offsets are profiled
         J = np.column_stack(cols)
-        rows.append({"df_hz": df, "relative_se": float(_covariance(ident.information + J.T @ J)[1][k])})
-    best = min(rows, key=lambda r: r["relative_se"])
+        rows.append((df, float(_covariance(ident.information + J.T @ J)[1][k])))
+    best_df, best_se = min(rows, key=lambda r: r[1])
     name = ident.names[k]
     now = f"{name} is {ident.status(k)} ({100 * ident.relative_se[k]:.0f} % relative error)"
-    step = f"df = {1000 * best['df_hz']:+.0f} mHz, held {HOLD_S:.0f} s and returned"
-    advice = (f"{now}: a staged test with {step}, brings it to {100 * best['relative_se']:.0f} %"
-              if best["relative_se"] < REL_WEAK else
+    step = f"df = {1000 * best_df:+.0f} mHz, held {HOLD_S:.0f} s and returned"
+    advice = (f"{now}: a staged test with {step}, brings it to {100 * best_se:.0f} %"
+              if best_se < REL_WEAK else
               f"{now}, and no staged step of {min(STEPS_HZ):+.1f} to {max(STEPS_HZ):+.1f} Hz determines it (the "
-              f"best, {step}, leaves {100 * best['relative_se']:.0f} %): fix it from the documentation or a test "
+              f"best, {step}, leaves {100 * best_se:.0f} %): fix it from the documentation or a test "
               f"that engages it")
-    return {"parameter": name, "relative_se_now": float(ident.relative_se[k]), **best, "advice": advice,
-            "menu": rows}
+    return DeterminingStep(name, float(ident.relative_se[k]), best_df, best_se, advice, tuple(rows))
 

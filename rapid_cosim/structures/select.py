@@ -42,15 +42,15 @@ from ..calibration import RunOptions, best_run, inputs_from_experiments
 from ..compiler.source import ModelSource
 from ..experiment import EstimateSpec, Experiment
 from ..simulator import get_simulator
-from ..noise import campaign_noise
-from ..diagnose.adequacy import TestAdequacy, adequacy
+from ..diagnose.adequacy import TestAdequacy
 from ..diagnose.catalogue import AMBIGUOUS, UNEXPLAINED, VerdictKind
-from ..diagnose.candidates import jacobian_at, residuals_at
-from .identifiability import Identifiability, best_separating_step, identifiability
+from ..diagnose.candidates import residuals_at
+from ..diagnose.judging import Judge, jacobians_at
+from .identifiability import DeterminingStep, Identifiability, best_separating_step, identifiability
 from .structure import Structure, on_structure
-from ..diagnose.null import KeptReplicates, replicates_for
-from ..diagnose.selection import THRESHOLD, noise_floors, score
-from ..diagnose.separate import separating_menu
+from ..diagnose.null import KeptReplicates
+from ..diagnose.selection import THRESHOLD, score
+from ..diagnose.separate import SeparatingStep, separating_menu
 
 @dataclass
 class StructureFit:
@@ -64,7 +64,7 @@ class StructureFit:
     variance_ratio: float
     heldout_score: float | None
     identifiability: Identifiability | None  # at the optimum (None: not computed)
-    separating_step: dict | None
+    separating_step: DeterminingStep | None
     archive: str
     at_bounds: list[str] = field(default_factory=list)  # estimates that ended on a bound of their range
     tests: dict[str, TestAdequacy] = field(default_factory=dict)  # per test, its adequacy
@@ -73,6 +73,7 @@ class StructureFit:
     def to_json(self) -> dict:
         """As structures.json holds it (each test's adequacy under its name)."""
         return {**asdict(self), "identifiability": self.identifiability.to_json() if self.identifiability else {},
+                "separating_step": self.separating_step.to_json() if self.separating_step else None,
                 "tests": {name: t.to_json() for name, t in self.tests.items()}}
 
 
@@ -83,7 +84,7 @@ class StructureVerdict:
     reason: str
     ranking: list[StructureFit] = field(default_factory=list)
     effects: dict | None = None  # the effect catalogue's verdict on the winning structure
-    separating_test: dict | None = None  # when ambiguous: the staged test that would tell the first two apart
+    separating_test: SeparatingStep | None = None  # when ambiguous: the staged test that would tell the first two apart
 
     @property
     def kind(self) -> VerdictKind:
@@ -103,7 +104,7 @@ class StructureVerdict:
     def to_json(self) -> dict:
         return {"structure": self.structure, "candidates": self.candidates, "reason": self.reason,
                 "ranking": [r.to_json() for r in self.ranking], "effects": self.effects,
-                "separating_test": self.separating_test}
+                "separating_test": self.separating_test.to_json() if self.separating_test else None}
 
 
 def effects_on(structure: Structure, training: Sequence[Experiment], heldout: Sequence[Experiment], *,
@@ -136,9 +137,9 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
     where the tests are the same (:class:`~rapid_cosim.diagnose.null.KeptReplicates`);
     ``calibrations``: these structures' calibrations, started by the caller before."""
     workdir = Path(workdir)
-    fitted_noise = fitted_noise or campaign_noise([*training, *heldout])
-    noise = noise_floors([*training, *heldout], fitted_noise)
-    fits, null = [], None
+    judging = Judge.of([*training, *heldout], fitted_noise)
+    fitted_noise, noise = judging.noise_fits, judging.floors
+    fits = []
     log(f"  calibrating {', '.join(s.name for s in structures)} ...")
     if calibrations is None:
         calibrations = Calibrations(structures, training, fitted_noise, options, workdir, searches, source)
@@ -152,7 +153,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         tests = residuals_at(inputs, result.x)
         data_term, n = score(tests, noise)
         k = len(result.names) + len(tests)
-        held_score, jac = None, jacobian_at(inputs, result.x)
+        held_score, parts = None, [(inputs, result.x)]
         held_inputs = None
         if heldout:
             held_inputs = inputs_from_experiments(on_structure(s, heldout, fitted_noise), source=source)
@@ -161,12 +162,10 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
             held_tests = residuals_at(held_inputs, x)
             held_score = float(score(held_tests, noise)[0])
             tests.update(held_tests)
-            jac.update(jacobian_at(held_inputs, x))
-        if null is None:
-            null = replicates_for([*inputs.experiments, *(held_inputs.experiments if held_inputs else ())],
-                                  fitted_noise, seed=options.seed, kept=kept, engine=options.engine)
-        fit_ok = adequacy(tests, noise, null, {k_: np.nan_to_num(v) for k_, v in jac.items()},
-                          [e.name for e in training])
+            parts.append((held_inputs, x))
+        judging.replicate([*inputs.experiments, *(held_inputs.experiments if held_inputs else ())],
+                          seed=options.seed, kept=kept, engine=options.engine)
+        fit_ok = judging.judge(tests, jacobians_at(*parts), [e.name for e in training])
         ident = identifiability(inputs, np.asarray(result.x), noise)
         step = best_separating_step(inputs, np.asarray(result.x), ident, noise)
         fits.append(StructureFit(s.name, data_term + k * np.log(n), 0.0, float(result.fun), result.best(),
@@ -184,7 +183,7 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
     if verdict.kind is VerdictKind.AMBIGUOUS and staged:
         a, b = (next(s for s in structures if s.name == n) for n in verdict.candidates[:2])
         verdict.separating_test = _separating(a, b, fits, staged[0], noise, source)
-        log(f"  {verdict.separating_test['advice']}")
+        log(f"  {verdict.separating_test.advice}")
     return verdict
 
 
@@ -266,7 +265,7 @@ def _calibrated(s: Structure, shared: tuple, options: RunOptions) -> tuple:
 
 
 def _separating(a: Structure, b: Structure, fits: list[StructureFit], template: Experiment, noise,
-                source: ModelSource) -> dict:
+                source: ModelSource) -> SeparatingStep:
     """The staged test that would tell structures ``a`` and ``b`` apart, from their fits."""
     def model(s: Structure) -> tuple[str, object, dict]:
         exp = s.experiment(template)

@@ -125,7 +125,7 @@ def span(exp, t: np.ndarray) -> tuple[float, float]:
 
 def metrics_of(curve: Compared, role: str = "training", residual: np.ndarray | None = None) -> ValidationMetrics:
     """The metrics of a measured and a simulated curve: what
-    :func:`rapid_cosim.report.validation.metrics` reads off a fit (its ``residual`` as the
+    :func:`rapid_cosim.validation.curves.metrics` reads off a fit (its ``residual`` as the
     fit computed it), and what a noise replicate of a
     record's playback is judged on (:mod:`rapid_cosim.fleet.playback`)."""
     name, out, t, measured, simulated = curve.test, curve.output, curve.time, curve.measured, curve.simulated
