@@ -85,6 +85,39 @@ class FmuRef:
         return cls(name or Path(path).stem, hashlib.sha256(data).hexdigest(), data)
 
 
+def _checked_description(path: Path, interface: str | None):
+    """(model description, FMI version, the interface it runs through) of an FMU that
+    rapid-cosim can simulate; else an FmuError naming the file and what it lacks."""
+    if not path.is_file():
+        raise FmuError(f"{path}: no such FMU file")
+    if not zipfile.is_zipfile(path):
+        raise FmuError(f"{path}: not an FMU (an FMU is a zip archive)")
+    try:
+        md = read_model_description(str(path), validate=False)
+    except Exception as e:  # fmpy raises bare exceptions for missing or broken XML
+        raise FmuError(f"{path}: cannot read modelDescription.xml ({e})") from None
+    version = "3.0" if str(md.fmiVersion).startswith("3.") else md.fmiVersion
+    if version not in ("2.0", "3.0"):
+        raise FmuError(f"{path}: FMI {md.fmiVersion}; rapid-cosim simulates FMI 2.0 and 3.0 FMUs")
+    offered = [name for name, part in ((MODEL_EXCHANGE, md.modelExchange), (CO_SIMULATION, md.coSimulation))
+               if part is not None]
+    clocks = [v.name for v in md.modelVariables if v.type == "Clock"]
+    if not offered:
+        what = ("only a Scheduled Execution interface (model partitions activated by FMI 3.0 clocks"
+                f"{' ' + ', '.join(clocks) if clocks else ''})"
+                if getattr(md, "scheduledExecution", None) is not None else
+                "neither a Model Exchange nor a Co-Simulation interface")
+        raise FmuError(f"{path}: an FMU with {what}; rapid-cosim simulates Model Exchange and "
+                       "Co-Simulation FMUs")
+    if clocks:
+        raise FmuError(f"{path}: FMI 3.0 clocks ({', '.join(clocks)}) need event handling by clock, "
+                       "which rapid-cosim does not do; it simulates FMUs without clocks")
+    if interface is not None and interface not in offered:
+        raise FmuError(f"{path}: no {INTERFACE_NAMES.get(interface, interface)} interface; the FMU offers "
+                       f"{', '.join(INTERFACE_NAMES[o] for o in offered)}")
+    return md, version, interface or offered[0]
+
+
 class LoadedFmu:
     """An FMU extracted once, its model description read and checked.
 
@@ -93,36 +126,9 @@ class LoadedFmu:
 
     def __init__(self, path: str | Path, interface: str | None = None):
         self.path = Path(path)
-        if not self.path.is_file():
-            raise FmuError(f"{self.path}: no such FMU file")
-        if not zipfile.is_zipfile(self.path):
-            raise FmuError(f"{self.path}: not an FMU (an FMU is a zip archive)")
-        try:
-            md = read_model_description(str(self.path), validate=False)
-        except Exception as e:  # fmpy raises bare exceptions for missing or broken XML
-            raise FmuError(f"{self.path}: cannot read modelDescription.xml ({e})") from None
-        version = "3.0" if str(md.fmiVersion).startswith("3.") else md.fmiVersion
-        if version not in ("2.0", "3.0"):
-            raise FmuError(f"{self.path}: FMI {md.fmiVersion}; rapid-cosim simulates FMI 2.0 and 3.0 FMUs")
-        offered = [name for name, part in ((MODEL_EXCHANGE, md.modelExchange), (CO_SIMULATION, md.coSimulation))
-                   if part is not None]
-        clocks = [v.name for v in md.modelVariables if v.type == "Clock"]
-        if not offered:
-            what = ("only a Scheduled Execution interface (model partitions activated by FMI 3.0 clocks"
-                    f"{' ' + ', '.join(clocks) if clocks else ''})"
-                    if getattr(md, "scheduledExecution", None) is not None else
-                    "neither a Model Exchange nor a Co-Simulation interface")
-            raise FmuError(f"{self.path}: an FMU with {what}; rapid-cosim simulates Model Exchange and "
-                           "Co-Simulation FMUs")
-        if clocks:
-            raise FmuError(f"{self.path}: FMI 3.0 clocks ({', '.join(clocks)}) need event handling by clock, "
-                           "which rapid-cosim does not do; it simulates FMUs without clocks")
-        if interface is not None and interface not in offered:
-            raise FmuError(f"{self.path}: no {INTERFACE_NAMES.get(interface, interface)} interface; the FMU offers "
-                           f"{', '.join(INTERFACE_NAMES[o] for o in offered)}")
+        md, version, self.interface = _checked_description(self.path, interface)
         self.model_description = md
         self.fmi_version = version
-        self.interface = interface or offered[0]
         part = md.modelExchange if self.interface == MODEL_EXCHANGE else md.coSimulation
         self.identifier = part.modelIdentifier
         with zipfile.ZipFile(self.path) as zf:
