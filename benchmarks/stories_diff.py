@@ -104,6 +104,7 @@ def main(argv=None) -> int:
     parser.add_argument("--work", type=Path, default=Path("/tmp/stories-diff"), help="work folder")
     args = parser.parse_args(argv)
     targets = args.targets.split(",")
+    args.work = args.work.resolve()  # the targets run in the revision's tree: a relative folder would land there
     args.work.mkdir(parents=True, exist_ok=True)
     revs = [subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", r], capture_output=True, text=True,
                            check=True).stdout.strip() for r in (args.before, args.after)]
@@ -111,6 +112,7 @@ def main(argv=None) -> int:
     for rev in revs:
         tree = checkout(rev, args.work)
         results = args.work / f"results-{rev}"
+        results.mkdir(parents=True, exist_ok=True)
         kept = results / "printed.json"  # a revision's run kept: a run stopped half-way goes on
         printed = json.loads(kept.read_text()) if kept.exists() else {}
         if set(targets) - set(printed):
