@@ -370,3 +370,18 @@ def test_options_are_validated(make, message):
 def test_objective_returning_wrong_shape_is_reported():
     with pytest.raises(ValueError, match="objective returned fitness"):
         run("pso", lambda X: Evaluations.from_fitness(bowl_values(X)[:1]))
+
+
+def test_stepped_points_step_each_coordinate_inside_the_box():
+    """SearchSpace.stepped: the batch every forward-difference Jacobian is read from (the
+    diagnosis's adequacy, the intervals' sandwich, the advice): forward by the step, backward
+    at the upper bound, none along a held coordinate, each point in the box."""
+    space = SearchSpace(("R", "Ts", "K"), np.array([0.02, 0.1, 1.0]), np.array([0.1, 20.0, 2.0]), (False, True, False))
+    u = np.array([0.5, 1.0, 0.25])
+    X, steps = space.stepped(u, 1e-3, free=np.array([True, True, False]))
+    assert steps.tolist() == [1e-3, -1e-3, 0.0]
+    assert X.shape == (4, 3) and np.all(space.contains(X))
+    np.testing.assert_allclose(space.to_unit(X[0]), u)
+    np.testing.assert_allclose(space.to_unit(X[1]) - u, [1e-3, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(space.to_unit(X[2]) - u, [0, -1e-3, 0], atol=1e-12)
+    np.testing.assert_array_equal(X[3], X[0])

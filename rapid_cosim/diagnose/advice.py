@@ -73,10 +73,8 @@ def _linearised(fit: CandidateFit) -> _Old:
     space = problem.space
     x = np.array([fit.parameters[n] for n in problem.names])
     u = np.clip(space.to_unit(x), 0.0, 1.0)
-    steps = np.where(u + FD_STEP <= 1.0, FD_STEP, -FD_STEP)
-    U = np.tile(u, (space.dim + 1, 1))
-    U[1:][np.arange(space.dim), np.arange(space.dim)] += steps
-    blocks = ProblemObjective(problem, fit.inputs.fmus).residual_blocks(space.clip(space.from_unit(U)))
+    X, steps = space.stepped(u, FD_STEP)
+    blocks = ProblemObjective(problem, fit.inputs.fmus).residual_blocks(X)
     n, rr, Jr, JJ = [], [], [], []
     for (exp, _), block in zip(experiment_blocks(problem), blocks):
         r = np.nan_to_num(block[0])
@@ -100,12 +98,8 @@ class _Rival:
 
     def responses(self, test: AdvisedTest, sign: int) -> tuple[np.ndarray, np.ndarray]:
         """Whitened response at the fit (n,) and its sensitivities (n, d) to the unit coordinates."""
-        problem, space, u = self.fit.inputs.problem, self.fit.inputs.problem.space, self.old.u0
-        d = space.dim
-        steps = np.where(u + FD_STEP <= 1.0, FD_STEP, -FD_STEP) * self.shared
-        U = np.tile(u, (d + 1, 1))
-        U[1:][np.arange(d), np.arange(d)] += steps
-        X = space.clip(space.from_unit(U))
+        problem = self.fit.inputs.problem
+        X, steps = problem.space.stepped(self.old.u0, FD_STEP, self.shared)
         rows = [{**problem.parameters_for(x, self.index), "src.df": sign * test.magnitude_hz,
                  "src.t_step": test.t_step_s, "src.t_return": test.t_step_s + test.hold_s, "gov.p_ref": test.p_ref}
                 for x in X]

@@ -257,11 +257,8 @@ def jacobian_at(inputs, x, step: float = 1e-3) -> dict[str, np.ndarray]:
     batch. What the adequacy null takes out as the fit's share of the noise."""
     problem = inputs.problem
     space = problem.space
-    u = np.clip(space.to_unit(np.asarray(x, dtype=float)), 0.0, 1.0)
-    U = np.tile(u, (space.dim + 1, 1))
-    steps = np.where(u + step <= 1.0, step, -step)
-    U[1:][np.arange(space.dim), np.arange(space.dim)] += steps
-    _, R = ProblemObjective(problem, inputs.fmus).residuals(space.clip(space.from_unit(U)))
+    X, steps = space.stepped(np.clip(space.to_unit(np.asarray(x, dtype=float)), 0.0, 1.0), step)
+    _, R = ProblemObjective(problem, inputs.fmus).residuals(X)
     J = (R[1:] - R[0]).T / steps  # (samples, parameters), on the objective's uniform scale
     return {e.name: J[block] for e, block in experiment_blocks(problem)}
 

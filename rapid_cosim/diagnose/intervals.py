@@ -78,11 +78,7 @@ def sandwich_half_widths(fit: CandidateFit, x: np.ndarray, level: float = LEVEL)
     or None where the whitened residuals are not at hand."""
     problem = fit.inputs.problem
     space = problem.space
-    u = np.clip(space.to_unit(x), 0.0, 1.0)
-    U = np.tile(u, (space.dim + 1, 1))
-    steps = np.where(u + STEP <= 1.0, STEP, -STEP)
-    U[1:][np.arange(space.dim), np.arange(space.dim)] += steps
-    X = space.clip(space.from_unit(U))
+    X, steps = space.stepped(np.clip(space.to_unit(x), 0.0, 1.0), STEP)
     _, R = ProblemObjective(problem, fit.inputs.fmus).residuals(X)
     if not np.all(np.isfinite(R)):
         return None

@@ -72,6 +72,19 @@ class SearchSpace:
     def clip(self, x: np.ndarray) -> np.ndarray:
         return np.clip(x, self.lower, self.upper)
 
+    def stepped(self, u: np.ndarray, step: float, free: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(points, steps): the unit point ``u`` and ``u`` stepped by ``step`` along each
+        coordinate (backward where forward leaves the box; 0 where ``free`` holds it),
+        mapped back and clipped: the batch every forward-difference Jacobian is read from,
+        as ``(f(points[1:]) - f(points[0])) / steps``."""
+        u = np.asarray(u, dtype=float)
+        steps = np.where(u + step <= 1.0, step, -step)
+        if free is not None:
+            steps = steps * free
+        U = np.tile(u, (self.dim + 1, 1))
+        U[1:][np.arange(self.dim), np.arange(self.dim)] += steps
+        return self.clip(self.from_unit(U)), steps
+
     def contains(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x, dtype=float)
         return np.all((x >= self.lower) & (x <= self.upper), axis=-1)
