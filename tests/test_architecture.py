@@ -605,3 +605,27 @@ def test_untyped_fields_are_not_read_by_key():
     assert _key_reads(ast.parse("def f(v):\n    return v.held_out['tests'], v.noise.get('a')\n"
                                 "def to_json(self):\n    return self.noise['a']\n"), {"held_out", "noise"}) == [
         "f: v.held_out['tests']", "f: v.noise.get('a')"]
+
+
+def _engine_defaults(tree: ast.AST) -> list[str]:
+    """``name=default`` of every ``EngineSpec``-annotated argument whose default is not ``EngineSpec()``."""
+    found = []
+    for fn in ast.walk(tree):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        args = fn.args.args + fn.args.kwonlyargs
+        defaults = [None] * (len(fn.args.args) - len(fn.args.defaults)) + fn.args.defaults + fn.args.kw_defaults
+        for arg, default in zip(args, defaults):
+            if arg.annotation is not None and ast.unparse(arg.annotation) == "EngineSpec" and default is not None \
+                    and ast.unparse(default) != "EngineSpec()":
+                found.append(f"{fn.name}: {arg.arg}={ast.unparse(default)}")
+    return found
+
+
+def test_one_default_engine():
+    """Issue 57, item 4: every function of the package that takes an ``engine`` defaults to
+    ``EngineSpec()`` (the staged campaign once took two workers and the fleet a dask pair)."""
+    found = [f"{'/'.join(parts)}.{s}" for path, parts in _modules() for s in _engine_defaults(ast.parse(path.read_text()))]
+    assert not found, found
+    assert _engine_defaults(ast.parse("def f(a, engine: EngineSpec = EngineSpec(n_jobs=2), *, e2: EngineSpec = EngineSpec()):"
+                                      "\n    pass\n")) == ["f: engine=EngineSpec(n_jobs=2)"]

@@ -128,7 +128,7 @@ class StagedRun:
 
 
 def run_staged_test(config: str | Path, *, results: str | Path = "results", seed: int = 1,
-                    engine: EngineSpec = EngineSpec(n_jobs=2), methods: Sequence[Method] = METHODS,
+                    engine: EngineSpec = EngineSpec(), methods: Sequence[Method] = METHODS,
                     progress: bool = True, source: ModelSource = ModelSource()) -> list[StagedRun]:
     """Both chains on one staged test, make-like (a finished archive of the same run is
     reused, an interrupted one resumed)."""
@@ -150,7 +150,7 @@ def run_staged_test(config: str | Path, *, results: str | Path = "results", seed
 
 
 def run_joint(configs: Sequence[str | Path], *, results: str | Path = "results", seed: int = 1,
-              engine: EngineSpec = EngineSpec(n_jobs=2), options: dict[str, dict[str, Any]] | None = None,
+              engine: EngineSpec = EngineSpec(), options: dict[str, dict[str, Any]] | None = None,
               progress: bool = True, source: ModelSource = ModelSource()) -> tuple[Path, EstimationResult, str]:
     """One SMC fit of shared R, Ts over the given tests (offsets profiled per test),
     archived (make-like) in ``<results>/joint/smc.h5``; ``options`` override

@@ -70,13 +70,14 @@ def unit_digest(entry: UnitEntry, options: FleetOptions, common: bytes | None = 
     return h.hexdigest()
 
 
-def run_fleet(fleet: str | Path, *, results: str | Path, engine: EngineSpec = EngineSpec(n_jobs=2, backend="dask"),
+def run_fleet(fleet: str | Path, *, results: str | Path, engine: EngineSpec = EngineSpec(),
               seed: int = 1, source: ModelSource = ModelSource(), pdf: bool = False, check_only: bool = False,
               progress: bool = True, log: Callable[[str], None] = print) -> FleetResult:
     """Run (or resume) the fleet of ``fleet`` into ``results``: each unit's result in
     ``results/units/<unit>.json`` as it finishes, then the fleet's report
-    (:mod:`.report`). The units are mapped over ``engine``'s dask cluster: its scheduler's,
-    else a LocalCluster of ``engine.n_jobs`` processes on this machine; each unit runs in
+    (:mod:`.report`). The units are mapped over a dask cluster: ``engine``'s scheduler's,
+    else a LocalCluster of ``engine.n_jobs`` processes on this machine (the default engine,
+    one: the units one after the other); each unit runs in
     one worker, alone (:func:`~.unit_job.run_unit`). ``check_only``: the records on file are
     played back and judged, and nothing is identified (a failing record's row says so)."""
     from .report import write_report
