@@ -211,7 +211,10 @@ def test_the_api_functions_stay_functions_once_their_subpackages_are_imported():
 
 RESULT_NAMES = ("Result", "Verdict", "Judgement", "Recommendation", "Identification", "Calibration", "Diagnosis",
                 "Fit", "Playback", "Delivery", "Report", "Fidelity", "Explanation", "Advice", "AdvisedTest")
-# Untyped fields still on a result, each with why it stays (the rule keeps new ones out).
+# Untyped fields still on a result, each with why it stays (the rule keeps new ones out): each
+# is a file's payload (diagnosis.json, diagnosis.h5, identification.json, structures.json),
+# built for it and read back only from the file; test_untyped_fields_are_not_read_by_key holds
+# the package to not deciding by their keys.
 UNTYPED_LEFT = {
     # the diagnosis: its verdict, adequacy and ranking are typed; the evidence below is written into
     # diagnosis.json as it is built, and only the report reads it back (from the JSON, not these fields)
