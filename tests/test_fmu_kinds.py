@@ -382,3 +382,25 @@ def test_an_fmu_with_clocks_is_refused_naming_them(kinds, tmp_path):
             zf.writestr(name, data)
     with pytest.raises(FmuError, match=r"FMI 3.0 clocks \(tick\) need event handling by clock"):
         Simulator(clocked)
+
+
+def test_a_dead_process_extracted_fmus_are_removed_by_the_next_load(kinds, tmp_path, monkeypatch):
+    """An extracted FMU's folder is named by its process; a worker killed mid-run never
+    removes its own (a fleet's killed workers left hundreds in /tmp), so the next load
+    removes those whose process is gone, and keeps a live one's and foreign folders."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    from rapid_cosim.simulator.fmu import EXTRACTED, LoadedFmu
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    dead, live, other = (tmp_path / f"{EXTRACTED}{gone.stdout.strip()}_abc", tmp_path / f"{EXTRACTED}{1}_abc",
+                         tmp_path / "rapid_cosim_fmu_old")
+    for folder in (dead, live, other):
+        (folder / "binaries").mkdir(parents=True)
+    loaded = LoadedFmu(kinds["DroopPlant", next(iter(KINDS))])
+    assert not dead.exists() and live.exists() and other.exists()  # pid 1 lives as long as the machine
+    assert loaded.dir.parent == tmp_path and loaded.dir.name.startswith(f"{EXTRACTED}{os.getpid()}_")

@@ -85,6 +85,31 @@ class FmuRef:
         return cls(name or Path(path).stem, hashlib.sha256(data).hexdigest(), data)
 
 
+EXTRACTED = "rapid_cosim_fmu_p"  # an extracted FMU's folder: rapid_cosim_fmu_p<pid>_<random>
+
+
+def _extraction_dir() -> str:
+    """A fresh temporary folder for an FMU's files, named by this process; the folders of
+    processes that are gone are removed first (a worker killed mid-run never runs its
+    finalizer, and a fleet's killed workers left hundreds)."""
+    root = Path(tempfile.gettempdir())
+    for old in root.glob(EXTRACTED + "*"):
+        pid = old.name[len(EXTRACTED):].split("_", 1)[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(old, ignore_errors=True)
+    return tempfile.mkdtemp(prefix=f"{EXTRACTED}{os.getpid()}_")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
 def _checked_description(path: Path, interface: str | None):
     """(model description, FMI version, the interface it runs through) of an FMU that
     rapid-cosim can simulate; else an FmuError naming the file and what it lacks."""
@@ -139,7 +164,7 @@ class LoadedFmu:
             have = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2})
             raise FmuError(f"{self.path}: no binary for this platform ({binary}); the FMU has binaries for "
                            f"{', '.join(have) or 'no platform (a source-only FMU)'}")
-        self.dir = Path(extract(str(self.path), unzipdir=tempfile.mkdtemp(prefix="rapid_cosim_fmu_")))
+        self.dir = Path(extract(str(self.path), unzipdir=_extraction_dir()))
         self._finalizer = weakref.finalize(self, shutil.rmtree, str(self.dir), True)
         self.binary = self.dir / binary
         variables = md.modelVariables
