@@ -214,7 +214,8 @@ def answer(ident) -> dict:
     """What an identification answers: the explanation's verdict, the recommended record,
     its fit, estimates and their standard errors."""
     rec = ident.record(ident.recommended) if ident.recommended else None
-    return {"explanation": ident.explanation["verdict"], "recommended": ident.recommended,
+    e = ident.explanation  # a dict before issue 57 typed it (this file runs under older revisions too)
+    return {"explanation": e["verdict"] if isinstance(e, dict) else e.verdict, "recommended": ident.recommended,
             "fit": rec.fit if rec else None, "parameters": rec.parameters if rec else {},
             "se": {k: abs(rec.parameters[k]) * v for k, v in rec.relative_se.items()} if rec else {}}
 

@@ -171,7 +171,7 @@ def unit_check(work: Path) -> dict:
                      "parameters": record.parameters if record else {},
                      "se": {k: abs(record.parameters[k]) * v for k, v in record.relative_se.items()} if record else {},
                      "heldout": {t: record.tests[t].rmse_over_noise for t in result.heldout} if record else {},
-                     "explanation": result.explanation["verdict"], "seconds": time.perf_counter() - t0}
+                     "explanation": result.explanation.verdict, "seconds": time.perf_counter() - t0}
     return out
 
 
