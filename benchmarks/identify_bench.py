@@ -28,6 +28,9 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
+
 from rapid_cosim.compiler.source import ModelSource
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -83,6 +86,52 @@ def run_fleet(tree: Path, fleet: Path, work: Path) -> dict:
     done = subprocess.run([sys.executable, "-c", code], env=env, cwd=tree, check=True, capture_output=True,
                           text=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def behaviour(unit: str, before: dict, after: dict) -> str:
+    """Issue 54's rule: the recommended records of both runs played on every test of the
+    unit by its own bench (each fit's structure, its optional parts as freed), their largest
+    difference over the test's recorder noise level (RMSE, and at any sample)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from profile_identify import UNITS
+    from rapid_cosim.diagnose.selection import noise_floors
+    from rapid_cosim.fitting.objective import simulate_experiment
+    from rapid_cosim.identify.check import check_unit
+    from rapid_cosim.identify.workflow import delivery_candidates
+    from rapid_cosim.noise import campaign_noise
+    from rapid_cosim.structures.structure import on_structure
+
+    if not before["fit"] or not after["fit"]:
+        return "no record to play" if before["fit"] == after["fit"] else "a record on one side only"
+    source = ModelSource(fmu_dir=ROOT / "fmus")
+    check = check_unit(UNITS[unit], source=source)
+    fits = campaign_noise(check.experiments)
+    floors = noise_floors(check.experiments, fits)
+    candidates = {s.name: s for s in delivery_candidates(check.structures)}
+    worst = (0.0, 0.0, "-")
+    for exp in check.experiments:
+        curves = []
+        for ans in (before, after):
+            on = on_structure(candidates[ans["fit"]], [exp], fits)[0]
+            curves.append(simulate_experiment(on, source.fmu(on.model), {**on.fixed, **ans["parameters"]}))
+        out = [n for n in on.outputs if on.weights[n] > 0][0]
+        d = (curves[1][out] - curves[0][out]) / float(floors[exp.name].sigma)
+        worst = max(worst, (float(np.sqrt(np.mean(d ** 2))), float(np.max(np.abs(d))), exp.name))
+    return f"largest behaviour difference {worst[0]:.3f} (RMSE) and {worst[1]:.3f} (largest) noise levels ({worst[2]})"
+
+
+def fleet_behaviour(home: Path, before: dict, after: dict) -> str:
+    """A fleet unit's two recommended records played on its event (records_diff's way)."""
+    from types import SimpleNamespace
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from records_diff import _played_apart
+
+    if before["parameters"] == after["parameters"]:
+        return "the same record"
+    rmse, peak = _played_apart(home, *(SimpleNamespace(model=r["model"], parameters=r["parameters"])
+                                       for r in (before, after)))
+    return f"behaviour {rmse:.3f} (RMSE) and {peak:.3f} (largest) noise levels apart"
 
 
 def moves(before: dict, after: dict) -> str:
@@ -145,6 +194,7 @@ def main(argv=None) -> None:
         lines.append(f"  answer: {aa['explanation']}; {aa['fit']} recommended; "
                      + ("the same verdict and record" if same else
                         f"CHANGED from {ab['explanation']}; {ab['fit']}") + f"; {moves(ab, aa)}")
+        lines.append(f"  {behaviour(name, ab, aa)}")
     if fleets:
         b, a = fleets["before"], fleets["after"]
         lines.append(f"fleet of {len(a['units'])} units on 2 workers: {b['wall']:.0f} -> {a['wall']:.0f} s "
@@ -154,7 +204,8 @@ def main(argv=None) -> None:
             same = (ub["route"], rb.get("fit")) == (ua["route"], ra.get("fit"))
             lines.append(f"  {ua['unit']}: {ub['seconds']:.0f} -> {ua['seconds']:.0f} s, {ua['route']}"
                          + (f", {ra.get('fit')}" if ra else "") + ("" if same else
-                                                                    f" (before: {ub['route']}, {rb.get('fit')})"))
+                                                                    f" (before: {ub['route']}, {rb.get('fit')})")
+                         + (f"; {fleet_behaviour(work / 'fleet' / 'units' / ua['unit'], rb, ra)}" if ra and rb else ""))
     lines.append(f"make bench-identify: {time.perf_counter() - t0:.0f} s")
     print("\n".join(lines))
     if args.json:
