@@ -494,7 +494,7 @@ def test_whole_fits_are_mapped_by_one_helper():
     assert _maps_fits(ast.parse("parts = e.make().map(f, p, [np.array([k]) for k in range(3)])")) == [
         "e.make().map(f, p, [np.array([k]) for k in range(3)])", "[np.array([k]) for k in range(3)]"]
     uses = {"/".join(parts) for path, parts in _modules() if "map_fits(" in path.read_text()}
-    assert {"diagnose/context", "structures/select"} <= uses
+    assert {"diagnose/context", "structures/calibrations"} <= uses
 
 
 def test_reasons_are_clauses_joined_once():

@@ -182,3 +182,28 @@ def test_a_point_scored_before_is_not_simulated_again_and_the_run_is_as_if_it_we
     for it in res.history:
         for x, f in zip(it.x, it.fitness):
             assert f == np.sum(_narrow(x[None]) ** 2)
+
+
+def test_a_set_runs_its_second_wave_only_where_the_first_does_not_settle_it():
+    """Issue 54's waves: on one broad basin the best-screened half of the starts reaches the
+    best from across the box, and the rest are not run; asked for starts that set out
+    further apart than the half's (spread 1.0, the whole box), the rest run as they always
+    did, to the same optimum."""
+    space = SearchSpace(("T1", "T3", "R"), np.array([0.1, 0.1, 0.0]), np.array([5.0, 5.0, 1.0]))
+    bowl = lambda X: X - np.array([1.0, 2.0, 0.5])  # noqa: E731
+    runs = {}
+    for waves, spread in ((2, 0.25), (2, 1.0), (1, 0.25)):
+        obj = Residuals(bowl)
+        res = multistart(obj, space, options=MSOptions(waves=waves, spread=spread), rng=np.random.default_rng(1))
+        runs[waves, spread] = (res, len(res.history[-1].extras["start_fun"]), sum(len(p) for p in obj.points))
+    (cut, n_cut, sims_cut), (held, n_held, _), (whole, n_whole, sims_whole) = runs.values()
+    assert n_whole == 4 + 2 * 3  # the set of 4 + 2d (no x0 given)
+    assert n_held == n_whole and n_cut == int(np.ceil(n_whole / 2)) and sims_cut < sims_whole
+    assert cut.x == pytest.approx(whole.x, abs=1e-6) and held.x == pytest.approx(whole.x, abs=1e-6)
+
+
+def test_waves_and_spread_are_checked():
+    with pytest.raises(ValueError, match="waves"):
+        MSOptions(waves=0)
+    with pytest.raises(ValueError, match="spread"):
+        MSOptions(spread=1.5)

@@ -287,6 +287,14 @@ def test_the_study_names_ieeeg1_with_binding_rates_and_its_record_reproduces_the
     assert case.recommended == "IEEEG1" and case.freed
     assert (tmp_path / "IEEEG1-2" / "IEEEG1.dyr").read_text().split()[1] == "'IEEEG1'"
     assert set(case.rmse) == {"test1", "test2", "test3"} and case.worst_rmse <= 1.1, case.rmse
+    # issue 54's screen: every variant screened from IEEEG1's optimum; the binding rates'
+    # searched whole too (the screen within reach), the deadband's not (its screen gains nothing)
+    records = tmp_path / "IEEEG1-2" / "records"
+    screened = {p.name.removesuffix(".screen.h5") for p in records.glob("*.screen.h5")}
+    whole = {p.stem for p in records.glob("*.h5")} - {p.name.removesuffix(".h5") for p in records.glob("*.screen.h5")}
+    assert screened == {"IEEEG1+rate_limit", "IEEEG1+rate_limit(Uo)", "IEEEG1+rate_limit(Uc)", "IEEEG1+deadband",
+                        "TGOV1+deadband"}
+    assert {"TGOV1", "IEEEG1", "IEEEG1+rate_limit"} <= whole and "IEEEG1+deadband" not in whole, whole
 
 
 def test_an_exchange_is_a_swap_that_leaves_the_fit_and_nothing_else(monkeypatch):
@@ -354,3 +362,20 @@ def test_calibrations_started_early_are_the_ones_fitted_when_asked(repo, campaig
     for (one, _), (two, archive) in zip(runs[1], runs[2]):
         assert np.array_equal(one.x, two.x) and one.fun == two.fun and one.nfev == two.nfev
         assert Path(archive).parent == tmp_path / "n2"
+
+
+def test_a_structure_and_its_variants_are_one_family_fitted_together(repo):
+    """A variant is screened from its structure's optimum, so both go to one worker, the
+    structure first, whatever the order given; a variant given without its structure is
+    fitted whole, alone."""
+    from rapid_cosim.structures.calibrations import _families, _in_order
+
+    ieeeg1, tgov1 = (Structure.load(repo / "experiments" / "structures" / f"{n}.toml") for n in ("IEEEG1", "TGOV1"))
+    variants = ieeeg1.optional_variants()
+    assert {v.base for v in variants} == {"IEEEG1"} and ieeeg1.base is None
+    given = [variants[0], tgov1, ieeeg1, *variants[1:]]
+    families = _families(given)
+    assert [[given[k].name for k in f] for f in families] == [["IEEEG1", *(v.name for v in variants)], ["TGOV1"]]
+    assert _families(variants[:1]) == [(0,)]
+    runs = [[f"run of {given[k].name}" for k in f] for f in families]
+    assert _in_order(given, runs) == [f"run of {s.name}" for s in given]

@@ -8,8 +8,10 @@ with one noise model.
   computed null (:func:`rapid_cosim.structures.select.select_structure`); a structure
   with optional parts (IEEEG1's valve rates ``Uo``/``Uc``) is also fitted with each set
   of them free (both, the opening alone, the closing alone: a rate the tests never reach
-  is left at its default, not at a value the data cannot see), and the best of those
-  fits is kept only where it wins by the selection threshold (the data call for them). Each record's fidelity is stated per test in noise units beside the
+  is left at its default, not at a value the data cannot see; each screened from the
+  structure's optimum first and searched whole only where the screen comes within reach,
+  :mod:`rapid_cosim.structures.calibrations`), and the best of those fits is kept only
+  where it wins by the selection threshold (the data call for them). Each record's fidelity is stated per test in noise units beside the
   explanation's, with what it cannot carry in plain words.
 * **The recommendation** follows the criterion: the first record by BIC (with its optional
   parts where they won). A simpler record is recommended only where it ties with it

@@ -18,7 +18,8 @@ evidence), and is adequate (:mod:`.adequacy`); otherwise
 the verdict is ``ambiguous`` between those within the threshold, or ``unexplained`` when
 none fits to the noise (adequacy against its computed null, :mod:`.adequacy`). Each
 structure is calibrated by the run's method (multistart least squares, ``ms``, by
-default) and by ``searches`` if given, the best fit kept. Each structure's
+default) and by ``searches`` if given, the best fit kept (:mod:`.calibrations`; an
+optional variant screened from its structure's optimum first). Each structure's
 identifiability at its optimum comes with it (:mod:`.identifiability`).
 
 Structures and effects combine: :func:`effects_on` runs the effect catalogue on the
@@ -30,15 +31,13 @@ standard models carry valve limits among their own parameters.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
-from ..errors import ParameterError
-from ..fitting.engine import WholeFits, collected, fit_here, map_fits
-from ..calibration import RunOptions, best_run, inputs_from_experiments
+from ..calibration import RunOptions, inputs_from_experiments
 from ..compiler.source import ModelSource
 from ..experiment import EstimateSpec, Experiment
 from ..simulator import get_simulator
@@ -46,6 +45,7 @@ from ..diagnose.adequacy import TestAdequacy
 from ..diagnose.catalogue import AMBIGUOUS, UNEXPLAINED, VerdictKind
 from ..diagnose.candidates import residuals_at
 from ..diagnose.judging import Judge, jacobians_at
+from .calibrations import Calibrations, start_checked
 from .identifiability import DeterminingStep, Identifiability, best_separating_step, identifiability
 from .structure import Structure, on_structure
 from ..diagnose.null import KeptReplicates
@@ -141,12 +141,8 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
     fitted_noise, noise = judging.noise_fits, judging.floors
     fits = []
     log(f"  calibrating {', '.join(s.name for s in structures)} ...")
-    if calibrations is None:
-        calibrations = Calibrations(structures, training, fitted_noise, options, workdir, searches, source)
-    elif not calibrations.made_for(structures, training, options, workdir, searches, source):
-        raise ParameterError("the calibrations given were started for other structures, tests or options: start "
-                             "them with these (Calibrations(structures, training, ...))")
-    runs = calibrations.runs()
+    runs = start_checked(calibrations, structures, training, fitted_noise, options, workdir, searches,
+                         source).runs()
     for s, (result, archive) in zip(structures, runs):
         exps = on_structure(s, training, fitted_noise)
         inputs = inputs_from_experiments(exps, source=source)
@@ -185,83 +181,6 @@ def select_structure(structures: Sequence[Structure], training: Sequence[Experim
         verdict.separating_test = _separating(a, b, fits, staged[0], noise, source)
         log(f"  {verdict.separating_test.advice}")
     return verdict
-
-
-class Calibrations:
-    """Every structure's calibration: (result, archive) of each, by :func:`_calibrate_all`
-    when asked for (:meth:`runs`), or started at once (``start``) on a pool of their own
-    where the options give local workers (:meth:`EngineSpec.start
-    <rapid_cosim.fitting.engine.EngineSpec.start>`), so that the caller's other work (an
-    identification's explanation) runs meanwhile. Either way each structure is fitted
-    whole in one process, pinned, and gives the same numbers. :meth:`close` stops a
-    started pool whose results are not wanted (the caller failed): its fits are killed
-    where they are, and their archives are resumed by the next run (with a word on the
-    locks taken over)."""
-
-    def __init__(self, structures: Sequence[Structure], training: Sequence[Experiment], fitted_noise: dict,
-                 options: RunOptions, workdir: str | Path, searches: Sequence[str] = (),
-                 source: ModelSource = ModelSource(), start: bool = False):
-        self.structures = list(structures)
-        self._args = (self.structures, list(training), fitted_noise, options, Path(workdir), tuple(searches), source)
-        self._key = _key(structures, training, options, workdir, searches, source)
-        self._started = None
-        if start and options.engine.processes and len(self.structures) > 1:
-            payload = _worker_payload(*self._args)
-            # the richest structures first: they take the most simulations
-            first = sorted(range(len(self.structures)), key=lambda k: -len(self.structures[k].estimate))
-            self._started = map_fits(options.engine, payload, first=first, start=True)
-
-    def made_for(self, structures, training, options: RunOptions, workdir, searches, source: ModelSource) -> bool:
-        """Whether these are the calibrations of ``structures`` on ``training`` with these
-        options, work folder, searches and models."""
-        return self._key == _key(structures, training, options, workdir, searches, source)
-
-    def runs(self) -> list[tuple]:
-        started, self._started = self._started, None
-        runs = collected(started) if started is not None else None
-        return runs if runs is not None else _calibrate_all(*self._args)
-
-    def close(self) -> None:
-        if self._started is not None:
-            self._started.close()
-            self._started = None
-
-
-def _key(structures, training, options: RunOptions, workdir, searches, source: ModelSource) -> tuple:
-    """What a selection's calibrations are made for, comparable."""
-    return ([s.name for s in structures], [e.name for e in training], options, Path(workdir), tuple(searches),
-            source)
-
-
-def _worker_payload(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches,
-                    source: ModelSource) -> WholeFits:
-    """What a worker fitting whole structures takes: their benches built here first (once,
-    not per worker), the options' engine one worker in that process."""
-    benches = sorted({b for s in structures for b in (s.bench, s.input_bench) if b})
-    source.build(benches)
-    return WholeFits(_calibrated, tuple(structures), (list(training), fitted_noise, workdir, tuple(searches), source),
-                     replace(options, engine=options.engine.single()))
-
-
-def _calibrate_all(structures, training, fitted_noise, options: RunOptions, workdir: Path, searches,
-                   source: ModelSource) -> list[tuple]:
-    """Every structure's (result, archive), each fitted whole in one worker process where
-    the options give several local workers, else here with the options' engine. Why
-    whole fits in workers: a structure's batches are a few dozen simulations each, and
-    sending each batch to a pool cost more than it saved (an identification of the
-    electrical unit took 28 s on 2 workers, 15 s in one process)."""
-    if not options.engine.processes or len(structures) < 2:
-        return fit_here(WholeFits(_calibrated, tuple(structures),
-                                  (list(training), fitted_noise, workdir, tuple(searches), source), options))
-    return map_fits(options.engine, _worker_payload(structures, training, fitted_noise, options, workdir, searches,
-                                                    source))
-
-
-def _calibrated(s: Structure, shared: tuple, options: RunOptions) -> tuple:
-    """Worker: one structure's (result, archive)."""
-    training, fitted_noise, workdir, searches, source = shared
-    inputs = inputs_from_experiments(on_structure(s, training, fitted_noise), source=source)
-    return best_run(inputs, options, workdir / f"{s.name}.h5", searches, replace_stale=True)
 
 
 def _separating(a: Structure, b: Structure, fits: list[StructureFit], template: Experiment, noise,

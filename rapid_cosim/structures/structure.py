@@ -53,6 +53,7 @@ class Structure:
     path: str
     optional: dict[str, EstimateSpec] = field(default_factory=dict)  # freed only where the data call for them
     carries: dict[str, str] = field(default_factory=dict)  # optional part -> the effect it carries ("rate_limit")
+    base: str | None = None  # an optional variant's structure (:meth:`optional_variants`), None for a file's own
 
     @property
     def effects(self) -> tuple[str, ...]:
@@ -79,11 +80,13 @@ class Structure:
         for other events (a closing rate of 0.004 pu/s from a load switched on, say); the
         criterion keeps a part only where the data call for it. The parts of two effects are
         not freed together: a unit with both gets the one that wins, and the story says what
-        the record then cannot carry. Each variant is searched by its own multistart over the
-        whole box: started from its structure's optimum instead, with only its rates
-        searched around it, it settled in worse optima where a rate binds (the field unit's
-        IEEEG1 with both rates 9 apart in BIC, a fleet unit's T3 moved by 1.2 standard
-        errors), so the saving was not kept."""
+        the record then cannot carry. A variant is first screened from its structure's
+        optimum, its freed parts searched around it, and searched by its own multistart over
+        the whole box only where that screen comes within reach of mattering
+        (:mod:`.calibrations`): started from the optimum alone, variants settled in worse
+        optima where a rate binds (the field unit's IEEEG1 with both rates 9 apart in BIC, a
+        fleet unit's T3 moved by 1.2 standard errors), so the screen only decides which
+        variants are searched whole."""
         out = []
         for effect in self.effects:
             names = self.parts(effect)
@@ -91,7 +94,8 @@ class Structure:
                 for chosen in combinations(names, k):
                     tail = "" if k == len(names) else "(" + ",".join(n.removeprefix("gov.") for n in chosen) + ")"
                     out.append(replace(self, name=f"{self.name}+{effect}{tail}", optional={}, carries={},
-                                       estimate={**self.estimate, **{n: self.optional[n] for n in chosen}}))
+                                       estimate={**self.estimate, **{n: self.optional[n] for n in chosen}},
+                                       base=self.name))
         return out
 
     def freed_effect(self, fit_name: str) -> str | None:
