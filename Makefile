@@ -152,8 +152,8 @@ bench-replay: fmus  ## delivered records put back into ANDES in closed loop: the
 profile-identify: fmus  ## where an identification spends its time, by stage and kind of work: the steam unit, the electrical unit, the field unit, a fleet unit
 	$(PY) benchmarks/profile_identify.py --work $(RESULTS)/profile-identify --json $(RESULTS)/profile-identify/profile.json
 
-bench-identify: fmus  ## identifications timed before and after the speed work in one run (per stage, simulations, answers side by side), and 10 fleet units on 2 workers
-	$(PY) benchmarks/identify_bench.py --work $(RESULTS)/bench-identify --json $(RESULTS)/bench-identify/study.json
+bench-identify: fmus  ## identifications timed before (BEFORE=7176f80, the last round) and after in one run (per stage, simulations, answers side by side, records' behaviour apart in noise units), and 10 fleet units on 2 workers
+	$(PY) benchmarks/identify_bench.py --before $(or $(BEFORE),7176f80) --work $(RESULTS)/bench-identify --json $(RESULTS)/bench-identify/study.json
 
 records-diff: fmus  ## make bench-replay and bench-fleet at BEFORE=cb03e04 and here, their records compared by what they do (responses in noise units), routes and verdicts
 	$(PY) benchmarks/records_diff.py --rev $(or $(BEFORE),cb03e04) --work $(RESULTS)/records-diff

@@ -3,7 +3,8 @@
 
     python benchmarks/identify_bench.py [--before REV] [--units steam,electrical,field] [--fleet 10]
 
-The code of revision ``--before`` (default: the last commit before the speed work) and of
+The code of revision ``--before`` (default: the last commit before issue 54's second speed
+round; ``--before b2983af`` for issue 42's) and of
 ``--after`` (default: HEAD) are checked out into the work folder (``git worktree``; the
 checkout's own files may change while it runs), and each unit is
 identified by both, one after the other on this machine: the steam unit with a binding
@@ -16,7 +17,8 @@ workers as ``rapid-cosim identify`` runs), under each revision's code.
 Printed side by side: the wall times (one process, 2 workers) and their ratios, each
 stage's seconds and ratio, the simulations per unit and the share of the one-process
 time spent simulating; and the answers (the explanation's verdict, the recommended
-record and its fit, every estimate's move in its standard error).
+record and its fit, every estimate's move in its standard error, and issue 54's measure:
+both records played on every test of the unit, their largest difference in noise units).
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ import numpy as np
 from rapid_cosim.compiler.source import ModelSource
 
 ROOT = Path(__file__).resolve().parents[1]
-BEFORE = "b2983af"  # the last commit before the speed work (issue 42)
+BEFORE = "7176f80"  # the last commit before the second speed round (issue 54; issue 42's was b2983af)
 
 
 def tree_env(tree: Path) -> dict:
