@@ -755,10 +755,13 @@ static int solver_failure(Runner *r, int flag, double t_ret) {
  * t_out. It is the polynomial CVODE's own dense output (CV_NORMAL) evaluates, so the
  * steps and the values are those of the reference loop up to rounding; the cost per
  * output time is a few multiplications instead of a solver call. */
+#define CLOSE (64.0 * 2.220446049250313e-16) /* relative: an output time within rounding of the last reinit */
+static int too_close(double t, double t_out) { return t_out - t <= CLOSE * fmax(fabs(t), fabs(t_out)); }
+
 static int advance_smooth(Runner *r, double t_out, double *t) {
     int n = r->n_dim, steps = 0, j, i, flag;
     double *y = r->zn + (size_t)(MAX_ORDER + 1) * n, t_ret, scale, s;
-    while (r->tn < t_out) {
+    while (r->tn < t_out && (r->has_step || !too_close(r->tn, t_out))) { /* a first step that short: refused (advance) */
         flag = r->sun.CVode(r->mem, t_out, r->x, &t_ret, CV_ONE_STEP);
         if (flag < 0) return solver_failure(r, flag, t_ret);
         if (++steps > MAX_STEPS) {
@@ -796,11 +799,19 @@ static int advance_smooth(Runner *r, double t_out, double *t) {
 }
 
 /* With event indicators: CV_NORMAL to t_out, so that CVODE looks for roots only up to
- * t_out; state events and step events met on the way are handled. */
+ * t_out; state events and step events met on the way are handled. An event within
+ * rounding of t_out (CLOSE) ends the step there: CVODE, reinitialised at the event, refuses
+ * a first step that short ("tout too close to t0", which failed a fleet unit's plot on its
+ * fine grid), and the states move by nothing in it. */
 static int advance(Runner *r, double t_out, double *t, int *has_event, double *t_event) {
     if (!r->n_indicators) return advance_smooth(r, t_out, t);
     while (*t < t_out) {
         double t_ret = *t;
+        if (too_close(*t, t_out)) {
+            FMI(r->fmi.set_time(r->c, t_out), "fmi2SetTime");
+            *t = t_out;
+            break;
+        }
         int flag = r->sun.CVode(r->mem, t_out, r->x, &t_ret, CV_NORMAL), s;
         fmi2Boolean enter = fmi2False, terminate = fmi2False;
         if (flag < 0) return solver_failure(r, flag, t_ret);
