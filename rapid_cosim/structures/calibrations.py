@@ -23,7 +23,7 @@ any other run fits every variant whole, as before.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -150,10 +150,11 @@ def _calibrate_all(structures, training, fitted_noise, options: RunOptions, work
 
 def _calibrated_family(family: tuple[Structure, ...], shared: tuple, options: RunOptions) -> list[tuple]:
     """Worker: a structure's (result, archive), then each of its variants' (screened)."""
-    head, runs = family[0], [_calibrated(family[0], shared, options)]
-    for variant in family[1:]:
-        runs.append(_screened(variant, head, runs[0][0], shared, options))
-    return runs
+    runs = [_calibrated(family[0], shared, options)]
+    if len(family) > 1 and (options.method != "ms" or shared[3]):  # screened only by ms without searches
+        return runs + [_calibrated(v, shared, options) for v in family[1:]]
+    head = _Head.of(family[0], runs[0][0], shared) if len(family) > 1 else None
+    return runs + [_screened(v, head, shared, options) for v in family[1:]]
 
 
 def _calibrated(s: Structure, shared: tuple, options: RunOptions) -> tuple:
@@ -163,17 +164,35 @@ def _calibrated(s: Structure, shared: tuple, options: RunOptions) -> tuple:
     return best_run(inputs, options, workdir / f"{s.name}.h5", searches, replace_stale=True)
 
 
-def _screened(variant: Structure, head: Structure, fitted, shared: tuple, options: RunOptions) -> tuple:
-    """A variant's (result, archive): its screen from ``head``'s optimum (``fitted``),
-    searched whole too where the screen comes within :data:`REACH` (module docstring)."""
-    training, fitted_noise, workdir, searches, source = shared
-    if options.method != "ms" or searches:
-        return _calibrated(variant, shared, options)
-    head_inputs = inputs_from_experiments(on_structure(head, training, fitted_noise), source=source)
-    freed = [n for n in variant.estimate if n not in head.estimate]
-    params = get_simulator(next(iter(head_inputs.fmus.values()))).parameters
-    held = {n: params[n].start for n in freed if n in params and params[n].start is not None}
-    start = {**fitted.best(), **held}  # the freed parts where the structure holds them
+@dataclass(frozen=True)
+class _Head:
+    """What every variant's screen takes from its structure's fit, made once a family: the
+    structure, its fit, its start values for the freed parts (the bench's defaults), the
+    noise floors and its data term."""
+
+    structure: Structure
+    fitted: object  # its EstimationResult
+    defaults: dict[str, float]
+    floors: dict
+    data_term: float
+
+    @classmethod
+    def of(cls, structure: Structure, fitted, shared: tuple) -> "_Head":
+        training, fitted_noise, _, _, source = shared
+        inputs = inputs_from_experiments(on_structure(structure, training, fitted_noise), source=source)
+        params = get_simulator(next(iter(inputs.fmus.values()))).parameters
+        floors = Judge.of(training, fitted_noise).floors
+        return cls(structure, fitted, {n: p.start for n, p in params.items() if p.start is not None}, floors,
+                   score(residuals_at(inputs, fitted.x), floors)[0])
+
+
+def _screened(variant: Structure, head: _Head, shared: tuple, options: RunOptions) -> tuple:
+    """A variant's (result, archive): its screen from ``head``'s optimum, searched whole too
+    where the screen comes within :data:`REACH` (module docstring)."""
+    training, fitted_noise, workdir, _, source = shared
+    freed = [n for n in variant.estimate if n not in head.structure.estimate]
+    held = {n: head.defaults[n] for n in freed if n in head.defaults}
+    start = {**head.fitted.best(), **held}  # the freed parts where the structure holds them
     estimate = {n: replace(spec, start=float(np.clip(start[n], spec.min, spec.max))) if n in start else spec
                 for n, spec in variant.estimate.items()}
     inputs = inputs_from_experiments(on_structure(replace(variant, estimate=estimate), training, fitted_noise),
@@ -181,8 +200,7 @@ def _screened(variant: Structure, head: Structure, fitted, shared: tuple, option
     ms = {**options.estimator_options.get("ms", {}), **SCREEN, "vary": freed}
     screen = best_run(inputs, replace(options, estimator_options={**options.estimator_options, "ms": ms}),
                       workdir / f"{variant.name}.screen.h5", (), replace_stale=True)
-    floors = Judge.of(training, fitted_noise).floors
-    gain = score(residuals_at(head_inputs, fitted.x), floors)[0] - score(residuals_at(inputs, screen[0].x), floors)[0]
+    gain = head.data_term - score(residuals_at(inputs, screen[0].x), head.floors)[0]
     if gain < REACH:
         return screen
     whole = _calibrated(variant, shared, options)
