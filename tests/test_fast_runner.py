@@ -199,6 +199,28 @@ def test_events_and_mixed_grids_as_the_cvode_runner_gives_them(fmus):
     assert np.max(np.abs(fast["pm"] - cvode["pm"])) < 1e-4
 
 
+@pytest.mark.parametrize("runner", ["compiled", "exponential"])
+@pytest.mark.parametrize("bench", ["plain", "rate-limited"])
+def test_an_output_time_within_rounding_of_an_event_is_the_value_after_it(fmus, rate_limited_input_bench,
+                                                                            bench, runner):
+    """An input step (a time event) at 20 s and output times a few rounding units after it:
+    CVODE, reinitialised at the event, refuses a first step that short ("tout too close to
+    t0"); the runner ends the step at the event instead (a fleet unit's plot failed there).
+    Without event indicators and with them (the rate-limited bench's)."""
+    fmu = fmus["FrequencyInput"] if bench == "plain" else rate_limited_input_bench
+    rows = np.arange(0.0, 40.0, 0.04)
+    before, after = rows < 20.0, rows > 20.0
+    time = np.concatenate([rows[before], [20.0, 20.0], rows[after]])
+    values = np.concatenate([-0.05 * np.ones(before.sum() + 1), np.zeros(after.sum() + 1)])
+    close = [20.0 + k * np.spacing(20.0) for k in (1, 4, 32)]
+    out = np.array([19.0, 20.0, *close, 21.0])
+    traj = Simulator(fmu).simulate({}, output_times=out, input_time=time, inputs={"f_dev": values},
+                                   outputs=["pm"], runner=runner)
+    assert np.all(np.isfinite(traj["pm"]))
+    np.testing.assert_allclose(traj["pm"][2:5], traj["pm"][1], atol=1e-12)
+    assert abs(traj["pm"][0] - traj["pm"][-1]) > 1e-3  # the step moved the governor
+
+
 def test_integer_and_boolean_outputs(c_fmus):
     traj = Simulator(c_fmus["Counter"]).simulate({"period": 0.5}, stop_time=2.2, output_interval=0.25,
                                                  outputs=["count", "odd", "x"], runner="exponential")
