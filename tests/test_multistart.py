@@ -202,6 +202,18 @@ def test_a_set_runs_its_second_wave_only_where_the_first_does_not_settle_it():
     assert cut.x == pytest.approx(whole.x, abs=1e-6) and held.x == pytest.approx(whole.x, abs=1e-6)
 
 
+def test_starts_that_reach_the_best_along_a_ridge_do_not_settle_the_set():
+    """Where the starts reach the best fitness at several points (T1 + T3 fixed, their
+    split free: a ridge), the first wave does not settle the set, however many starts
+    reached it from however far apart: more starts may still extend the ridge (a fleet
+    unit's rate-limited IEEEG1 stopped short of its optimum when they did not run)."""
+    space = SearchSpace(("T1", "T3", "R"), np.array([0.1, 0.1, 0.0]), np.array([5.0, 5.0, 1.0]))
+    ridge = lambda X: np.column_stack([X[:, 0] + X[:, 1] - 3.0, X[:, 2] - 0.5, np.ones(len(X))])  # noqa: E731
+    res = multistart(Residuals(ridge), space, options=MSOptions(waves=2), rng=np.random.default_rng(1))
+    assert len(res.history[-1].extras["start_fun"]) == 4 + 2 * 3
+    assert "elsewhere" in res.stop_reason
+
+
 def test_waves_and_spread_are_checked():
     with pytest.raises(ValueError, match="waves"):
         MSOptions(waves=0)

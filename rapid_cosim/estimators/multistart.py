@@ -17,10 +17,12 @@ never a repeat), so that an optimum found by few starts is searched for again.
 
 A set runs in ``waves`` (issue 54): its best-screened half first, the rest only where that
 half does not settle it. A wave settles the search when ``min_reached`` starts end at the
-best and the starts that reached it set out from points at least ``spread`` apart (in the
-unit box, in some parameter): one basin that draws starts from across the design leaves
-none unexplored that the rest of the set, screened worse, would find. Where the starts
-that reached the best set out side by side, the rest run, as they always did. The
+best, at one point, and the starts that reached it set out from points at least ``spread``
+apart (in the unit box, in some parameter): one basin that draws starts from across the
+design leaves none unexplored that the rest of the set, screened worse, would find. Where
+the starts that reached the best set out side by side, or ended at several points of the
+best fitness (a ridge, whose far end more starts may still extend), the rest run, as they
+always did. The
 study behind the numbers: ``benchmarks/starts_study.py`` (the first 4 starts of a fit
 reached its best in 93 % of a fleet's fits, the first 8 in 98 %).
 
@@ -115,14 +117,27 @@ def _nested_starts(space: SearchSpace, u0: np.ndarray, vary: tuple[str, ...], rn
     return U
 
 
-def reached_best(fun: np.ndarray, margin: float) -> int:
-    """Starts whose final fitness is within ``margin`` (relative) of the best."""
+def _top(fun: np.ndarray, margin: float) -> np.ndarray:
+    """The starts whose final fitness is within ``margin`` (relative) of the best."""
     f = np.asarray(fun, dtype=float)
     ok = np.isfinite(f)
     if not ok.any():
-        return 0
+        return ok
     best = float(np.min(f[ok]))
-    return int(np.sum(f[ok] <= best + margin * abs(best)))
+    return ok & (f <= best + margin * abs(best))
+
+
+def reached_best(fun: np.ndarray, margin: float) -> int:
+    """Starts whose final fitness is within ``margin`` (relative) of the best."""
+    return int(np.sum(_top(fun, margin)))
+
+
+def _others(space: SearchSpace, u_top: np.ndarray, best: np.ndarray) -> list[np.ndarray]:
+    """The end points (of starts at the best fitness) other than the best point: more
+    than DISTINCT apart from it, relative, in some parameter."""
+    points = space.from_unit(np.clip(u_top, 0.0, 1.0))
+    scale = np.maximum(np.abs(best), 1e-12)
+    return [x for x in points if np.any(np.abs(x - best) > DISTINCT * scale)]
 
 
 class _Starts:
@@ -154,15 +169,18 @@ class _Starts:
     def fun(self) -> np.ndarray:
         return np.concatenate(self.f)
 
-    def settled(self, min_reached: int, margin: float, spread: float) -> bool:
-        """Whether ``min_reached`` starts reached the best from points ``spread`` apart."""
+    def settled(self, space: SearchSpace, best: np.ndarray, o: "MSOptions") -> bool:
+        """Whether ``min_reached`` starts reached the best from points ``spread`` apart, all
+        at one point: starts that reach the best fitness at several points lie along a
+        ridge, whose far end more starts may still extend (a fleet unit's rate-limited
+        IEEEG1, issue 54)."""
         f = self.fun
-        if reached_best(f, margin) < min_reached:
+        if reached_best(f, o.margin) < o.min_reached:
             return False
-        ok = np.isfinite(f)
-        at_best = np.vstack(self.origins)[ok & (f <= np.min(f[ok]) + margin * abs(np.min(f[ok])))]
+        top = _top(f, o.margin)
+        at_best = np.vstack(self.origins)[top]
         apart = np.max(np.abs(at_best[:, None, :] - at_best[None, :, :]), axis=2)
-        return bool(np.max(apart) >= spread)
+        return bool(np.max(apart) >= o.spread) and not _others(space, np.vstack(self.u)[top], best)
 
 
 def multistart(
@@ -196,7 +214,7 @@ def multistart(
             U = np.vstack([u0, nested, U])
         for k, wave in enumerate(np.array_split(U, min(o.waves, len(U)))):
             starts.run(t, wave, lm, known)
-            if k < o.waves - 1 and starts.settled(o.min_reached, o.margin, o.spread):
+            if k < o.waves - 1 and starts.settled(space, t.best_x, o):
                 break
         if reached_best(starts.fun, o.margin) >= o.min_reached or used + n > len(design):
             break
@@ -214,15 +232,10 @@ def elsewhere(space: SearchSpace, u: np.ndarray, f: np.ndarray, margin: float, b
     not fix those parameters, however many starts reached it. Two points that differ by
     two parameters' values swapped are named as such (two lags in series, no limit
     between them: :mod:`rapid_cosim.structures.identifiability`)."""
-    ok = np.isfinite(f)
-    if not ok.any():
-        return ""
-    top = ok & (f <= np.min(f[ok]) + margin * abs(np.min(f[ok])))
-    points = space.from_unit(np.clip(u[top], 0.0, 1.0))
-    scale = np.maximum(np.abs(best), 1e-12)
-    other = [x for x in points if np.any(np.abs(x - best) > DISTINCT * scale)]
+    other = _others(space, u[_top(f, margin)], best)
     if not other:
         return ""
+    scale = np.maximum(np.abs(best), 1e-12)
     far = max(other, key=lambda x: float(np.max(np.abs(x - best) / scale)))
     moved = [k for k in range(best.size) if abs(far[k] - best[k]) > DISTINCT * scale[k]]
     near = lambda a, b: abs(a - b) <= DISTINCT * max(abs(a), abs(b), 1e-12)  # noqa: E731
