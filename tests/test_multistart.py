@@ -8,6 +8,7 @@ import pytest
 
 from rapid_cosim.estimators import Evaluations, MSOptions, SearchSpace, multistart, reached_best, run_chain
 from rapid_cosim.estimators.profile import grid, profile
+from rapid_cosim.estimators.multistart import _Starts
 from rapid_cosim.compiler.source import ModelSource
 
 
@@ -202,16 +203,37 @@ def test_a_set_runs_its_second_wave_only_where_the_first_does_not_settle_it():
     assert cut.x == pytest.approx(whole.x, abs=1e-6) and held.x == pytest.approx(whole.x, abs=1e-6)
 
 
-def test_starts_that_reach_the_best_along_a_ridge_do_not_settle_the_set():
-    """Where the starts reach the best fitness at several points (T1 + T3 fixed, their
-    split free: a ridge), the first wave does not settle the set, however many starts
-    reached it from however far apart: more starts may still extend the ridge (a fleet
-    unit's rate-limited IEEEG1 stopped short of its optimum when they did not run)."""
+def test_a_level_ridge_settles_in_the_first_wave():
+    """Where every start ends at the best fitness, at several points (T1 + T3 fixed, their
+    split free), the ridge is level: a parameter the data leave free, and the first wave
+    settles the set."""
     space = SearchSpace(("T1", "T3", "R"), np.array([0.1, 0.1, 0.0]), np.array([5.0, 5.0, 1.0]))
-    ridge = lambda X: np.column_stack([X[:, 0] + X[:, 1] - 3.0, X[:, 2] - 0.5, np.ones(len(X))])  # noqa: E731
-    res = multistart(Residuals(ridge), space, options=MSOptions(waves=2), rng=np.random.default_rng(1))
-    assert len(res.history[-1].extras["start_fun"]) == 4 + 2 * 3
+    level = lambda X: np.column_stack([X[:, 0] + X[:, 1] - 3.0, X[:, 2] - 0.5, np.ones(len(X))])  # noqa: E731
+    res = multistart(Residuals(level), space, options=MSOptions(waves=2), rng=np.random.default_rng(1))
+    assert len(res.history[-1].extras["start_fun"]) == int(np.ceil((4 + 2 * 3) / 2))
     assert "elsewhere" in res.stop_reason
+
+
+@pytest.mark.parametrize("ends, fun, origins, settled", [
+    ("one point", [1.0, 1.0, 1.0, 1.5], "apart", True),
+    ("a sloping ridge", [1.0, 1.0, 1.0, 1.5], "apart", False),  # others fall short: more starts may extend it
+    ("a level ridge", [1.0, 1.0, 1.0, 1.0], "apart", True),
+    ("one point", [1.0, 1.0, 1.0, 1.5], "side by side", False),
+    ("one point", [1.0, 1.0, 1.2, 1.5], "apart", False),  # two at the best, min_reached 3
+])
+def test_when_a_wave_settles_the_set(ends, fun, origins, settled):
+    """The settling rule (issue 54): ``min_reached`` starts at the best fitness, set out at
+    least ``spread`` apart, ending at one point or every start at the best; where several
+    points reach it and other starts fall short (a sloping ridge: a fleet unit's
+    rate-limited IEEEG1 stopped short of its optimum), the rest of the set runs."""
+    space = SearchSpace(("T1", "T3"), np.array([0.0, 0.0]), np.array([1.0, 1.0]))
+    u = np.array([[0.5, 0.5]] * 4) if ends == "one point" else np.array([[0.2, 0.8], [0.5, 0.5], [0.8, 0.2], [0.1, 0.1]])
+    o = np.array([[0.1, 0.1], [0.9, 0.5], [0.5, 0.9], [0.3, 0.3]]) if origins == "apart" else \
+        np.array([[0.5, 0.5], [0.55, 0.5], [0.5, 0.55], [0.3, 0.3]])
+    starts = _Starts()
+    starts.u, starts.f, starts.origins = [u], [np.array(fun)], [o]
+    best = space.from_unit(u[int(np.argmin(fun))])
+    assert starts.settled(space, best, MSOptions()) is settled
 
 
 def test_waves_and_spread_are_checked():
