@@ -176,10 +176,9 @@ class _Starts:
         points, with others short of it, lie along a sloping ridge whose far end more
         starts may still extend (a fleet unit's rate-limited IEEEG1, issue 54); where every
         start reached it, the ridge is level: a parameter the data leave free."""
-        f = self.fun
-        if reached_best(f, o.margin) < o.min_reached:
+        top = _top(self.fun, o.margin)
+        if np.sum(top) < o.min_reached:
             return False
-        top = _top(f, o.margin)
         at_best = np.vstack(self.origins)[top]
         apart = np.max(np.abs(at_best[:, None, :] - at_best[None, :, :]), axis=2)
         level = bool(np.all(top)) or not _others(space, np.vstack(self.u)[top], best)

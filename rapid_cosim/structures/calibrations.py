@@ -150,10 +150,12 @@ def _calibrate_all(structures, training, fitted_noise, options: RunOptions, work
 
 def _calibrated_family(family: tuple[Structure, ...], shared: tuple, options: RunOptions) -> list[tuple]:
     """Worker: a structure's (result, archive), then each of its variants' (screened)."""
-    runs = [_calibrated(family[0], shared, options)]
-    if len(family) > 1 and (options.method != "ms" or shared[3]):  # screened only by ms without searches
+    runs, searches = [_calibrated(family[0], shared, options)], shared[3]
+    if len(family) == 1:
+        return runs
+    if options.method != "ms" or searches:  # screened only by ms without searches
         return runs + [_calibrated(v, shared, options) for v in family[1:]]
-    head = _Head.of(family[0], runs[0][0], shared) if len(family) > 1 else None
+    head = _Head.of(family[0], runs[0][0], shared)
     return runs + [_screened(v, head, shared, options) for v in family[1:]]
 
 
