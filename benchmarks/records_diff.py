@@ -17,9 +17,13 @@ difference over the recorder's noise level, per event. For ``bench-fleet``
 (``bench-fleet/fleet/results/units/*.json``): per unit, the route, the explanation's
 verdict and the recommended fit before and after; where the records differ, both played on
 the unit's event by the unit's own bench (its plant's inputs, the record's values over its
-structure's constants), compared the same way. Prints every difference, and a line per
-bench: how many units have the same record, how many differ by under 0.1 of the noise (RMSE)
-and 0.5 at any sample, and every route or verdict that changed.
+structure's constants), compared the same way. For ``bench-structures`` (``--parts
+structures``, its campaigns kept in ``bench-structures/work``): per campaign, the structure
+named, recommended and exported before and after; where the exported .dyr texts differ, both
+read back and played by their structures on every test of the campaign, compared the same
+way (the worst test). Prints every difference, and a line per bench: how many units have
+the same record, how many differ by under 0.1 of the noise (RMSE) and 0.5 at any sample,
+and every route or verdict that changed.
 """
 
 from __future__ import annotations
@@ -169,7 +173,80 @@ def _played_apart(home: Path, a, b) -> tuple[float, float]:
     return float(np.sqrt(np.mean(d ** 2)) / sigma), float(np.max(np.abs(d)) / sigma)
 
 
-BENCHES = {"replay": ("bench-replay", "bench-replay/study.json"), "fleet": ("bench-fleet", "bench-fleet/study.json")}
+def structures_diff(before: Path, after: Path) -> list[str]:
+    old = {(c["truth"], c["seed"]): c for c in json.loads((before / "bench-structures" / "study.json").read_text())}
+    new = {(c["truth"], c["seed"]): c for c in json.loads((after / "bench-structures" / "study.json").read_text())}
+    changed, same, close, far = [], 0, 0, []
+    for key, a in old.items():
+        b, name = new.get(key), "{}-{}".format(*key)
+        if b is None:
+            changed.append(f"{name}: not in the run after")
+            continue
+        if (a["named"], a["recommended"], a["exported"]) != (b["named"], b["recommended"], b["exported"]):
+            changed.append(f"{name}: named {a['named']}, recommended {a['recommended']}, exported {a['exported']} -> "
+                           f"{b['named']}, {b['recommended']}, {b['exported']}")
+        records = [_structures_record(root, name, c) for root, c in ((before, a), (after, b))]
+        if records[0][1] == records[1][1]:
+            same += 1
+            continue
+        rmse, peak = _campaign_apart(after / "bench-structures" / "work" / name, *records)
+        ok = rmse < RMSE_BAR and peak < PEAK_BAR
+        close += ok
+        if not ok:
+            far.append(f"{name}: {b['exported']}'s response moved by {rmse:.3f} (RMSE) and {peak:.3f} (largest) "
+                       f"noise levels (worst test; RMSE/noise against the data {a['worst_rmse_over_noise']:.3f} -> "
+                       f"{b['worst_rmse_over_noise']:.3f})")
+    return [f"bench-structures: {len(old)} campaigns before; named, recommended or exported changed: {len(changed)}"
+            + "".join(f"\n  {c}" for c in changed)
+            + f"\n  exported records: the same on {same}, a response within {RMSE_BAR:g}/{PEAK_BAR:g} of the noise "
+              f"on {close} more; otherwise: {len(far)}" + "".join(f"\n  {f}" for f in far)]
+
+
+def _structures_record(root: Path, name: str, case: dict) -> tuple[str, str]:
+    """A campaign's exported record: its structure and its .dyr text."""
+    from rapid_cosim.identify.study import base_name
+
+    model = base_name(case["exported"])
+    return model, (root / "bench-structures" / "work" / name / f"{model}.dyr").read_text()
+
+
+def _campaign_apart(folder: Path, a: tuple[str, str], b: tuple[str, str]) -> tuple[float, float]:
+    """Two exported records of a bench-structures campaign, each played by its structure on
+    every test of the campaign: their difference over each test's noise level (the worst
+    test's RMSE, the largest at any sample)."""
+    import tempfile
+
+    from rapid_cosim.compiler.source import ModelSource
+    from rapid_cosim.diagnose.selection import noise_floors
+    from rapid_cosim.exchange import read_record
+    from rapid_cosim.experiment import load_experiment
+    from rapid_cosim.fitting.objective import simulate_experiment
+    from rapid_cosim.noise import campaign_noise
+    from rapid_cosim.structures.structure import Structure, on_structure
+
+    tests = [load_experiment(c) for c in sorted(folder.glob("test*/config.toml"))]
+    fits = campaign_noise(tests)
+    floors = noise_floors(tests, fits)
+    source, curves = ModelSource(fmu_dir=ROOT / "fmus"), []
+    for model, text in (a, b):
+        with tempfile.TemporaryDirectory() as tmp:
+            (Path(tmp) / f"{model}.dyr").write_text(text)
+            record = read_record(Path(tmp) / f"{model}.dyr").values
+        as_read, values = Structure.load(ROOT / "experiments" / "structures" / f"{model}.toml").playing(record)
+        played = []
+        for on in on_structure(as_read, tests, fits):
+            out = [n for n in on.outputs if on.weights[n] > 0][0]
+            played.append(simulate_experiment(on, source.fmu(on.model), {**on.fixed, **values})[out])
+        curves.append(played)
+    worst = (0.0, 0.0)
+    for test, x, y in zip(tests, *curves):
+        d, sigma = y - x, float(floors[test.name].sigma)
+        worst = max(worst, (float(np.sqrt(np.mean(d ** 2)) / sigma), float(np.max(np.abs(d)) / sigma)))
+    return worst
+
+
+BENCHES = {"replay": ("bench-replay", "bench-replay/study.json"), "fleet": ("bench-fleet", "bench-fleet/study.json"),
+           "structures": ("bench-structures", "bench-structures/study.json")}
 
 
 def run_benches(tree: Path, results: Path, parts: list[str]) -> None:
@@ -185,6 +262,11 @@ def run_benches(tree: Path, results: Path, parts: list[str]) -> None:
         if (results / done).exists():
             continue
         print(f"  {tree.name}: make {target} ...", file=sys.stderr, flush=True)
+        if part == "structures":  # its campaigns kept, to play both records on their tests
+            subprocess.run([str(venv / "bin" / "python"), "benchmarks/structures_study.py", "--seeds", "10",
+                            "--n-jobs", "2", "--keep", str(results / "bench-structures" / "work"), "--json",
+                            str(results / done)], env=tree_env(tree), cwd=tree, check=True)
+            continue
         # -o: this checkout's venv is not reinstalled from the tree's pyproject.toml
         subprocess.run(["make", "--no-print-directory", "-C", str(tree), f"VENV={venv}", "-o",
                         str(venv / ".installed"), f"RESULTS={results}", target], env=tree_env(tree), check=True)
@@ -199,6 +281,7 @@ def main(argv=None) -> None:
     parser.add_argument("--parts", default="replay,fleet")
     args = parser.parse_args(argv)
     parts = args.parts.split(",")
+    args.work = args.work.resolve()  # make -C and the study scripts run in the tree
     if args.rev:
         from identify_bench import checkout
 
@@ -212,6 +295,8 @@ def main(argv=None) -> None:
         print("\n".join(replay_diff(args.before, args.after)))
     if "fleet" in parts:
         print("\n".join(fleet_diff(args.before, args.after)))
+    if "structures" in parts:
+        print("\n".join(structures_diff(args.before, args.after)))
 
 
 if __name__ == "__main__":
