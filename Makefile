@@ -155,8 +155,8 @@ profile-identify: fmus  ## where an identification spends its time, by stage and
 bench-identify: fmus  ## identifications timed before (BEFORE=7176f80, the last round) and after in one run (per stage, simulations, answers side by side, records' behaviour apart in noise units), and 10 fleet units on 2 workers
 	$(PY) benchmarks/identify_bench.py --before $(or $(BEFORE),7176f80) --work $(RESULTS)/bench-identify --json $(RESULTS)/bench-identify/study.json
 
-records-diff: fmus  ## make bench-replay and bench-fleet at BEFORE=cb03e04 and here, their records compared by what they do (responses in noise units), routes and verdicts
-	$(PY) benchmarks/records_diff.py --rev $(or $(BEFORE),cb03e04) --work $(RESULTS)/records-diff
+records-diff: fmus  ## make bench-replay and bench-fleet (PARTS=replay,fleet; structures too) at BEFORE=cb03e04 and here, their records compared by what they do (responses in noise units), routes and verdicts
+	$(PY) benchmarks/records_diff.py --rev $(or $(BEFORE),cb03e04) --work $(RESULTS)/records-diff --parts $(or $(PARTS),replay$(comma)fleet)
 
 stories-diff: fmus  ## make demo, diagnose, identify and fleet under the code before the speed and house work (b2983af) and HEAD: printed stories and answer files compared, times and paths aside
 	-$(PY) benchmarks/stories_diff.py --work $(RESULTS)/stories-diff
