@@ -189,7 +189,7 @@ def structures_diff(before: Path, after: Path) -> list[str]:
         if records[0][1] == records[1][1]:
             same += 1
             continue
-        rmse, peak = _campaign_apart(after / "bench-structures" / "work" / name, *records)
+        rmse, peak = _campaign_apart(after / "bench-structures" / "work" / "cases" / name, *records)
         ok = rmse < RMSE_BAR and peak < PEAK_BAR
         close += ok
         if not ok:
@@ -207,7 +207,7 @@ def _structures_record(root: Path, name: str, case: dict) -> tuple[str, str]:
     from rapid_cosim.identify.study import base_name
 
     model = base_name(case["exported"])
-    return model, (root / "bench-structures" / "work" / name / f"{model}.dyr").read_text()
+    return model, (root / "bench-structures" / "work" / "cases" / name / f"{model}.dyr").read_text()
 
 
 def _campaign_apart(folder: Path, a: tuple[str, str], b: tuple[str, str]) -> tuple[float, float]:
