@@ -176,7 +176,7 @@ def _played_apart(home: Path, a, b) -> tuple[float, float]:
 def structures_diff(before: Path, after: Path) -> list[str]:
     old = {(c["truth"], c["seed"]): c for c in json.loads((before / "bench-structures" / "study.json").read_text())}
     new = {(c["truth"], c["seed"]): c for c in json.loads((after / "bench-structures" / "study.json").read_text())}
-    changed, same, close, far = [], 0, 0, []
+    changed, same, close, far, nearest = [], 0, 0, [], []
     for key, a in old.items():
         b, name = new.get(key), "{}-{}".format(*key)
         if b is None:
@@ -192,6 +192,7 @@ def structures_diff(before: Path, after: Path) -> list[str]:
         rmse, peak = _campaign_apart(after / "bench-structures" / "work" / "cases" / name, *records)
         ok = rmse < RMSE_BAR and peak < PEAK_BAR
         close += ok
+        nearest.append(f"{name}: {rmse:.3f} / {peak:.3f}")
         if not ok:
             far.append(f"{name}: {b['exported']}'s response moved by {rmse:.3f} (RMSE) and {peak:.3f} (largest) "
                        f"noise levels (worst test; RMSE/noise against the data {a['worst_rmse_over_noise']:.3f} -> "
@@ -199,7 +200,9 @@ def structures_diff(before: Path, after: Path) -> list[str]:
     return [f"bench-structures: {len(old)} campaigns before; named, recommended or exported changed: {len(changed)}"
             + "".join(f"\n  {c}" for c in changed)
             + f"\n  exported records: the same on {same}, a response within {RMSE_BAR:g}/{PEAK_BAR:g} of the noise "
-              f"on {close} more; otherwise: {len(far)}" + "".join(f"\n  {f}" for f in far)]
+              f"on {close} more; otherwise: {len(far)}" + "".join(f"\n  {f}" for f in far)
+            + ("\n  records that differ, their responses apart (RMSE / largest, noise levels): " + "; ".join(nearest)
+               if nearest else "")]
 
 
 def _structures_record(root: Path, name: str, case: dict) -> tuple[str, str]:
