@@ -4,11 +4,13 @@ answers read side by side (``make records-diff``).
 
     python benchmarks/records_diff.py --rev cb03e04 [--work results/records-diff]   # runs both, then compares
     python benchmarks/records_diff.py --before BEFORE/results --after results          # compares runs made
+    python benchmarks/records_diff.py --before benchmarks/baselines/7176f80 --after results --parts fleet,structures
 
 With ``--rev``, that commit is checked out into the work folder (``git worktree``) and its
 own two benches run there (this checkout's environment, its code on ``PYTHONPATH``), then
 this checkout's into ``--work``; a bench whose ``study.json`` is there already is not run
-again.
+again. ``benchmarks/baselines/`` keeps an earlier revision's answers (its README), so
+that only this checkout's benches need to run.
 
 For ``bench-replay`` (``bench-replay/study.json``): per unit, the record delivered before
 and after; where the texts differ, both are taken from the ANDES runs each study cached
