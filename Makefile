@@ -122,8 +122,10 @@ structures: fmus  ## identify's deliverable part alone: which structure (TG Type
 report-example: fmus  ## the validation report (HTML, PDF) of a synthetic TGOV1 unit, two tests held out; its picture in docs/
 	$(PY) docs/report_example.py --results $(RESULTS)/report-example --picture docs/validation_report.png
 
-bench-structures: fmus  ## identify's structure choice on synthetic campaigns (SEEDS=10 per standard structure): named, deadbands kept where none is, exported .dyr's RMSE/noise
-	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),10) --n-jobs $(N_JOBS) --json $(RESULTS)/bench-structures/study.json
+bench-structures: fmus  ## identify's structure choice on synthetic campaigns (SEEDS=10 per standard structure): named, deadbands kept where none is, exported .dyr's RMSE/noise; campaigns kept in results/bench-structures/work (records-diff plays them)
+	rm -rf $(RESULTS)/bench-structures/work  # a kept campaign's archives would be resumed, not fitted again
+	$(PY) benchmarks/structures_study.py --seeds $(or $(SEEDS),10) --n-jobs $(N_JOBS) --json $(RESULTS)/bench-structures/study.json \
+		--keep $(RESULTS)/bench-structures/work
 
 bench-diagnose: fmus  ## confusion matrix of the discrepancy workflow on synthetic campaigns (SEEDS=1-5); then the true model on 200 effect-free campaigns: adequacy p-values, false alarms, interval coverage
 	$(PY) benchmarks/diagnose_study.py --seeds $(or $(SEEDS),1-5) --n-jobs $(N_JOBS) --calibration 200 \
