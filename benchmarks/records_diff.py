@@ -43,6 +43,11 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 RMSE_BAR, PEAK_BAR = 0.1, 0.5  # of the recorder's noise level
 
 
+def _apart(d: np.ndarray, sigma: float) -> tuple[float, float]:
+    """A difference of two responses over the noise level: RMSE and largest."""
+    return float(np.sqrt(np.mean(d ** 2)) / sigma), float(np.max(np.abs(d)) / sigma)
+
+
 def _cached(work: Path, record: str, event) -> dict | None:
     from replay_study import on_generator_1
 
@@ -75,7 +80,7 @@ def replay_diff(before: Path, after: Path) -> list[str]:
                 lines.append(f"  {unit} {name}: no cached ANDES run to compare")
                 continue
             d = np.interp(x["t"], y["t"], y["pe"]) - x["pe"]
-            worst = max(worst, (float(np.sqrt(np.mean(d ** 2)) / sigma), float(np.max(np.abs(d)) / sigma)))
+            worst = max(worst, _apart(d, sigma))
         ok = worst[0] < RMSE_BAR and worst[1] < PEAK_BAR
         close += ok
         (lines.append if ok else far.append)(f"{unit}: record differs, its response by {worst[0]:.3f} (RMSE) and "
@@ -172,7 +177,7 @@ def _played_apart(home: Path, a, b) -> tuple[float, float]:
     curves = [simulate_experiment(on, fmu, table.played(r.parameters, {**on.fixed})) for r in (a, b)]
     out = [n for n in on.outputs if on.weights[n] > 0][0]
     d = curves[1][out] - curves[0][out]
-    return float(np.sqrt(np.mean(d ** 2)) / sigma), float(np.max(np.abs(d)) / sigma)
+    return _apart(d, sigma)
 
 
 def structures_diff(before: Path, after: Path) -> list[str]:
@@ -246,7 +251,7 @@ def _campaign_apart(folder: Path, a: tuple[str, str], b: tuple[str, str]) -> tup
     worst = (0.0, 0.0)
     for test, x, y in zip(tests, *curves):
         d, sigma = y - x, float(floors[test.name].sigma)
-        worst = max(worst, (float(np.sqrt(np.mean(d ** 2)) / sigma), float(np.max(np.abs(d)) / sigma)))
+        worst = max(worst, _apart(d, sigma))
     return worst
 
 
