@@ -193,7 +193,7 @@ def structures_diff(before: Path, after: Path) -> list[str]:
             changed.append(f"{name}: named {a['named']}, recommended {a['recommended']}, exported {a['exported']} -> "
                            f"{b['named']}, {b['recommended']}, {b['exported']}")
         records = [_structures_record(root, name, c) for root, c in ((before, a), (after, b))]
-        if records[0][1] == records[1][1]:
+        if records[0][1].read_text() == records[1][1].read_text():
             same += 1
             continue
         rmse, peak = _campaign_apart(after / "bench-structures" / "work" / "cases" / name, *records)
@@ -212,20 +212,18 @@ def structures_diff(before: Path, after: Path) -> list[str]:
                if nearest else "")]
 
 
-def _structures_record(root: Path, name: str, case: dict) -> tuple[str, str]:
-    """A campaign's exported record: its structure and its .dyr text."""
+def _structures_record(root: Path, name: str, case: dict) -> tuple[str, Path]:
+    """A campaign's exported record: its structure and its .dyr file."""
     from rapid_cosim.identify.study import base_name
 
     model = base_name(case["exported"])
-    return model, (root / "bench-structures" / "work" / "cases" / name / f"{model}.dyr").read_text()
+    return model, root / "bench-structures" / "work" / "cases" / name / f"{model}.dyr"
 
 
-def _campaign_apart(folder: Path, a: tuple[str, str], b: tuple[str, str]) -> tuple[float, float]:
+def _campaign_apart(folder: Path, a: tuple[str, Path], b: tuple[str, Path]) -> tuple[float, float]:
     """Two exported records of a bench-structures campaign, each played by its structure on
     every test of the campaign: their difference over each test's noise level (the worst
     test's RMSE, the largest at any sample)."""
-    import tempfile
-
     from rapid_cosim.compiler.source import ModelSource
     from rapid_cosim.diagnose.selection import noise_floors
     from rapid_cosim.exchange import read_record
@@ -238,10 +236,8 @@ def _campaign_apart(folder: Path, a: tuple[str, str], b: tuple[str, str]) -> tup
     fits = campaign_noise(tests)
     floors = noise_floors(tests, fits)
     source, curves = ModelSource(fmu_dir=ROOT / "fmus"), []
-    for model, text in (a, b):
-        with tempfile.TemporaryDirectory() as tmp:
-            (Path(tmp) / f"{model}.dyr").write_text(text)
-            record = read_record(Path(tmp) / f"{model}.dyr").values
+    for model, dyr in (a, b):
+        record = read_record(dyr).values
         as_read, values = Structure.load(ROOT / "experiments" / "structures" / f"{model}.toml").playing(record)
         played = []
         for on in on_structure(as_read, tests, fits):
