@@ -102,6 +102,9 @@ def _events(unit: str, after: Path) -> dict:
         configs = [ROOT / "experiments" / "steam" / e for e in steam.EVENTS]
         sigmas = rs.noise_levels(configs)
         return {e: (ev, sigmas[e]) for e, (ev, _) in steam.EVENTS.items()}
+    if unit.startswith("deadband unit") or unit.startswith("gas unit"):
+        events, sigmas = rs.deadband_events() if unit.startswith("deadband") else rs.gas_events()
+        return {e: (ev, sigmas[e]) for e, ev in events.items()}
     if unit.startswith("electrical unit"):
         sys.path.insert(0, str(ROOT / "experiments" / "electrical"))
         import andes_grid

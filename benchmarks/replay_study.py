@@ -310,6 +310,22 @@ def _plain_record(result, model: str, folder: Path) -> str:
     return rc.export(archive, folder / f"{model}-plain.dyr", bus=GENERATOR_BUS).text
 
 
+def deadband_events() -> tuple[dict, dict[str, float]]:
+    """The deadband unit's events (its recorded ones and the 50 MW one) and noise levels."""
+    gen = _generator("deadband")
+    events = {name: ev for name, (ev, _) in gen.EVENTS.items()} | {"50 MW at bus 9": gen.SMALL}
+    sigmas = noise_levels([ROOT / "experiments" / "deadband" / n for n in gen.EVENTS])
+    sigmas["50 MW at bus 9"] = float(np.mean(list(sigmas.values())))  # the same recorder
+    return events, sigmas
+
+
+def gas_events() -> tuple[dict, dict[str, float]]:
+    """The gas unit's recorded events and noise levels."""
+    gen = _generator("gas")
+    events = {name: ev for name, (ev, _) in gen.EVENTS.items()}
+    return events, noise_levels([ROOT / "experiments" / "gas" / n for n in events])
+
+
 def deadband_rows(work: Path, units=DEADBAND_UNITS) -> list[dict]:
     """The deadband unit of each unit file, identified and replayed on every event with
     the 50 MW one, beside its TGOV1 fitted without a deadband."""
@@ -317,9 +333,7 @@ def deadband_rows(work: Path, units=DEADBAND_UNITS) -> list[dict]:
 
     gen = _generator("deadband")
     home = ROOT / "experiments" / "deadband"
-    events = {name: ev for name, (ev, _) in gen.EVENTS.items()} | {"50 MW at bus 9": gen.SMALL}
-    sigmas = noise_levels([home / n for n in gen.EVENTS])
-    sigmas["50 MW at bus 9"] = float(np.mean(list(sigmas.values())))  # the same recorder
+    events, sigmas = deadband_events()
     out = []
     for file in units:
         stem = Path(file).stem
@@ -347,9 +361,8 @@ def gas_rows(work: Path) -> list[dict]:
     home = ROOT / "experiments" / "gas"
     result, seconds = identify(home / "unit.toml", work / "identify" / "gas")
     text = Path(result.files["dyr"]).read_text()
-    events = {name: ev for name, (ev, _) in gen.EVENTS.items()}
-    row = judge("gas unit (GAST)", text, gen.plant_record(), events, noise_levels([home / n for n in events]),
-                result.heldout, work, {})
+    events, sigmas = gas_events()
+    row = judge("gas unit (GAST)", text, gen.plant_record(), events, sigmas, result.heldout, work, {})
     row.update(record=result.recommended, fit=result.record(result.recommended).fit, seconds=seconds, dyr=text)
     return [row]
 
