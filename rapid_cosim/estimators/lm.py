@@ -28,9 +28,7 @@ bounds, log-scaled ones by their logarithm):
   scored in a multistart's design) is recorded with its score, not simulated again:
   a set's score does not depend on its batch, so the run is the one it would be.
 
-Each start's end point says which coordinates its last Jacobian does not see (``flat``:
-a zero column, a limit that never acts there), so that a multistart knows its agreement
-says nothing of them. Coordinates listed in ``fixed`` are never moved (a profile holds one parameter at each
+Coordinates listed in ``fixed`` are never moved (a profile holds one parameter at each
 value of a grid). Deterministic: no randomness, ties broken by start index.
 """
 
@@ -79,27 +77,6 @@ class LMRun:
     status: np.ndarray  # (starts,) codes of STATUS
     merged_into: np.ndarray  # (starts,)
     iterations: np.ndarray  # (starts,)
-    flat: np.ndarray | None = None  # (starts, d) coordinates the last Jacobian at the end point does not see
-
-
-FLAT = 1e-9  # a Jacobian column this small against the largest is one the residuals do not see
-
-
-def _flat(J: dict, n: int, d: int, merged: np.ndarray) -> np.ndarray:
-    """The coordinates whose Jacobian column is zero (relative to the largest), per start;
-    a merged start has those of the start it joined. A limit that never acts on the data
-    moves no residual, so its column is zero, not merely small."""
-    out = np.zeros((n, d), dtype=bool)
-    for s, Js in J.items():
-        if Js is not None:
-            norms = np.linalg.norm(Js, axis=0)
-            out[s] = norms <= FLAT * max(float(np.max(norms)), 1e-300)
-    for s in range(n):
-        k = s
-        while merged[k] >= 0:
-            k = merged[k]
-        out[s] = out[k]
-    return out
 
 
 def _evaluate(t: Tracker, P: np.ndarray, known: dict[bytes, tuple] | None = None):
@@ -281,7 +258,6 @@ def levenberg_marquardt(t: Tracker, U0: np.ndarray, options: LMOptions = LMOptio
         record()
     status[status == RUNNING] = MAX_ITER
     run.u, run.f = _shared(U, f, merged)
-    run.flat = _flat(J, n, d, merged)
     return run
 
 

@@ -23,11 +23,8 @@ design leaves none unexplored that the rest of the set, screened worse, would fi
 the starts that reached the best set out side by side, or ended at several points of the
 best fitness while other starts fell short of it (a sloping ridge, whose far end more
 starts may still extend), the rest run, as they always did; where every start ended at
-the best fitness the ridge is level (a parameter the data leave free) and settles. Nor
-does a wave settle where the best point holds a parameter on its bound with a zero
-Jacobian column there (:attr:`~.lm.LMRun.flat`): a rate limit pushed out until it never
-acts, whose starts cannot feel a basin where it binds (bench-structures' GGOV1-6 ended
-0.83 in BIC short of it). The study behind the numbers: ``benchmarks/starts_study.py`` (the first 4 starts of a fit
+the best fitness the ridge is level (a parameter the data leave free) and settles. The
+study behind the numbers: ``benchmarks/starts_study.py`` (the first 4 starts of a fit
 reached its best in 93 % of a fleet's fits, the first 8 in 98 %).
 
 The starts are the best points of a larger design (``screen`` points per dimension,
@@ -149,7 +146,7 @@ class _Starts:
     the start it merged into; what the waterfall records."""
 
     def __init__(self):
-        self.u, self.f, self.status, self.merged, self.origins, self.flat = [], [], [], [], [], []
+        self.u, self.f, self.status, self.merged, self.origins = [], [], [], [], []
 
     def extras(self, run=None) -> dict:
         """The waterfall so far, with ``run``'s starts as they stand."""
@@ -167,31 +164,20 @@ class _Starts:
         self.origins.append(np.array(U, dtype=float))
         self.u.append(run.u.copy()), self.f.append(run.f.copy()), self.status.append(run.status.copy())
         self.merged.append(np.where(run.merged_into >= 0, run.merged_into + offset, -1))
-        self.flat.append(run.flat)
         return run
 
     @property
     def fun(self) -> np.ndarray:
         return np.concatenate(self.f)
 
-    def idle_bound(self, margin: float) -> bool:
-        """Whether a start at the best fitness ends on a bound of a coordinate whose
-        Jacobian column is zero there."""
-        u, flat = np.vstack(self.u), np.vstack(self.flat)
-        on_bound = (u <= 0.0) | (u >= 1.0)
-        return bool(np.any((on_bound & flat)[_top(self.fun, margin)]))
-
     def settled(self, space: SearchSpace, best: np.ndarray, o: "MSOptions") -> bool:
         """Whether ``min_reached`` starts reached the best from points ``spread`` apart, all
         at one point or every start there. Starts that reach the best fitness at several
         points, with others short of it, lie along a sloping ridge whose far end more
         starts may still extend (a fleet unit's rate-limited IEEEG1, issue 54); where every
-        start reached it, the ridge is level: a parameter the data leave free. Never where
-        the best point holds a parameter on a bound that the residuals do not see there (a
-        rate limit pushed out until it never acts): no start on that plateau can feel a
-        basin where the limit binds, however many reach it (bench-structures' GGOV1-6)."""
+        start reached it, the ridge is level: a parameter the data leave free."""
         top = _top(self.fun, o.margin)
-        if np.sum(top) < o.min_reached or self.idle_bound(o.margin):
+        if np.sum(top) < o.min_reached:
             return False
         at_best = np.vstack(self.origins)[top]
         apart = np.max(np.abs(at_best[:, None, :] - at_best[None, :, :]), axis=2)
